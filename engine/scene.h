@@ -1,0 +1,73 @@
+#pragma once
+// A scene file (JSON) parsed into plain settings. Loading validates every
+// field; errors name the file, the JSON path and what is allowed. See
+// docs/scene-format.md for the keys and defaults.
+#include <array>
+#include <string>
+#include <vector>
+
+namespace incise {
+
+using Vec3 = std::array<double, 3>;
+
+// A set of mesh nodes, chosen geometrically or by id.
+struct Region {
+  enum class Kind { Box, Plane, Nodes };
+  Kind kind = Kind::Box;
+  Vec3 lo{}, hi{};            // Box: corners (inclusive, with a tolerance)
+  Vec3 point{}, normal{};     // Plane: nodes with (X - point) . normal <= 0 (tolerance)
+  std::vector<int> nodes;     // Nodes: 0-based node ids
+  std::string json_path;      // e.g. "fixed[1]", for messages
+};
+
+struct Prescribed {
+  Region region;
+  std::array<bool, 3> active{false, false, false};  // an absent component stays free
+  Vec3 displacement{};                              // final value of each active component
+  double ramp = 0.0;  // seconds; value grows linearly from 0 over [0, ramp], 0 = at once
+};
+
+enum class MaterialModel { Linear, Corotated };
+enum class RotationMode { PerPoint, Single };  // Single = tet10SR (rotation from corners)
+enum class MassKind { Lumped, Consistent };
+
+struct Material {
+  MaterialModel model = MaterialModel::Corotated;
+  RotationMode rotation = RotationMode::PerPoint;
+  double young = 0.0;    // Pa (or consistent units), > 0
+  double poisson = 0.0;  // in (-1, 0.5)
+  double density = 0.0;  // > 0
+  double rayleigh_mass = 0.0;       // a in D = a M + b K, >= 0
+  double rayleigh_stiffness = 0.0;  // b, >= 0
+};
+
+struct OutputSettings {
+  std::string dir;        // resolved; empty = no field output unless --out is given
+  int every = 1;          // write every N-th frame, >= 1
+  bool write_vtu = true;  // ParaView .vtu + .pvd series
+};
+
+struct Scene {
+  std::string path;       // the scene file as given
+  std::string mesh_file;  // resolved relative to the scene file's folder
+  int order = 2;          // element order the model uses (a tet4 mesh is raised to 2)
+  Material material;
+  MassKind mass = MassKind::Lumped;
+  Vec3 gravity{0.0, 0.0, -9.81};
+  std::vector<Region> fixed;
+  std::vector<Prescribed> prescribed;
+  double dt = 1.0 / 30.0;        // integrator.dt, > 0
+  int newton_iterations = 1;     // integrator.newton_iterations, >= 1
+  std::string solver_policy = "exact";  // solver.policy; only "exact" for now
+  double static_tolerance = 1e-8;       // static.tolerance: relative residual
+  int static_max_iterations = 50;       // static.max_iterations
+  int frames = 60;                      // run.frames default for `incise run`
+  OutputSettings output;
+};
+
+// Reads and validates a scene file. Throws incise::Error.
+Scene load_scene(const std::string& path);
+// Same, from text already read (path used for messages and relative paths).
+Scene parse_scene(const std::string& json_text, const std::string& path);
+
+}  // namespace incise
