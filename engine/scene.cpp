@@ -1,1 +1,493 @@
 #include "engine/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <climits>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/error.h"
+
+namespace incise {
+namespace {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+// A value as it appears in the file, shortened for messages.
+std::string show(const json& v) {
+  std::string s = v.dump();
+  if (s.size() > 60) s = s.substr(0, 57) + "...";
+  return s;
+}
+
+// "number", "integer", "string", ... with the value itself where short.
+std::string describe(const json& v) {
+  if (v.is_null()) return "null";
+  std::string type = v.is_number() ? "number" : v.type_name();
+  return type + " " + show(v);
+}
+
+std::string join(const std::vector<std::string>& items, const char* sep = ", ") {
+  std::string out;
+  for (size_t i = 0; i < items.size(); ++i) {
+    if (i) out += sep;
+    out += items[i];
+  }
+  return out;
+}
+
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      size_t sub = prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1);
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, sub});
+    }
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+// Builds JSON paths and throws errors that start with the scene path.
+class Parser {
+ public:
+  explicit Parser(std::string scene_path) : path_(std::move(scene_path)) {}
+
+  [[noreturn]] void fail(const std::string& where, const std::string& what) const {
+    // `what` starts with " must ..." or ": ...".
+    throw Error(path_ + ": " + where + what);
+  }
+
+  static std::string key(const std::string& parent, const std::string& k) {
+    return parent.empty() ? k : parent + "." + k;
+  }
+  static std::string index(const std::string& parent, size_t i) {
+    return parent + "[" + std::to_string(i) + "]";
+  }
+
+  // --- structure -----------------------------------------------------------
+
+  const json& object(const json& v, const std::string& where) const {
+    if (!v.is_object()) fail(where, " must be an object, got " + describe(v));
+    return v;
+  }
+
+  void allowed_keys(const json& obj, const std::string& where,
+                    const std::vector<std::string>& allowed) const {
+    for (auto it = obj.begin(); it != obj.end(); ++it) {
+      if (std::find(allowed.begin(), allowed.end(), it.key()) != allowed.end()) continue;
+      std::string msg = ": unknown key; allowed: " + join(allowed);
+      // Suggest the closest allowed key for a likely typo.
+      std::string best;
+      size_t best_d = 3;
+      for (const auto& a : allowed) {
+        size_t d = edit_distance(it.key(), a);
+        size_t len = std::max(it.key().size(), a.size());
+        if (d < best_d && 3 * d <= len) best_d = d, best = a;
+      }
+      if (!best.empty()) msg += "; did you mean \"" + best + "\"?";
+      fail(key(where, it.key()), msg);
+    }
+  }
+
+  const json& required(const json& obj, const std::string& where, const std::string& k,
+                       const std::string& expected) const {
+    auto it = obj.find(k);
+    if (it == obj.end()) fail(key(where, k), ": required key is missing (expected " + expected + ")");
+    return *it;
+  }
+
+  const json& array(const json& v, const std::string& where) const {
+    if (!v.is_array()) fail(where, " must be an array, got " + describe(v));
+    return v;
+  }
+
+  // --- scalars -------------------------------------------------------------
+
+  double number(const json& v, const std::string& where) const {
+    if (!v.is_number()) fail(where, " must be a number, got " + describe(v));
+    double x = v.get<double>();
+    if (!std::isfinite(x)) fail(where, " must be a finite number, got " + show(v));
+    return x;
+  }
+
+  int integer(const json& v, const std::string& where) const {
+    if (!v.is_number()) fail(where, " must be an integer, got " + describe(v));
+    if (v.is_number_unsigned()) {
+      if (v.get<unsigned long long>() > static_cast<unsigned long long>(INT_MAX))
+        fail(where, " is too large, got " + show(v));
+      return static_cast<int>(v.get<unsigned long long>());
+    }
+    if (v.is_number_integer()) {
+      long long x = v.get<long long>();
+      if (x > INT_MAX || x < INT_MIN) fail(where, " is out of range, got " + show(v));
+      return static_cast<int>(x);
+    }
+    double x = v.get<double>();  // accept 3.0, not 3.5
+    if (!std::isfinite(x) || x != std::floor(x)) fail(where, " must be an integer, got " + show(v));
+    if (x > INT_MAX || x < INT_MIN) fail(where, " is out of range, got " + show(v));
+    return static_cast<int>(x);
+  }
+
+  bool boolean(const json& v, const std::string& where) const {
+    if (!v.is_boolean()) fail(where, " must be a boolean (true or false), got " + describe(v));
+    return v.get<bool>();
+  }
+
+  std::string string(const json& v, const std::string& where) const {
+    if (!v.is_string()) fail(where, " must be a string, got " + describe(v));
+    return v.get<std::string>();
+  }
+
+  std::string nonempty_string(const json& v, const std::string& where) const {
+    std::string s = string(v, where);
+    if (s.empty()) fail(where, " must be a non-empty string, got \"\"");
+    return s;
+  }
+
+  // One of a fixed set of strings; returns its position in `allowed`.
+  size_t choice(const json& v, const std::string& where,
+                const std::vector<std::string>& allowed) const {
+    std::vector<std::string> quoted;
+    for (const auto& a : allowed) quoted.push_back("\"" + a + "\"");
+    if (!v.is_string())
+      fail(where, " must be one of " + join(quoted) + ", got " + describe(v));
+    auto it = std::find(allowed.begin(), allowed.end(), v.get<std::string>());
+    if (it == allowed.end()) fail(where, " must be one of " + join(quoted) + ", got " + show(v));
+    return static_cast<size_t>(it - allowed.begin());
+  }
+
+  double positive(const json& v, const std::string& where) const {
+    double x = number(v, where);
+    if (!(x > 0.0)) fail(where, " must be > 0, got " + show(v));
+    return x;
+  }
+
+  double nonnegative(const json& v, const std::string& where) const {
+    double x = number(v, where);
+    if (!(x >= 0.0)) fail(where, " must be >= 0, got " + show(v));
+    return x;
+  }
+
+  int at_least_one(const json& v, const std::string& where) const {
+    int n = integer(v, where);
+    if (n < 1) fail(where, " must be an integer >= 1, got " + show(v));
+    return n;
+  }
+
+  Vec3 vec3(const json& v, const std::string& where) const {
+    if (!v.is_array() || v.size() != 3) {
+      std::string got = v.is_array() ? "array of " + std::to_string(v.size()) + " values"
+                                     : describe(v);
+      fail(where, " must be an array of 3 numbers [x, y, z], got " + got);
+    }
+    Vec3 out{};
+    for (size_t i = 0; i < 3; ++i) out[i] = number(v[i], index(where, i));
+    return out;
+  }
+
+  // --- paths ---------------------------------------------------------------
+
+  // Relative paths are taken from the scene file's folder.
+  std::string resolve(const std::string& p) const {
+    fs::path file(p);
+    if (file.is_absolute()) return file.lexically_normal().string();
+    fs::path base = fs::path(path_).parent_path();
+    return (base / file).lexically_normal().string();
+  }
+
+  const std::string& scene_path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+// --- sections ----------------------------------------------------------------
+
+void parse_mesh(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "mesh";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"file", "order"});
+  std::string file =
+      p.nonempty_string(p.required(v, at, "file", "a mesh file path string"), at + ".file");
+  s.mesh_file = p.resolve(file);
+  std::error_code ec;
+  auto st = fs::status(s.mesh_file, ec);
+  if (ec || !fs::exists(st)) p.fail(at + ".file", ": file not found: " + s.mesh_file);
+  if (fs::is_directory(st)) p.fail(at + ".file", ": is a directory, not a mesh file: " + s.mesh_file);
+  if (auto it = v.find("order"); it != v.end()) {
+    int order = p.integer(*it, at + ".order");
+    if (order != 1 && order != 2) p.fail(at + ".order", " must be 1 or 2, got " + show(*it));
+    s.order = order;
+  }
+}
+
+void parse_material(const Parser& p, const json& v, Material& m) {
+  const std::string at = "material";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"model", "rotation", "young", "poisson", "density", "rayleigh"});
+  if (auto it = v.find("model"); it != v.end())
+    m.model = p.choice(*it, at + ".model", {"linear", "corotated"}) == 0
+                  ? MaterialModel::Linear
+                  : MaterialModel::Corotated;
+  if (auto it = v.find("rotation"); it != v.end())
+    m.rotation = p.choice(*it, at + ".rotation", {"per_point", "single"}) == 0
+                     ? RotationMode::PerPoint
+                     : RotationMode::Single;
+  m.young = p.positive(p.required(v, at, "young", "a number > 0"), at + ".young");
+  {
+    const json& nu = p.required(v, at, "poisson", "a number in (-1, 0.5)");
+    m.poisson = p.number(nu, at + ".poisson");
+    if (!(m.poisson > -1.0 && m.poisson < 0.5))
+      p.fail(at + ".poisson", " must be in (-1, 0.5), got " + show(nu));
+  }
+  m.density = p.positive(p.required(v, at, "density", "a number > 0"), at + ".density");
+  if (auto it = v.find("rayleigh"); it != v.end()) {
+    const std::string r = at + ".rayleigh";
+    p.object(*it, r);
+    p.allowed_keys(*it, r, {"mass", "stiffness"});
+    if (auto m_it = it->find("mass"); m_it != it->end())
+      m.rayleigh_mass = p.nonnegative(*m_it, r + ".mass");
+    if (auto k_it = it->find("stiffness"); k_it != it->end())
+      m.rayleigh_stiffness = p.nonnegative(*k_it, r + ".stiffness");
+  }
+}
+
+// Reads the one region key (box, plane or nodes) of a fixed/prescribed entry.
+Region parse_region(const Parser& p, const json& v, const std::string& at) {
+  Region r;
+  r.json_path = at;
+  std::vector<std::string> present;
+  for (const char* k : {"box", "plane", "nodes"})
+    if (v.contains(k)) present.push_back(k);
+  if (present.size() != 1) {
+    p.fail(at, present.empty()
+                   ? ": needs exactly one of box, plane, nodes; got none"
+                   : ": needs exactly one of box, plane, nodes; got " + join(present, " and "));
+  }
+  const std::string k = present[0];
+  const std::string rp = Parser::key(at, k);
+  const json& rv = v.at(k);
+  if (k == "box") {
+    r.kind = Region::Kind::Box;
+    if (!rv.is_array() || rv.size() != 2) {
+      std::string got = rv.is_array() ? "array of " + std::to_string(rv.size()) + " values"
+                                      : describe(rv);
+      p.fail(rp, " must be [[xmin, ymin, zmin], [xmax, ymax, zmax]], got " + got);
+    }
+    r.lo = p.vec3(rv[0], Parser::index(rp, 0));
+    r.hi = p.vec3(rv[1], Parser::index(rp, 1));
+    static const char* axis = "xyz";
+    for (size_t i = 0; i < 3; ++i) {
+      if (r.lo[i] > r.hi[i]) {
+        p.fail(rp, ": min must be <= max in each component; got " + std::string(1, axis[i]) +
+                       " min " + show(rv[0][i]) + " > max " + show(rv[1][i]));
+      }
+    }
+  } else if (k == "plane") {
+    r.kind = Region::Kind::Plane;
+    p.object(rv, rp);
+    p.allowed_keys(rv, rp, {"point", "normal"});
+    r.point = p.vec3(p.required(rv, rp, "point", "[x, y, z]"), rp + ".point");
+    const json& nj = p.required(rv, rp, "normal", "[nx, ny, nz], nonzero");
+    Vec3 n = p.vec3(nj, rp + ".normal");
+    double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || !std::isfinite(len))
+      p.fail(rp + ".normal", " must be a nonzero vector, got " + show(nj));
+    for (double& c : n) c /= len;  // unit length: the selection tolerance is a distance
+    r.normal = n;
+  } else {
+    r.kind = Region::Kind::Nodes;
+    p.array(rv, rp);
+    if (rv.empty()) p.fail(rp, " must list at least one node id, got []");
+    for (size_t i = 0; i < rv.size(); ++i) {
+      const std::string ip = Parser::index(rp, i);
+      int id = p.integer(rv[i], ip);
+      if (id < 0) p.fail(ip, " must be a non-negative node id (0-based), got " + show(rv[i]));
+      r.nodes.push_back(id);
+    }
+  }
+  return r;
+}
+
+void parse_fixed(const Parser& p, const json& v, Scene& s) {
+  p.array(v, "fixed");
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string at = Parser::index("fixed", i);
+    p.object(v[i], at);
+    p.allowed_keys(v[i], at, {"box", "plane", "nodes"});
+    s.fixed.push_back(parse_region(p, v[i], at));
+  }
+}
+
+void parse_prescribed(const Parser& p, const json& v, Scene& s) {
+  p.array(v, "prescribed");
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string at = Parser::index("prescribed", i);
+    const json& e = v[i];
+    p.object(e, at);
+    p.allowed_keys(e, at, {"box", "plane", "nodes", "displacement", "ramp"});
+    Prescribed pr;
+    pr.region = parse_region(p, e, at);
+    const std::string dp = at + ".displacement";
+    const json& d = p.required(e, at, "displacement", "an object with x, y and/or z");
+    p.object(d, dp);
+    p.allowed_keys(d, dp, {"x", "y", "z"});
+    static const char* names[3] = {"x", "y", "z"};
+    for (size_t c = 0; c < 3; ++c) {
+      if (auto it = d.find(names[c]); it != d.end()) {
+        pr.active[c] = true;
+        pr.displacement[c] = p.number(*it, dp + "." + names[c]);
+      }
+    }
+    if (!pr.active[0] && !pr.active[1] && !pr.active[2])
+      p.fail(dp, ": needs at least one of x, y, z (an absent component stays free), got {}");
+    if (auto it = e.find("ramp"); it != e.end()) pr.ramp = p.nonnegative(*it, at + ".ramp");
+    s.prescribed.push_back(std::move(pr));
+  }
+}
+
+void parse_integrator(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "integrator";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"dt", "newton_iterations"});
+  if (auto it = v.find("dt"); it != v.end()) {
+    double dt = p.number(*it, at + ".dt");
+    if (!(dt > 0.0 && dt <= 1.0))
+      p.fail(at + ".dt", " must be in (0, 1] seconds, got " + show(*it));
+    s.dt = dt;
+  }
+  if (auto it = v.find("newton_iterations"); it != v.end())
+    s.newton_iterations = p.at_least_one(*it, at + ".newton_iterations");
+}
+
+void parse_solver(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "solver";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"policy"});
+  if (auto it = v.find("policy"); it != v.end()) {
+    static const std::vector<std::string> policies = {"exact"};
+    s.solver_policy = policies[p.choice(*it, at + ".policy", policies)];
+  }
+}
+
+void parse_static(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "static";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"tolerance", "max_iterations"});
+  if (auto it = v.find("tolerance"); it != v.end())
+    s.static_tolerance = p.positive(*it, at + ".tolerance");
+  if (auto it = v.find("max_iterations"); it != v.end())
+    s.static_max_iterations = p.at_least_one(*it, at + ".max_iterations");
+}
+
+void parse_run(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "run";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"frames"});
+  if (auto it = v.find("frames"); it != v.end()) s.frames = p.at_least_one(*it, at + ".frames");
+}
+
+void parse_output(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "output";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"dir", "every", "vtu"});
+  if (auto it = v.find("dir"); it != v.end())
+    s.output.dir = p.resolve(p.nonempty_string(*it, at + ".dir"));
+  if (auto it = v.find("every"); it != v.end())
+    s.output.every = p.at_least_one(*it, at + ".every");
+  if (auto it = v.find("vtu"); it != v.end()) s.output.write_vtu = p.boolean(*it, at + ".vtu");
+}
+
+// nlohmann messages start with "[json.exception.parse_error.101] "; drop that.
+std::string strip_id(const std::string& what) {
+  if (what.rfind("[json.exception.", 0) == 0) {
+    size_t end = what.find("] ");
+    if (end != std::string::npos) return what.substr(end + 2);
+  }
+  return what;
+}
+
+// Parses text, rejecting duplicate keys (nlohmann would keep the last one silently).
+json parse_text(const std::string& text, const std::string& path) {
+  std::vector<std::set<std::string>> open;  // keys seen in each enclosing object
+  auto callback = [&](int, json::parse_event_t ev, json& parsed) -> bool {
+    switch (ev) {
+      case json::parse_event_t::object_start:
+        open.emplace_back();
+        break;
+      case json::parse_event_t::object_end:
+        if (!open.empty()) open.pop_back();
+        break;
+      case json::parse_event_t::key:
+        if (!open.empty() && parsed.is_string() &&
+            !open.back().insert(parsed.get<std::string>()).second) {
+          throw Error(path + ": duplicate key \"" + parsed.get<std::string>() +
+                      "\"; each key may appear once per object");
+        }
+        break;
+      default:
+        break;
+    }
+    return true;
+  };
+  try {
+    return json::parse(text, callback, /*allow_exceptions=*/true, /*ignore_comments=*/false);
+  } catch (const json::parse_error& e) {
+    throw Error(path + ": invalid JSON at byte " + std::to_string(e.byte) + ": " +
+                strip_id(e.what()));
+  } catch (const json::exception& e) {  // e.g. a number too large for a double
+    throw Error(path + ": invalid JSON: " + strip_id(e.what()));
+  }
+}
+
+}  // namespace
+
+Scene parse_scene(const std::string& json_text, const std::string& path) {
+  json root = parse_text(json_text, path);
+  Parser p(path);
+  if (!root.is_object()) throw Error(path + ": the scene must be a JSON object, got " + describe(root));
+  p.allowed_keys(root, "",
+                 {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
+                  "solver", "static", "run", "output"});
+
+  Scene s;
+  s.path = path;
+  parse_mesh(p, p.required(root, "", "mesh", "an object with file and order"), s);
+  parse_material(p, p.required(root, "", "material", "an object with young, poisson, density"),
+                 s.material);
+  if (auto it = root.find("mass"); it != root.end())
+    s.mass = p.choice(*it, "mass", {"lumped", "consistent"}) == 0 ? MassKind::Lumped
+                                                                   : MassKind::Consistent;
+  if (auto it = root.find("gravity"); it != root.end()) s.gravity = p.vec3(*it, "gravity");
+  if (auto it = root.find("fixed"); it != root.end()) parse_fixed(p, *it, s);
+  if (auto it = root.find("prescribed"); it != root.end()) parse_prescribed(p, *it, s);
+  if (auto it = root.find("integrator"); it != root.end()) parse_integrator(p, *it, s);
+  if (auto it = root.find("solver"); it != root.end()) parse_solver(p, *it, s);
+  if (auto it = root.find("static"); it != root.end()) parse_static(p, *it, s);
+  if (auto it = root.find("run"); it != root.end()) parse_run(p, *it, s);
+  if (auto it = root.find("output"); it != root.end()) parse_output(p, *it, s);
+  return s;
+}
+
+Scene load_scene(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw Error(path + ": cannot open scene file (it is a directory)");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path + ": cannot open scene file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw Error(path + ": cannot read scene file");
+  return parse_scene(text.str(), path);
+}
+
+}  // namespace incise

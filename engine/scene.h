@@ -15,7 +15,8 @@ struct Region {
   enum class Kind { Box, Plane, Nodes };
   Kind kind = Kind::Box;
   Vec3 lo{}, hi{};            // Box: corners (inclusive, with a tolerance)
-  Vec3 point{}, normal{};     // Plane: nodes with (X - point) . normal <= 0 (tolerance)
+  Vec3 point{}, normal{};     // Plane: nodes with (X - point) . normal <= 0 (tolerance);
+                              // the loader scales normal to unit length
   std::vector<int> nodes;     // Nodes: 0-based node ids
   std::string json_path;      // e.g. "fixed[1]", for messages
 };

@@ -1,0 +1,464 @@
+// Scene loader: a full scene's values and defaults, and one test per kind of
+// malformed input checking that the message names the file, the JSON path,
+// what is allowed and what was found.
+#include "engine/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "engine/error.h"
+
+namespace fs = std::filesystem;
+using incise::Error;
+using incise::parse_scene;
+using incise::Scene;
+
+namespace {
+
+// A fresh folder per test (tests may run in parallel processes) holding
+// meshes/m.vtu and scenes/, so "../meshes/m.vtu" from a scene resolves.
+class SceneTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    auto stamp = std::chrono::steady_clock::now().time_since_epoch().count();
+    root_ = fs::temp_directory_path() /
+            ("incise_scene_test_" + std::to_string(rd()) + "_" + std::to_string(stamp));
+    fs::create_directories(root_ / "meshes");
+    fs::create_directories(root_ / "scenes");
+    std::ofstream(root_ / "meshes" / "m.vtu") << "placeholder\n";
+    scene_path_ = (root_ / "scenes" / "s.json").string();
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(root_, ec);
+  }
+
+  // A minimal valid scene with `extra` spliced in as further top-level keys.
+  static std::string minimal(const std::string& extra = "") {
+    std::string s = R"({"mesh": {"file": "../meshes/m.vtu"},
+      "material": {"young": 3000, "poisson": 0.45, "density": 1000})";
+    if (!extra.empty()) s += ", " + extra;
+    return s + "}";
+  }
+
+  // A scene with the material object replaced by `material`.
+  static std::string with_material(const std::string& material) {
+    return R"({"mesh": {"file": "../meshes/m.vtu"}, "material": )" + material + "}";
+  }
+
+  // The error message parse_scene throws for `text` (fails the test if none).
+  std::string error_of(const std::string& text) {
+    try {
+      parse_scene(text, scene_path_);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << "no error for:\n" << text;
+    return "";
+  }
+
+  // Checks the message is "<scene path>: <rest>" exactly.
+  void expect_error(const std::string& text, const std::string& rest) {
+    EXPECT_EQ(error_of(text), scene_path_ + ": " + rest);
+  }
+
+  // Checks the message starts with the scene path and contains `part`.
+  void expect_error_contains(const std::string& text, const std::string& part) {
+    std::string msg = error_of(text);
+    EXPECT_EQ(msg.rfind(scene_path_ + ": ", 0), 0u) << msg;
+    EXPECT_NE(msg.find(part), std::string::npos) << "message: " << msg << "\nexpected part: " << part;
+  }
+
+  fs::path root_;
+  std::string scene_path_;
+};
+
+std::string resolved(const fs::path& p) { return p.lexically_normal().string(); }
+
+}  // namespace
+
+// --- valid scenes ----------------------------------------------------------
+
+TEST_F(SceneTest, FullSceneParsesAllValues) {
+  const std::string text = R"({
+    "mesh": {"file": "../meshes/m.vtu", "order": 1},
+    "material": {"model": "linear", "rotation": "single", "young": 1e5, "poisson": -0.2,
+                 "density": 1.5, "rayleigh": {"mass": 0.1, "stiffness": 0.01}},
+    "mass": "consistent",
+    "gravity": [0, -9.81, 1.5],
+    "fixed": [
+      {"box": [[-1e-9, -1, -1], [1e-9, 1, 1]]},
+      {"plane": {"point": [0, 0, 0], "normal": [0, 0, 2]}},
+      {"nodes": [0, 5, 7]}
+    ],
+    "prescribed": [
+      {"nodes": [3], "displacement": {"x": 0.01, "z": -0.02}, "ramp": 0.5},
+      {"box": [[0, 0, 0], [1, 1, 1]], "displacement": {"y": 0}}
+    ],
+    "integrator": {"dt": 0.001, "newton_iterations": 3},
+    "solver": {"policy": "exact"},
+    "static": {"tolerance": 1e-6, "max_iterations": 20},
+    "run": {"frames": 90},
+    "output": {"dir": "../out", "every": 5, "vtu": false}
+  })";
+  Scene s = parse_scene(text, scene_path_);
+  EXPECT_EQ(s.path, scene_path_);
+  EXPECT_EQ(s.mesh_file, resolved(root_ / "meshes" / "m.vtu"));
+  EXPECT_EQ(s.order, 1);
+  EXPECT_EQ(s.material.model, incise::MaterialModel::Linear);
+  EXPECT_EQ(s.material.rotation, incise::RotationMode::Single);
+  EXPECT_DOUBLE_EQ(s.material.young, 1e5);
+  EXPECT_DOUBLE_EQ(s.material.poisson, -0.2);
+  EXPECT_DOUBLE_EQ(s.material.density, 1.5);
+  EXPECT_DOUBLE_EQ(s.material.rayleigh_mass, 0.1);
+  EXPECT_DOUBLE_EQ(s.material.rayleigh_stiffness, 0.01);
+  EXPECT_EQ(s.mass, incise::MassKind::Consistent);
+  EXPECT_EQ(s.gravity, (incise::Vec3{0, -9.81, 1.5}));
+
+  ASSERT_EQ(s.fixed.size(), 3u);
+  EXPECT_EQ(s.fixed[0].kind, incise::Region::Kind::Box);
+  EXPECT_EQ(s.fixed[0].lo, (incise::Vec3{-1e-9, -1, -1}));
+  EXPECT_EQ(s.fixed[0].hi, (incise::Vec3{1e-9, 1, 1}));
+  EXPECT_EQ(s.fixed[0].json_path, "fixed[0]");
+  EXPECT_EQ(s.fixed[1].kind, incise::Region::Kind::Plane);
+  EXPECT_EQ(s.fixed[1].point, (incise::Vec3{0, 0, 0}));
+  EXPECT_EQ(s.fixed[1].normal, (incise::Vec3{0, 0, 1}));  // scaled to unit length
+  EXPECT_EQ(s.fixed[2].kind, incise::Region::Kind::Nodes);
+  EXPECT_EQ(s.fixed[2].nodes, (std::vector<int>{0, 5, 7}));
+
+  ASSERT_EQ(s.prescribed.size(), 2u);
+  const auto& p0 = s.prescribed[0];
+  EXPECT_EQ(p0.region.kind, incise::Region::Kind::Nodes);
+  EXPECT_EQ(p0.region.json_path, "prescribed[0]");
+  EXPECT_EQ(p0.region.nodes, (std::vector<int>{3}));
+  EXPECT_EQ(p0.active, (std::array<bool, 3>{true, false, true}));
+  EXPECT_DOUBLE_EQ(p0.displacement[0], 0.01);
+  EXPECT_DOUBLE_EQ(p0.displacement[2], -0.02);
+  EXPECT_DOUBLE_EQ(p0.ramp, 0.5);
+  const auto& p1 = s.prescribed[1];
+  EXPECT_EQ(p1.region.kind, incise::Region::Kind::Box);
+  EXPECT_EQ(p1.active, (std::array<bool, 3>{false, true, false}));
+  EXPECT_DOUBLE_EQ(p1.ramp, 0.0);
+
+  EXPECT_DOUBLE_EQ(s.dt, 0.001);
+  EXPECT_EQ(s.newton_iterations, 3);
+  EXPECT_EQ(s.solver_policy, "exact");
+  EXPECT_DOUBLE_EQ(s.static_tolerance, 1e-6);
+  EXPECT_EQ(s.static_max_iterations, 20);
+  EXPECT_EQ(s.frames, 90);
+  EXPECT_EQ(s.output.dir, resolved(root_ / "out"));
+  EXPECT_EQ(s.output.every, 5);
+  EXPECT_FALSE(s.output.write_vtu);
+}
+
+TEST_F(SceneTest, MinimalSceneGetsDefaults) {
+  Scene s = parse_scene(minimal(), scene_path_);
+  EXPECT_EQ(s.order, 2);
+  EXPECT_EQ(s.material.model, incise::MaterialModel::Corotated);
+  EXPECT_EQ(s.material.rotation, incise::RotationMode::PerPoint);
+  EXPECT_DOUBLE_EQ(s.material.young, 3000);
+  EXPECT_DOUBLE_EQ(s.material.poisson, 0.45);
+  EXPECT_DOUBLE_EQ(s.material.density, 1000);
+  EXPECT_EQ(s.material.rayleigh_mass, 0.0);
+  EXPECT_EQ(s.material.rayleigh_stiffness, 0.0);
+  EXPECT_EQ(s.mass, incise::MassKind::Lumped);
+  EXPECT_EQ(s.gravity, (incise::Vec3{0, 0, -9.81}));
+  EXPECT_TRUE(s.fixed.empty());
+  EXPECT_TRUE(s.prescribed.empty());
+  EXPECT_DOUBLE_EQ(s.dt, 1.0 / 30.0);
+  EXPECT_EQ(s.newton_iterations, 1);
+  EXPECT_EQ(s.solver_policy, "exact");
+  EXPECT_DOUBLE_EQ(s.static_tolerance, 1e-8);
+  EXPECT_EQ(s.static_max_iterations, 50);
+  EXPECT_EQ(s.frames, 60);
+  EXPECT_EQ(s.output.dir, "");
+  EXPECT_EQ(s.output.every, 1);
+  EXPECT_TRUE(s.output.write_vtu);
+}
+
+TEST_F(SceneTest, IntegralFloatAcceptedAsInteger) {
+  Scene s = parse_scene(minimal(R"("run": {"frames": 30.0})"), scene_path_);
+  EXPECT_EQ(s.frames, 30);
+}
+
+TEST_F(SceneTest, AbsoluteMeshPathKept) {
+  std::string abs = (root_ / "meshes" / "m.vtu").string();
+  Scene s = parse_scene(R"({"mesh": {"file": ")" + abs +
+                            R"("}, "material": {"young": 1, "poisson": 0, "density": 1}})",
+                        scene_path_);
+  EXPECT_EQ(s.mesh_file, resolved(abs));
+}
+
+TEST_F(SceneTest, LoadSceneReadsFile) {
+  std::ofstream(scene_path_) << minimal(R"("run": {"frames": 7})");
+  Scene s = incise::load_scene(scene_path_);
+  EXPECT_EQ(s.frames, 7);
+  EXPECT_EQ(s.mesh_file, resolved(root_ / "meshes" / "m.vtu"));
+}
+
+// The bundled default scene is valid (its mesh is stood in for by a temp file).
+TEST_F(SceneTest, BundledBeamGravitySceneIsValid) {
+  std::ifstream in(std::string(INCISE_SOURCE_DIR) + "/assets/scenes/beam_gravity.json");
+  ASSERT_TRUE(in) << "assets/scenes/beam_gravity.json missing";
+  std::stringstream text;
+  text << in.rdbuf();
+  std::ofstream(root_ / "meshes" / "beam_10x1x1.vtu") << "placeholder\n";
+  Scene s = parse_scene(text.str(), scene_path_);
+  EXPECT_EQ(s.mesh_file, resolved(root_ / "meshes" / "beam_10x1x1.vtu"));
+  EXPECT_EQ(s.order, 2);
+  EXPECT_EQ(s.material.model, incise::MaterialModel::Corotated);
+  EXPECT_DOUBLE_EQ(s.material.young, 3000);
+  EXPECT_DOUBLE_EQ(s.material.poisson, 0.45);
+  EXPECT_DOUBLE_EQ(s.material.density, 1000);
+  ASSERT_EQ(s.fixed.size(), 1u);
+  EXPECT_EQ(s.fixed[0].kind, incise::Region::Kind::Box);
+  EXPECT_EQ(s.frames, 90);
+  EXPECT_EQ(s.gravity, (incise::Vec3{0, 0, -9.81}));
+  EXPECT_NEAR(s.dt, 1.0 / 30.0, 1e-12);
+}
+
+// --- file-level errors -------------------------------------------------------
+
+TEST_F(SceneTest, MissingSceneFile) {
+  const std::string path = (root_ / "no_such.json").string();
+  try {
+    incise::load_scene(path);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), path + ": cannot open scene file");
+  }
+}
+
+TEST_F(SceneTest, InvalidJsonNamesFileAndPosition) {
+  std::string msg = error_of("{\"mesh\": {\"file\": \"a\"},\n \"material\" 3}");
+  EXPECT_EQ(msg.rfind(scene_path_ + ": invalid JSON at byte ", 0), 0u) << msg;
+  EXPECT_NE(msg.find("line 2"), std::string::npos) << msg;
+}
+
+TEST_F(SceneTest, NumberTooLargeRejected) {
+  expect_error_contains(with_material(R"({"young": 1e999, "poisson": 0.3, "density": 1})"),
+                        "invalid JSON");
+}
+
+TEST_F(SceneTest, TopLevelNotObject) {
+  expect_error("[1, 2]", "the scene must be a JSON object, got array [1,2]");
+}
+
+TEST_F(SceneTest, DuplicateKeyRejected) {
+  expect_error_contains(
+      with_material(R"({"young": 1, "young": 2, "poisson": 0.3, "density": 1})"),
+      "duplicate key \"young\"");
+}
+
+// --- mesh ----------------------------------------------------------------------
+
+TEST_F(SceneTest, MissingMeshFile) {
+  expect_error(R"({"mesh": {"order": 2}, "material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh.file: required key is missing (expected a mesh file path string)");
+}
+
+TEST_F(SceneTest, MissingMeshSection) {
+  expect_error(R"({"material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh: required key is missing (expected an object with file and order)");
+}
+
+TEST_F(SceneTest, MeshFileNotFound) {
+  expect_error(R"({"mesh": {"file": "../meshes/nope.vtu"},
+                  "material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh.file: file not found: " + resolved(root_ / "meshes" / "nope.vtu"));
+}
+
+TEST_F(SceneTest, MeshOrderMustBeOneOrTwo) {
+  expect_error(R"({"mesh": {"file": "../meshes/m.vtu", "order": 3},
+                  "material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh.order must be 1 or 2, got 3");
+}
+
+// --- material ------------------------------------------------------------------
+
+TEST_F(SceneTest, PoissonHalfRejected) {
+  expect_error(with_material(R"({"young": 3000, "poisson": 0.5, "density": 1000})"),
+               "material.poisson must be in (-1, 0.5), got 0.5");
+}
+
+TEST_F(SceneTest, PoissonMinusOneRejected) {
+  expect_error(with_material(R"({"young": 3000, "poisson": -1, "density": 1000})"),
+               "material.poisson must be in (-1, 0.5), got -1");
+}
+
+TEST_F(SceneTest, NegativeYoungRejected) {
+  expect_error(with_material(R"({"young": -5, "poisson": 0.3, "density": 1000})"),
+               "material.young must be > 0, got -5");
+}
+
+TEST_F(SceneTest, ZeroDensityRejected) {
+  expect_error(with_material(R"({"young": 5, "poisson": 0.3, "density": 0})"),
+               "material.density must be > 0, got 0");
+}
+
+TEST_F(SceneTest, MissingYoung) {
+  expect_error(with_material(R"({"poisson": 0.3, "density": 1000})"),
+               "material.young: required key is missing (expected a number > 0)");
+}
+
+TEST_F(SceneTest, StringWhereNumberExpected) {
+  expect_error(with_material(R"({"young": "3000", "poisson": 0.3, "density": 1000})"),
+               "material.young must be a number, got string \"3000\"");
+}
+
+TEST_F(SceneTest, NullWhereNumberExpected) {
+  expect_error(with_material(R"({"young": 1, "poisson": null, "density": 1000})"),
+               "material.poisson must be a number, got null");
+}
+
+TEST_F(SceneTest, NegativeRayleighRejected) {
+  expect_error(with_material(
+                   R"({"young": 1, "poisson": 0.3, "density": 1, "rayleigh": {"mass": -0.1}})"),
+               "material.rayleigh.mass must be >= 0, got -0.1");
+}
+
+TEST_F(SceneTest, BadEnumListsAllowedValues) {
+  expect_error(
+      with_material(R"({"model": "neohookean", "young": 1, "poisson": 0.3, "density": 1})"),
+      "material.model must be one of \"linear\", \"corotated\", got \"neohookean\"");
+  expect_error(
+      with_material(R"({"rotation": "polar", "young": 1, "poisson": 0.3, "density": 1})"),
+      "material.rotation must be one of \"per_point\", \"single\", got \"polar\"");
+  expect_error(minimal(R"("mass": "diagonal")"),
+               "mass must be one of \"lumped\", \"consistent\", got \"diagonal\"");
+}
+
+TEST_F(SceneTest, SolverPolicyOnlyExact) {
+  expect_error(minimal(R"("solver": {"policy": "cg"})"),
+               "solver.policy must be one of \"exact\", got \"cg\"");
+}
+
+// --- unknown keys and types ----------------------------------------------------
+
+TEST_F(SceneTest, UnknownTopLevelKey) {
+  expect_error(minimal(R"("materal": {})"),
+               "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
+               "prescribed, integrator, solver, static, run, output; did you mean "
+               "\"material\"?");
+}
+
+TEST_F(SceneTest, UnknownNestedKey) {
+  expect_error_contains(with_material(R"({"young": 1, "poisson": 0.3, "density": 1, "yung": 2})"),
+                        "material.yung: unknown key; allowed: model, rotation, young, poisson, "
+                        "density, rayleigh");
+  expect_error_contains(minimal(R"("integrator": {"dt": 0.01, "substeps": 2})"),
+                        "integrator.substeps: unknown key; allowed: dt, newton_iterations");
+}
+
+TEST_F(SceneTest, WrongTypeForSection) {
+  expect_error(minimal(R"("integrator": [0.01])"),
+               "integrator must be an object, got array [0.01]");
+  expect_error(minimal(R"("output": {"vtu": "yes"})"),
+               "output.vtu must be a boolean (true or false), got string \"yes\"");
+  expect_error(minimal(R"("fixed": {"box": []})"),
+               "fixed must be an array, got object {\"box\":[]}");
+}
+
+TEST_F(SceneTest, GravityNeedsThreeNumbers) {
+  expect_error(minimal(R"("gravity": [0, -9.81])"),
+               "gravity must be an array of 3 numbers [x, y, z], got array of 2 values");
+  expect_error(minimal(R"("gravity": [0, 0, "g"])"),
+               "gravity[2] must be a number, got string \"g\"");
+}
+
+// --- regions -------------------------------------------------------------------
+
+TEST_F(SceneTest, BoxMinGreaterThanMax) {
+  expect_error(minimal(R"("fixed": [{"nodes": [1]}, {"box": [[0, 0, 1], [1, 1, 0]]}])"),
+               "fixed[1].box: min must be <= max in each component; got z min 1 > max 0");
+}
+
+TEST_F(SceneTest, BoxWrongShape) {
+  expect_error(minimal(R"("fixed": [{"box": [[0, 0, 0]]}])"),
+               "fixed[0].box must be [[xmin, ymin, zmin], [xmax, ymax, zmax]], got array of "
+               "1 values");
+  expect_error(minimal(R"("fixed": [{"nodes": [1]}, {"box": [[0, 0, 0], [1, 1, true]]}])"),
+               "fixed[1].box[1][2] must be a number, got boolean true");
+}
+
+TEST_F(SceneTest, PlaneNormalZero) {
+  expect_error(minimal(R"("fixed": [{"plane": {"point": [0, 0, 0], "normal": [0, 0, 0]}}])"),
+               "fixed[0].plane.normal must be a nonzero vector, got [0,0,0]");
+}
+
+TEST_F(SceneTest, PlaneMissingPoint) {
+  expect_error(minimal(R"("fixed": [{"plane": {"normal": [1, 0, 0]}}])"),
+               "fixed[0].plane.point: required key is missing (expected [x, y, z])");
+}
+
+TEST_F(SceneTest, NodesMustBeNonNegativeIntegers) {
+  expect_error(minimal(R"("fixed": [{"nodes": [0, -3]}])"),
+               "fixed[0].nodes[1] must be a non-negative node id (0-based), got -3");
+  expect_error(minimal(R"("fixed": [{"nodes": [0, 1.5]}])"),
+               "fixed[0].nodes[1] must be an integer, got 1.5");
+  expect_error(minimal(R"("fixed": [{"nodes": []}])"),
+               "fixed[0].nodes must list at least one node id, got []");
+}
+
+TEST_F(SceneTest, RegionNeedsExactlyOneKind) {
+  expect_error(minimal(R"("fixed": [{}])"),
+               "fixed[0]: needs exactly one of box, plane, nodes; got none");
+  expect_error(minimal(R"("fixed": [{"nodes": [1], "box": [[0,0,0],[1,1,1]]}])"),
+               "fixed[0]: needs exactly one of box, plane, nodes; got box and nodes");
+  expect_error(minimal(R"("fixed": [{"nodes": [1], "displacement": {"x": 1}}])"),
+               "fixed[0].displacement: unknown key; allowed: box, plane, nodes");
+}
+
+TEST_F(SceneTest, PrescribedNeedsAComponent) {
+  expect_error(minimal(R"("prescribed": [{"nodes": [1], "displacement": {}}])"),
+               "prescribed[0].displacement: needs at least one of x, y, z (an absent "
+               "component stays free), got {}");
+  expect_error(minimal(R"("prescribed": [{"nodes": [1]}])"),
+               "prescribed[0].displacement: required key is missing (expected an object with "
+               "x, y and/or z)");
+  expect_error(minimal(R"("prescribed": [{"nodes": [1], "displacement": {"w": 1}}])"),
+               "prescribed[0].displacement.w: unknown key; allowed: x, y, z");
+}
+
+TEST_F(SceneTest, PrescribedNegativeRamp) {
+  expect_error(minimal(R"("prescribed": [{"nodes": [1], "displacement": {"x": 1}, "ramp": -1}])"),
+               "prescribed[0].ramp must be >= 0, got -1");
+}
+
+// --- integrator, static, run, output --------------------------------------------
+
+TEST_F(SceneTest, NewtonIterationsZero) {
+  expect_error(minimal(R"("integrator": {"newton_iterations": 0})"),
+               "integrator.newton_iterations must be an integer >= 1, got 0");
+}
+
+TEST_F(SceneTest, DtMustBePositiveAndAtMostOne) {
+  expect_error(minimal(R"("integrator": {"dt": 0})"),
+               "integrator.dt must be in (0, 1] seconds, got 0");
+  expect_error(minimal(R"("integrator": {"dt": -0.01})"),
+               "integrator.dt must be in (0, 1] seconds, got -0.01");
+  expect_error(minimal(R"("integrator": {"dt": 2})"),
+               "integrator.dt must be in (0, 1] seconds, got 2");
+}
+
+TEST_F(SceneTest, StaticSettingsChecked) {
+  expect_error(minimal(R"("static": {"tolerance": 0})"), "static.tolerance must be > 0, got 0");
+  expect_error(minimal(R"("static": {"max_iterations": 0})"),
+               "static.max_iterations must be an integer >= 1, got 0");
+}
+
+TEST_F(SceneTest, RunAndOutputChecked) {
+  expect_error(minimal(R"("run": {"frames": 0})"), "run.frames must be an integer >= 1, got 0");
+  expect_error(minimal(R"("output": {"every": 0})"),
+               "output.every must be an integer >= 1, got 0");
+  expect_error(minimal(R"("output": {"dir": ""})"),
+               "output.dir must be a non-empty string, got \"\"");
+}
