@@ -1,0 +1,91 @@
+#include "engine/cholmod_solver.h"
+
+#include <algorithm>
+#include <cstring>
+#include <sstream>
+
+#include "engine/error.h"
+
+namespace incise {
+
+namespace {
+const char* ordering_name(int o) {
+  switch (o) {
+    case CHOLMOD_NATURAL: return "natural";
+    case CHOLMOD_GIVEN: return "given";
+    case CHOLMOD_AMD: return "AMD";
+    case CHOLMOD_METIS: return "METIS";
+    case CHOLMOD_NESDIS: return "NESDIS";
+    case CHOLMOD_COLAMD: return "COLAMD";
+    case CHOLMOD_POSTORDERED: return "postordered";
+    default: return "unknown";
+  }
+}
+}  // namespace
+
+CholmodSolver::CholmodSolver() {
+  cholmod_start(&c_);
+  c_.supernodal = CHOLMOD_SUPERNODAL;
+  c_.print = 0;
+  c_.error_handler = nullptr;  // errors are read from c_.status and thrown
+}
+
+CholmodSolver::~CholmodSolver() {
+  release();
+  cholmod_finish(&c_);
+}
+
+void CholmodSolver::release() {
+  if (A_) cholmod_free_sparse(&A_, &c_);
+  if (L_) cholmod_free_factor(&L_, &c_);
+  if (B_) cholmod_free_dense(&B_, &c_);
+  if (X_) cholmod_free_dense(&X_, &c_);
+  if (Y_) cholmod_free_dense(&Y_, &c_);
+  if (E_) cholmod_free_dense(&E_, &c_);
+  factorized_ = false;
+}
+
+void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai) {
+  release();
+  n_ = n;
+  const size_t nnz = Ai.size();
+  A_ = cholmod_allocate_sparse(n, n, nnz, /*sorted=*/1, /*packed=*/1, /*stype=*/1, CHOLMOD_REAL, &c_);
+  if (!A_) throw Error("CHOLMOD: out of memory allocating a " + std::to_string(n) + " x " + std::to_string(n) + " matrix");
+  std::memcpy(A_->p, Ap.data(), sizeof(int) * (n + 1));
+  std::memcpy(A_->i, Ai.data(), sizeof(int) * nnz);
+  std::fill(static_cast<double*>(A_->x), static_cast<double*>(A_->x) + nnz, 0.0);
+  L_ = cholmod_analyze(A_, &c_);
+  if (!L_ || c_.status < CHOLMOD_OK) throw Error("CHOLMOD: symbolic analysis failed (status " + std::to_string(c_.status) + ")");
+  stats_.nnz_L = c_.lnz;
+  stats_.flops = c_.fl;
+  stats_.ordering = ordering_name(L_->ordering);
+  stats_.supernodal = L_->is_super;
+  B_ = cholmod_zeros(n, 1, CHOLMOD_REAL, &c_);
+}
+
+void CholmodSolver::factorize(const double* values) {
+  if (!L_) throw Error("CHOLMOD: factorize called before analyze");
+  std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
+  cholmod_factorize(A_, L_, &c_);
+  factorized_ = false;
+  if (c_.status == CHOLMOD_NOT_POSDEF || L_->minor < static_cast<size_t>(n_)) {
+    std::ostringstream os;
+    os << "CHOLMOD: the system matrix is not positive definite (pivot " << L_->minor << " of " << n_
+       << ", DOF node " << L_->minor / 3 << " component " << "xyz"[L_->minor % 3]
+       << "); the model may be unconstrained in a static solve, a material parameter may be invalid, or an "
+          "element is degenerate";
+    throw Error(os.str());
+  }
+  if (c_.status < CHOLMOD_OK) throw Error("CHOLMOD: numeric factorization failed (status " + std::to_string(c_.status) + ")");
+  factorized_ = true;
+}
+
+void CholmodSolver::solve(const double* b, double* x) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  std::memcpy(B_->x, b, sizeof(double) * n_);
+  if (!cholmod_solve2(CHOLMOD_A, L_, B_, nullptr, &X_, nullptr, &Y_, &E_, &c_))
+    throw Error("CHOLMOD: solve failed (status " + std::to_string(c_.status) + ")");
+  std::memcpy(x, X_->x, sizeof(double) * n_);
+}
+
+}  // namespace incise

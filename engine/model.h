@@ -1,0 +1,96 @@
+#pragma once
+// The frozen, precomputed Model: everything that does not change between
+// frames. A cut (later) builds the next Model version between frames; every
+// stage is a function of (const Model&, State&).
+//
+// DOF layout: "DOF nodes" carry 3 DOFs each (dof = 3 * dofnode + component).
+// The first nnode DOF nodes are the mesh nodes; enriched DOF nodes (X-FEM) are
+// appended after them, so the DOF map can grow without renumbering.
+//
+// Element terms are integrated per quadrature point over an element's list of
+// DOF nodes; each quadrature point uses one rotation slot. tet4: 1 point, 1
+// rotation; tet10: 4 points, 4 rotations (per_point) or 1 rotation from the
+// corner nodes (single, "tet10SR"). An X-FEM element will list standard and
+// enriched DOF nodes, integrate over sub-element points, and give each side
+// its own rotation slot, with no change to assembly.
+#include <string>
+#include <vector>
+
+#include "engine/mesh.h"
+#include "engine/scene.h"
+
+namespace incise {
+
+struct Model {
+  Mesh mesh;                    // the element mesh (tet4 or tet10) the model was built from
+  Material material;
+  double mu = 0, lambda = 0;    // Lame parameters
+  MassKind mass_kind = MassKind::Lumped;
+  double dt = 1.0 / 30.0;
+  int newton_iterations = 1;
+
+  // DOF nodes
+  int nnode = 0;                // standard DOF nodes (= mesh nodes)
+  int ndofnode = 0;             // all DOF nodes (standard + enriched)
+  int ndof() const { return 3 * ndofnode; }
+  std::vector<double> X;        // (ndofnode, 3) reference positions; 0 for enriched DOF nodes
+
+  // Elements (assembly units)
+  int nelem = 0;
+  std::vector<int> elem_dof_ptr;   // (nelem + 1) into elem_dof_node
+  std::vector<int> elem_dof_node;  // DOF nodes of each element
+  std::vector<int> elem_qp_ptr;    // (nelem + 1) quadrature points of each element
+  std::vector<double> elem_volume; // (nelem) reference volume
+
+  // Quadrature points
+  std::vector<double> qp_weight;   // (nqp) cubature weight * det J: the volume it stands for
+  std::vector<int> qp_grad_ptr;    // (nqp + 1) into qp_grad, 3 * (element's DOF nodes) each
+  std::vector<double> qp_grad;     // dN_a/dX of the element's DOF nodes at the point
+  std::vector<int> qp_rot;         // (nqp) rotation slot used by the point
+
+  // Rotation slots: F = sum_a (X_a + u_a) (x) rot_grad_a, R = rotation part of F
+  int nrot = 0;
+  std::vector<int> rot_elem;       // (nrot) element of the slot
+  std::vector<int> rot_grad_ptr;   // (nrot + 1) into rot_grad
+  std::vector<double> rot_grad;    // gradients giving the slot's deformation gradient
+
+  // Global sparse pattern: upper triangle, compressed columns, ndof x ndof
+  std::vector<int> Ap;             // (ndof + 1) column starts
+  std::vector<int> Ai;             // (nnz) row ids, sorted within a column
+  std::vector<int> diag;           // (ndof) position of each diagonal entry
+  std::vector<int> elem_scatter_ptr;  // (nelem + 1) into elem_scatter
+  std::vector<int> elem_scatter;   // per element, blocks (a <= b) x 9: position in Ai, -1 = skip
+  int nnz() const { return static_cast<int>(Ai.size()); }
+
+  // Mass and loads
+  std::vector<double> mass_lumped; // (ndof) diagonal lumped mass (HRZ for tet10), always filled
+  std::vector<double> mass_csc;    // (nnz) consistent mass in the pattern (empty if lumped)
+  std::vector<double> f_gravity;   // (ndof) M g: exact free fall for either mass
+  std::vector<double> K0_csc;      // (nnz) rest stiffness (linear model, and R = I)
+
+  // Constraints (book Algorithm 1: projection keeps the pattern and SPD)
+  std::vector<int> fixed_dofs;     // sorted, unique; constrained to 0
+  struct PrescribedDof {
+    int dof;
+    double value;  // final displacement
+    double ramp;   // seconds to reach it linearly, 0 = at once
+  };
+  std::vector<PrescribedDof> prescribed;
+  std::vector<char> constrained;   // (ndof) 1 if fixed or prescribed
+  std::vector<int> constrained_entries;  // positions in Ai of entries in a constrained row or column, diagonal excluded
+
+  double prescribed_value(const PrescribedDof& p, double time) const {
+    return (p.ramp > 0 && time < p.ramp) ? p.value * time / p.ramp : p.value;
+  }
+};
+
+// Builds the Model from a mesh (tet4 or tet10, checked) and the scene's
+// material, mass, constraints and loads. order 2 raises a tet4 mesh.
+Model build_model(const Mesh& mesh, const Scene& scene);
+
+// Nodes selected by a region (tolerance 1e-9 of the mesh's bounding-box
+// diagonal). Throws naming the region's JSON path when it selects no node or a
+// node id is out of range.
+std::vector<int> select_nodes(const Mesh& mesh, const Region& region, const std::string& scene_path);
+
+}  // namespace incise

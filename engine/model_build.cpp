@@ -1,0 +1,276 @@
+// Precomputation of the frozen Model: quadrature, rotation slots, sparse
+// pattern and scatter map, mass, rest stiffness, loads, constraints.
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "engine/assemble.h"
+#include "engine/element.h"
+#include "engine/error.h"
+#include "engine/mesh_tools.h"
+#include "engine/model.h"
+
+namespace incise {
+
+namespace {
+
+void build_elements(Model& m, const Scene& scene) {
+  const Mesh& mesh = m.mesh;
+  const int npe = mesh.npe();
+  const Cubature& cub = npe == 4 ? cubature_tet1() : cubature_tet4();
+  const bool single = npe == 10 && scene.material.rotation == RotationMode::Single;
+  m.nelem = mesh.ntet();
+  m.elem_dof_ptr.assign(1, 0);
+  m.elem_qp_ptr.assign(1, 0);
+  m.qp_grad_ptr.assign(1, 0);
+  m.rot_grad_ptr.assign(1, 0);
+  m.elem_volume.assign(m.nelem, 0.0);
+  std::vector<double> Xe(3 * npe), grad(3 * npe);
+  for (int e = 0; e < m.nelem; ++e) {
+    const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
+    for (int a = 0; a < npe; ++a) {
+      m.elem_dof_node.push_back(nodes[a]);
+      for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
+    }
+    m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
+    if (single) {
+      // tet10SR (book 3.5.2): one rotation from the corner vertices, i.e. the
+      // gradient of the linear interpolation of the four corners.
+      double Xc[12], gc[12];
+      std::copy(Xe.begin(), Xe.begin() + 12, Xc);
+      const double rst[3] = {0.25, 0.25, 0.25};
+      shape_global_gradients(4, Xc, rst, gc);
+      m.rot_elem.push_back(e);
+      for (int a = 0; a < npe; ++a)
+        for (int d = 0; d < 3; ++d) m.rot_grad.push_back(a < 4 ? gc[3 * a + d] : 0.0);
+      m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+    }
+    for (int q = 0; q < cub.npoint(); ++q) {
+      const double detJ = shape_global_gradients(npe, Xe.data(), &cub.rst[3 * q], grad.data());
+      if (!(detJ > 0.0)) {
+        std::ostringstream os;
+        os << mesh.source << ": element " << e << " has a non-positive Jacobian (" << detJ
+           << ") at a cubature point: inverted or badly curved";
+        throw Error(os.str());
+      }
+      m.qp_weight.push_back(cub.weight[q] * detJ);
+      m.elem_volume[e] += cub.weight[q] * detJ;
+      m.qp_grad.insert(m.qp_grad.end(), grad.begin(), grad.end());
+      m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
+      if (!single) {  // tet4, or tet10 with one rotation per cubature point
+        m.rot_elem.push_back(e);
+        m.rot_grad.insert(m.rot_grad.end(), grad.begin(), grad.end());
+        m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+      }
+      m.qp_rot.push_back(static_cast<int>(m.rot_elem.size()) - 1);
+    }
+    m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
+  }
+  m.nrot = static_cast<int>(m.rot_elem.size());
+}
+
+void build_pattern(Model& m) {
+  // Upper triangle at DOF-node level: rows(c) = DOF nodes r <= c sharing an element.
+  std::vector<std::vector<int>> rows(m.ndofnode);
+  for (int e = 0; e < m.nelem; ++e) {
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    for (int a = 0; a < n; ++a)
+      for (int c = 0; c < n; ++c) {
+        const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+        if (na <= nc) rows[nc].push_back(na);
+      }
+  }
+  m.Ap.assign(1, 0);
+  m.Ai.clear();
+  for (int c = 0; c < m.ndofnode; ++c) {
+    auto& r = rows[c];
+    std::sort(r.begin(), r.end());
+    r.erase(std::unique(r.begin(), r.end()), r.end());
+    for (int j = 0; j < 3; ++j) {
+      for (int rn : r) {
+        const int last = rn < c ? 2 : j;
+        for (int i = 0; i <= last; ++i) m.Ai.push_back(3 * rn + i);
+      }
+      m.Ap.push_back(static_cast<int>(m.Ai.size()));
+    }
+  }
+  auto find = [&](int r, int c) {
+    const auto first = m.Ai.begin() + m.Ap[c], last = m.Ai.begin() + m.Ap[c + 1];
+    const auto it = std::lower_bound(first, last, r);
+    return static_cast<int>(it - m.Ai.begin());
+  };
+  m.diag.resize(m.ndof());
+  for (int d = 0; d < m.ndof(); ++d) m.diag[d] = find(d, d);
+  m.elem_scatter_ptr.assign(1, 0);
+  m.elem_scatter.clear();
+  for (int e = 0; e < m.nelem; ++e) {
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    for (int a = 0; a < n; ++a)
+      for (int c = a; c < n; ++c) {
+        const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) {
+            int R = 3 * na + i, C = 3 * nc + j;
+            if (a == c && i > j) {
+              m.elem_scatter.push_back(-1);  // the symmetric twin is added once
+              continue;
+            }
+            if (R > C) std::swap(R, C);
+            m.elem_scatter.push_back(find(R, C));
+          }
+      }
+    m.elem_scatter_ptr.push_back(static_cast<int>(m.elem_scatter.size()));
+  }
+}
+
+void build_mass(Model& m, const Scene& scene) {
+  const Mesh& mesh = m.mesh;
+  const int npe = mesh.npe();
+  const double rho = scene.material.density;
+  // rho N_a N_b det J: degree 2p in the shape functions plus 3 for a curved tet10 map.
+  const Cubature cub = cubature_duffy(npe == 4 ? 2 : 7);
+  m.mass_lumped.assign(m.ndof(), 0.0);
+  if (m.mass_kind == MassKind::Consistent) m.mass_csc.assign(m.nnz(), 0.0);
+  std::vector<double> Xe(3 * npe), N(npe), grad(3 * npe), Me(npe * npe);
+  for (int e = 0; e < m.nelem; ++e) {
+    const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
+    for (int a = 0; a < npe; ++a)
+      for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
+    std::fill(Me.begin(), Me.end(), 0.0);
+    double vol = 0.0;
+    for (int q = 0; q < cub.npoint(); ++q) {
+      const double w = cub.weight[q] * shape_global_gradients(npe, Xe.data(), &cub.rst[3 * q], grad.data());
+      shape_values(npe, &cub.rst[3 * q], N.data());
+      vol += w;
+      for (int a = 0; a < npe; ++a)
+        for (int b = 0; b < npe; ++b) Me[a * npe + b] += rho * w * N[a] * N[b];
+    }
+    // HRZ lumping: diagonal scaled to the element mass. Positive for tet10,
+    // where row sums would give negative corner masses (-1/20 rho V).
+    double trace = 0.0;
+    for (int a = 0; a < npe; ++a) trace += Me[a * npe + a];
+    for (int a = 0; a < npe; ++a)
+      for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += rho * vol * Me[a * npe + a] / trace;
+    if (m.mass_kind == MassKind::Consistent) {
+      const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+      for (int a = 0, blk = 0; a < npe; ++a)
+        for (int b = a; b < npe; ++b, ++blk)
+          for (int i = 0; i < 3; ++i)
+            if (sc[9 * blk + 4 * i] >= 0) m.mass_csc[sc[9 * blk + 4 * i]] += Me[a * npe + b];
+    }
+  }
+  std::vector<double> g(m.ndof());
+  for (int d = 0; d < m.ndof(); ++d) g[d] = scene.gravity[d % 3];
+  m.f_gravity.assign(m.ndof(), 0.0);
+  if (m.mass_kind == MassKind::Consistent) {
+    sym_matvec(m, m.mass_csc.data(), g.data(), m.f_gravity.data());
+  } else {
+    for (int d = 0; d < m.ndof(); ++d) m.f_gravity[d] = m.mass_lumped[d] * g[d];
+  }
+}
+
+void build_constraints(Model& m, const Scene& scene) {
+  m.constrained.assign(m.ndof(), 0);
+  std::vector<double> value(m.ndof(), 0.0), ramp(m.ndof(), 0.0);
+  std::vector<char> is_prescribed(m.ndof(), 0);
+  for (const Region& r : scene.fixed)
+    for (int n : select_nodes(m.mesh, r, scene.path))
+      for (int i = 0; i < 3; ++i) m.constrained[3 * n + i] = 1;
+  // A prescribed component overrides a fixed one on the same node (documented).
+  for (const Prescribed& p : scene.prescribed)
+    for (int n : select_nodes(m.mesh, p.region, scene.path))
+      for (int i = 0; i < 3; ++i)
+        if (p.active[i]) {
+          m.constrained[3 * n + i] = 1;
+          is_prescribed[3 * n + i] = 1;
+          value[3 * n + i] = p.displacement[i];
+          ramp[3 * n + i] = p.ramp;
+        }
+  m.fixed_dofs.clear();
+  m.prescribed.clear();
+  for (int d = 0; d < m.ndof(); ++d) {
+    if (is_prescribed[d]) m.prescribed.push_back({d, value[d], ramp[d]});
+    else if (m.constrained[d]) m.fixed_dofs.push_back(d);
+  }
+  m.constrained_entries.clear();
+  for (int c = 0; c < m.ndof(); ++c)
+    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+      if (m.Ai[k] != c && (m.constrained[m.Ai[k]] || m.constrained[c])) m.constrained_entries.push_back(k);
+}
+
+}  // namespace
+
+std::vector<int> select_nodes(const Mesh& mesh, const Region& region, const std::string& scene_path) {
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (int n = 0; n < mesh.nnode(); ++n)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], mesh.X[3 * n + d]);
+      hi[d] = std::max(hi[d], mesh.X[3 * n + d]);
+    }
+  const double tol = 1e-9 * std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                      (hi[2] - lo[2]) * (hi[2] - lo[2]));
+  std::vector<int> out;
+  if (region.kind == Region::Kind::Nodes) {
+    for (int n : region.nodes) {
+      if (n < 0 || n >= mesh.nnode()) {
+        std::ostringstream os;
+        os << scene_path << ": " << region.json_path << ".nodes: node " << n << " is out of range; the mesh has "
+           << mesh.nnode() << " nodes (0-based ids 0.." << mesh.nnode() - 1 << ")";
+        throw Error(os.str());
+      }
+      out.push_back(n);
+    }
+  } else {
+    const double nn = std::sqrt(region.normal[0] * region.normal[0] + region.normal[1] * region.normal[1] +
+                                region.normal[2] * region.normal[2]);
+    for (int n = 0; n < mesh.nnode(); ++n) {
+      const double* x = &mesh.X[3 * n];
+      bool in = true;
+      if (region.kind == Region::Kind::Box) {
+        for (int d = 0; d < 3; ++d) in = in && x[d] >= region.lo[d] - tol && x[d] <= region.hi[d] + tol;
+      } else {
+        double s = 0.0;
+        for (int d = 0; d < 3; ++d) s += (x[d] - region.point[d]) * region.normal[d] / nn;
+        in = s <= tol;
+      }
+      if (in) out.push_back(n);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  if (out.empty())
+    throw Error(scene_path + ": " + region.json_path + ": selects no mesh node; check the region against the mesh's bounding box");
+  return out;
+}
+
+Model build_model(const Mesh& mesh_in, const Scene& scene) {
+  check_mesh(mesh_in);
+  if (scene.order == 1 && mesh_in.order == 2)
+    throw Error(scene.path + ": mesh.order is 1 but " + mesh_in.source +
+                " holds tet10 elements; use order 2 or a tet4 mesh");
+  Model m;
+  m.mesh = scene.order == 2 ? raise_to_tet10(mesh_in) : mesh_in;
+  m.material = scene.material;
+  const double E = scene.material.young, nu = scene.material.poisson;
+  m.mu = E / (2.0 * (1.0 + nu));
+  m.lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+  m.mass_kind = scene.mass;
+  m.dt = scene.dt;
+  m.newton_iterations = scene.newton_iterations;
+  m.nnode = m.ndofnode = m.mesh.nnode();
+  m.X = m.mesh.X;
+  build_elements(m, scene);
+  build_pattern(m);
+  build_mass(m, scene);
+  m.K0_csc.assign(m.nnz(), 0.0);
+  {
+    std::vector<double> u(m.ndof(), 0.0), f(m.ndof()), R(9 * m.nrot);
+    for (int r = 0; r < m.nrot; ++r)
+      for (int k = 0; k < 9; ++k) R[9 * r + k] = (k % 4 == 0) ? 1.0 : 0.0;
+    assemble_internal(m, u.data(), R.data(), f.data(), m.K0_csc.data());
+  }
+  build_constraints(m, scene);
+  return m;
+}
+
+}  // namespace incise

@@ -1,0 +1,19 @@
+#pragma once
+// Rotation part of a deformation gradient, inversion-safe.
+//
+// R = argmax_{R in SO(3)} tr(R^T F): for det F > 0 this is the polar factor of
+// F = R S (book eq. 3.62); for det F <= 0 it is U diag(1, 1, -1) V^T with the
+// smallest singular value's sign flipped, so det R = +1 always and an inverted
+// element is pushed back out (Irving et al. 2004; Teran's lectures on
+// inversion-robust models). Solved by the fixed-point rotation iteration of
+// Mueller et al. 2016 warm-started from last frame's R; falls back to an SVD if
+// it has not converged in a few dozen iterations.
+#include <Eigen/Core>
+
+namespace incise {
+
+// R (in/out): warm start on entry, rotation on exit. Returns iterations used
+// (-1 when the SVD fallback was taken).
+int extract_rotation(const Eigen::Matrix3d& F, Eigen::Matrix3d& R);
+
+}  // namespace incise

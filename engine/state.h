@@ -1,0 +1,33 @@
+#pragma once
+// The mutable State of a simulation: kinematics, current rotations, work
+// arrays sized once, the factorization, and the last frame's timings.
+#include <vector>
+
+#include "engine/cholmod_solver.h"
+#include "engine/model.h"
+#include "engine/timing.h"
+
+namespace incise {
+
+struct State {
+  double time = 0.0;
+  int frame = 0;
+  std::vector<double> u, v, a;  // (ndof) displacement, velocity, acceleration
+  std::vector<double> R;        // (nrot, 9) rotation of each slot, column-major
+
+  // Work arrays (ndof or nnz), allocated by init_state, reused every frame.
+  std::vector<double> f_int, K, A, rhs, delta, du, tmp, tmp2;
+  CholmodSolver solver;
+  bool factor_current = false;  // linear model: the factor never changes
+
+  FrameTiming timing;           // last frame
+  int refactorizations = 0;     // numeric factorizations so far
+  int rotation_fallbacks = 0;   // SVD fallbacks in the last frame (inverted points)
+  double last_residual = 0.0;   // relative residual of the last Newton iteration
+};
+
+// Sizes the arrays, analyzes the pattern, sets u = v = 0 and a consistent
+// initial acceleration a0 = M^-1 (f_ext - f_int(0)) on the free DOFs.
+void init_state(const Model& model, State& state);
+
+}  // namespace incise

@@ -1,0 +1,60 @@
+#include "engine/static_solve.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "engine/assemble.h"
+#include "engine/error.h"
+
+namespace incise {
+
+StaticResult solve_static(const Model& m, State& s, double tolerance, int max_iterations) {
+  const int n = m.ndof();
+  const bool linear = m.material.model == MaterialModel::Linear;
+  for (int d : m.fixed_dofs) s.u[d] = 0.0;
+  for (const auto& p : m.prescribed) s.u[p.dof] = p.value;
+  double fext = 0.0;
+  for (int d = 0; d < n; ++d)
+    if (!m.constrained[d]) fext += m.f_gravity[d] * m.f_gravity[d];
+  fext = std::sqrt(fext);
+  StaticResult res;
+  double ref = 0.0;
+  for (int it = 0; it <= max_iterations; ++it) {
+    const double* K = linear ? m.K0_csc.data() : s.K.data();
+    if (linear) {
+      sym_matvec(m, K, s.u.data(), s.f_int.data());
+    } else {
+      update_rotations(m, s.u.data(), s.R.data());
+      assemble_internal(m, s.u.data(), s.R.data(), s.f_int.data(), s.K.data());
+    }
+    double r2 = 0.0;
+    for (int d = 0; d < n; ++d) {
+      s.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d] - s.f_int[d];
+      r2 += s.rhs[d] * s.rhs[d];
+    }
+    const double r = std::sqrt(r2);
+    if (!std::isfinite(r)) throw Error("static: non-finite residual at iteration " + std::to_string(it));
+    if (it == 0) ref = std::max(fext, r);
+    res.iterations = it;
+    res.residual = ref > 0 ? r / ref : 0.0;
+    if (res.residual <= tolerance) {
+      res.converged = true;
+      break;
+    }
+    if (it == max_iterations) break;
+    if (!(linear && s.factor_current)) {
+      std::copy(K, K + m.nnz(), s.A.begin());
+      for (int k : m.constrained_entries) s.A[k] = 0.0;
+      for (int d = 0; d < n; ++d)
+        if (m.constrained[d]) s.A[m.diag[d]] = 1.0;
+      s.solver.factorize(s.A.data());
+      ++s.refactorizations;
+      s.factor_current = linear;
+    }
+    s.solver.solve(s.rhs.data(), s.du.data());
+    for (int d = 0; d < n; ++d) s.u[d] += s.du[d];
+  }
+  return res;
+}
+
+}  // namespace incise

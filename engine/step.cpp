@@ -1,0 +1,175 @@
+#include "engine/step.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "engine/assemble.h"
+#include "engine/error.h"
+
+namespace incise {
+
+void mass_matvec(const Model& m, const double* x, double* y) {
+  if (m.mass_kind == MassKind::Consistent) {
+    sym_matvec(m, m.mass_csc.data(), x, y);
+  } else {
+    for (int d = 0; d < m.ndof(); ++d) y[d] = m.mass_lumped[d] * x[d];
+  }
+}
+
+namespace {
+
+// Algorithm 1: zero the constrained rows and columns, unit diagonal. The
+// pattern is unchanged and the matrix stays SPD.
+void project_matrix(const Model& m, double* A) {
+  for (int k : m.constrained_entries) A[k] = 0.0;
+  for (int d = 0; d < m.ndof(); ++d)
+    if (m.constrained[d]) A[m.diag[d]] = 1.0;
+}
+
+void check_finite(const std::vector<double>& x, const char* what, const State& s) {
+  for (size_t d = 0; d < x.size(); ++d)
+    if (!std::isfinite(x[d])) {
+      std::ostringstream os;
+      os << "step: non-finite " << what << " at frame " << s.frame << " (t = " << s.time << "), DOF node " << d / 3
+         << " component " << "xyz"[d % 3] << "; the simulation was stopped instead of propagating NaN";
+      throw Error(os.str());
+    }
+}
+
+}  // namespace
+
+void init_state(const Model& m, State& s) {
+  const int n = m.ndof();
+  s.time = 0.0;
+  s.frame = 0;
+  s.u.assign(n, 0.0);
+  s.v.assign(n, 0.0);
+  s.a.assign(n, 0.0);
+  s.R.assign(9 * static_cast<size_t>(m.nrot), 0.0);
+  for (int r = 0; r < m.nrot; ++r) s.R[9 * r] = s.R[9 * r + 4] = s.R[9 * r + 8] = 1.0;
+  for (auto* w : {&s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) w->assign(n, 0.0);
+  s.K.assign(m.nnz(), 0.0);
+  s.A.assign(m.nnz(), 0.0);
+  s.solver.analyze(n, m.Ap, m.Ai);
+  s.factor_current = false;
+  s.refactorizations = 0;
+  // Consistent initial acceleration on the free DOFs: M a0 = f_ext - f_int(0) = f_ext.
+  for (int d = 0; d < n; ++d) s.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d];
+  if (m.mass_kind == MassKind::Lumped) {
+    for (int d = 0; d < n; ++d) s.a[d] = s.rhs[d] / m.mass_lumped[d];
+  } else {
+    std::copy(m.mass_csc.begin(), m.mass_csc.end(), s.A.begin());
+    project_matrix(m, s.A.data());
+    s.solver.factorize(s.A.data());
+    s.solver.solve(s.rhs.data(), s.a.data());
+  }
+  for (int d = 0; d < n; ++d)
+    if (m.constrained[d]) s.a[d] = 0.0;
+}
+
+void step(const Model& m, State& s) {
+  Stopwatch frame_clock, clock;
+  s.timing = FrameTiming{};
+  const int n = m.ndof();
+  const double dt = m.dt, t1 = s.time + dt;
+  const double a_ray = m.material.rayleigh_mass, b_ray = m.material.rayleigh_stiffness;
+  const bool linear = m.material.model == MaterialModel::Linear;
+  const double cM = 4.0 / (dt * dt) + 2.0 * a_ray / dt, cK = 1.0 + 2.0 * b_ray / dt;
+
+  // Increment Delta = u(t+dt) - u(t): constrained DOFs take their known
+  // increments up front (projection, Algorithm 1); the solves then keep
+  // them (rhs and off-diagonals zeroed) and find the free ones.
+  std::fill(s.delta.begin(), s.delta.end(), 0.0);
+  for (int d : m.fixed_dofs) s.delta[d] = -s.u[d];
+  for (const auto& p : m.prescribed) s.delta[p.dof] = m.prescribed_value(p, t1) - s.u[p.dof];
+  s.rotation_fallbacks = 0;
+  s.timing.ms[kStageOther] += clock.lap();
+
+  for (int it = 0; it < m.newton_iterations; ++it) {
+    // x = u + Delta; internal forces and tangent there.
+    double* x = s.tmp.data();
+    for (int d = 0; d < n; ++d) x[d] = s.u[d] + s.delta[d];
+    const double* K = linear ? m.K0_csc.data() : s.K.data();
+    if (linear) {
+      sym_matvec(m, K, x, s.f_int.data());
+    } else {
+      s.rotation_fallbacks += update_rotations(m, x, s.R.data());
+      assemble_internal(m, x, s.R.data(), s.f_int.data(), s.K.data());
+    }
+    s.timing.ms[kStageAssembly] += clock.lap();
+
+    // Newmark (eq. 3.58): a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v.
+    // Residual r = f_ext - f_int(x) - M a1 - D v1 with D = a M + b K. For
+    // Delta = 0 this is eq. 3.60 with f_int the elastic force only (the book
+    // folds the t-level viscous force D v into f_int, hence its D (2 v)).
+    double* a1 = s.du.data();
+    double* v1 = s.tmp2.data();
+    for (int d = 0; d < n; ++d) {
+      a1[d] = 4.0 / (dt * dt) * s.delta[d] - 4.0 / dt * s.v[d] - s.a[d];
+      v1[d] = 2.0 / dt * s.delta[d] - s.v[d];
+    }
+    // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
+    for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
+    mass_matvec(m, a1, s.rhs.data());
+    for (int d = 0; d < n; ++d) s.rhs[d] = m.f_gravity[d] - s.f_int[d] - s.rhs[d];
+    if (b_ray > 0.0) {
+      sym_matvec(m, K, v1, a1);
+      for (int d = 0; d < n; ++d) s.rhs[d] -= b_ray * a1[d];
+    }
+    double rnorm = 0.0, fnorm = 0.0;
+    for (int d = 0; d < n; ++d) {
+      if (m.constrained[d]) s.rhs[d] = 0.0;
+      rnorm += s.rhs[d] * s.rhs[d];
+      fnorm += m.f_gravity[d] * m.f_gravity[d] + s.f_int[d] * s.f_int[d];
+    }
+    s.last_residual = fnorm > 0 ? std::sqrt(rnorm / fnorm) : std::sqrt(rnorm);
+    check_finite(s.rhs, "residual", s);
+    s.timing.ms[kStageOther] += clock.lap();
+
+    // A = 4/dt^2 M + 2/dt D + K (eq. 3.59), projected. A linear model factors once.
+    if (!(linear && s.factor_current)) {
+      for (int k = 0; k < m.nnz(); ++k) s.A[k] = cK * K[k];
+      if (m.mass_kind == MassKind::Consistent) {
+        for (int k = 0; k < m.nnz(); ++k) s.A[k] += cM * m.mass_csc[k];
+      } else {
+        for (int d = 0; d < n; ++d) s.A[m.diag[d]] += cM * m.mass_lumped[d];
+      }
+      project_matrix(m, s.A.data());
+      s.timing.ms[kStageAssembly] += clock.lap();
+      s.solver.factorize(s.A.data());
+      ++s.refactorizations;
+      s.factor_current = true;
+      s.timing.ms[kStageFactorization] += clock.lap();
+    }
+    s.solver.solve(s.rhs.data(), s.du.data());
+    check_finite(s.du, "displacement increment", s);
+    for (int d = 0; d < n; ++d) s.delta[d] += s.du[d];
+    s.timing.ms[kStageSolve] += clock.lap();
+  }
+
+  // Newmark update (eq. 3.58).
+  for (int d = 0; d < n; ++d) {
+    const double a1 = 4.0 / (dt * dt) * s.delta[d] - 4.0 / dt * s.v[d] - s.a[d];
+    s.v[d] += 0.5 * dt * (s.a[d] + a1);
+    s.a[d] = a1;
+    s.u[d] += s.delta[d];
+  }
+  s.time = t1;
+  ++s.frame;
+  s.timing.ms[kStageOther] += clock.lap();
+  s.timing.frame_ms = frame_clock.ms();
+}
+
+double total_energy(const Model& m, const State& s) {
+  std::vector<double> Mv(m.ndof());
+  mass_matvec(m, s.v.data(), Mv.data());
+  double kin = 0.0, pot = 0.0;
+  for (int d = 0; d < m.ndof(); ++d) {
+    kin += 0.5 * s.v[d] * Mv[d];
+    pot -= m.f_gravity[d] * s.u[d];
+  }
+  return kin + pot + elastic_energy(m, s.u.data(), s.R.data());
+}
+
+}  // namespace incise

@@ -1,0 +1,21 @@
+#pragma once
+// One fixed time step of the dynamics.
+#include "engine/model.h"
+#include "engine/state.h"
+
+namespace incise {
+
+// Newmark average acceleration (book eq. 3.58-3.61) with the projection
+// constraints of Algorithm 1, newton_iterations linearised solves (1 by
+// default). Advances state.time by model.dt. Throws incise::Error on a
+// non-positive-definite system or a non-finite result (never lets NaN on).
+void step(const Model& model, State& state);
+
+// Kinetic + elastic - gravity potential energy (for verification): for the
+// linear model 1/2 v'Mv + 1/2 u'K0u - f'u.
+double total_energy(const Model& model, const State& state);
+
+// y = M x with the model's mass (lumped or consistent).
+void mass_matvec(const Model& model, const double* x, double* y);
+
+}  // namespace incise
