@@ -55,8 +55,8 @@ int extract_rotation(const Eigen::Matrix3d& F, Eigen::Matrix3d& R) {
     }
     q = Eigen::Quaterniond(Eigen::AngleAxisd(angle, d / angle)) * q;
     q.normalize();
-    // Quadratic convergence: after a Newton step of 1e-8 the error is ~1e-16.
-    if ((newton && angle < 1e-8) || angle < 1e-15) {
+    // Near-quadratic convergence: after a Newton step of 1e-11 the error is at roundoff.
+    if ((newton && angle < 1e-11) || angle < 1e-15) {
       R = q.toRotationMatrix();
       return it + 1;
     }

@@ -54,6 +54,7 @@ StaticResult solve_static(const Model& m, State& s, double tolerance, int max_it
     s.solver.solve(s.rhs.data(), s.du.data());
     for (int d = 0; d < n; ++d) s.u[d] += s.du[d];
   }
+  s.factor_current = false;  // the factor held K, not a dynamics matrix
   return res;
 }
 

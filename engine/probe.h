@@ -1,0 +1,23 @@
+#pragma once
+// Point location in the reference configuration and interpolation of the
+// displacement with the element shape functions.
+#include <array>
+#include <vector>
+
+#include "engine/model.h"
+
+namespace incise {
+
+struct ProbeHit {
+  int elem = -1;          // -1: outside the mesh
+  double rst[3] = {0, 0, 0};  // local coordinates in elem
+};
+
+// The element containing reference point x (inclusive of faces, with a 1e-9
+// tolerance in local coordinates; curved tet10 inverted by Newton).
+ProbeHit locate_point(const Model& model, const double x[3]);
+
+// u(x) = sum_a N_a(rst) u_a over the element's nodes.
+std::array<double, 3> interpolate_displacement(const Model& model, const double* u, const ProbeHit& hit);
+
+}  // namespace incise

@@ -1,0 +1,19 @@
+#include "engine/simulation.h"
+
+#include "engine/mesh_io.h"
+#include "engine/timing.h"
+
+namespace incise {
+
+std::unique_ptr<Simulation> load_simulation(const std::string& scene_path) {
+  Stopwatch clock;
+  auto sim = std::make_unique<Simulation>();
+  sim->scene = load_scene(scene_path);
+  const Mesh mesh = read_mesh(sim->scene.mesh_file);
+  sim->model = build_model(mesh, sim->scene);
+  init_state(sim->model, sim->state);
+  sim->setup_ms = clock.ms();
+  return sim;
+}
+
+}  // namespace incise

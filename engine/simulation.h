@@ -1,0 +1,24 @@
+#pragma once
+// A loaded scene ready to step: Scene -> Mesh -> Model -> State.
+#include <memory>
+#include <string>
+
+#include "engine/mesh.h"
+#include "engine/model.h"
+#include "engine/scene.h"
+#include "engine/state.h"
+
+namespace incise {
+
+struct Simulation {
+  Scene scene;
+  Model model;
+  State state;
+  double setup_ms = 0.0;  // reading the mesh, precomputation, symbolic analysis
+};
+
+// Reads the scene and its mesh, builds the model, initialises the state.
+// Throws incise::Error with the file and field at fault.
+std::unique_ptr<Simulation> load_simulation(const std::string& scene_path);
+
+}  // namespace incise

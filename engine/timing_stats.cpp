@@ -1,0 +1,60 @@
+#include "engine/timing_stats.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace incise {
+
+Percentiles percentiles(std::vector<double> x) {
+  Percentiles p;
+  p.count = static_cast<int>(x.size());
+  if (x.empty()) return p;
+  std::sort(x.begin(), x.end());
+  auto rank = [&](double q) {
+    const size_t k = static_cast<size_t>(std::ceil(q * x.size()));
+    return x[std::min(x.size() - 1, k == 0 ? 0 : k - 1)];
+  };
+  p.median_ms = x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
+  p.p95_ms = rank(0.95);
+  p.p99_ms = rank(0.99);
+  p.max_ms = x.back();
+  return p;
+}
+
+TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms) {
+  TimingSummary s;
+  s.budget_ms = budget_ms;
+  std::vector<double> f;
+  std::vector<double> st[kNumStages];
+  int over = 0;
+  for (const auto& t : frames) {
+    f.push_back(t.frame_ms);
+    over += t.frame_ms > budget_ms;
+    for (int k = 0; k < kNumStages; ++k) st[k].push_back(t.ms[k]);
+  }
+  s.frame = percentiles(f);
+  for (int k = 0; k < kNumStages; ++k) s.stages[k] = percentiles(st[k]);
+  s.over_budget = frames.empty() ? 0.0 : static_cast<double>(over) / frames.size();
+  return s;
+}
+
+std::string format_summary(const TimingSummary& s) {
+  std::string out;
+  char line[160];
+  std::snprintf(line, sizeof line, "%-14s %10s %10s %10s %10s\n", "stage (ms)", "median", "p95", "p99", "max");
+  out += line;
+  auto row = [&](const char* name, const Percentiles& p) {
+    std::snprintf(line, sizeof line, "%-14s %10.3f %10.3f %10.3f %10.3f\n", name, p.median_ms, p.p95_ms, p.p99_ms,
+                  p.max_ms);
+    out += line;
+  };
+  for (int k = 0; k < kNumStages; ++k) row(kStageNames[k], s.stages[k]);
+  row("frame", s.frame);
+  std::snprintf(line, sizeof line, "frames over the %.1f ms budget: %.1f%% of %d\n", s.budget_ms, 100.0 * s.over_budget,
+                s.frame.count);
+  out += line;
+  return out;
+}
+
+}  // namespace incise

@@ -1,0 +1,27 @@
+#pragma once
+// Summaries of per-frame stage timings: median, p95, p99, max.
+#include <string>
+#include <vector>
+
+#include "engine/timing.h"
+
+namespace incise {
+
+struct Percentiles {
+  double median_ms = 0, p95_ms = 0, p99_ms = 0, max_ms = 0;
+  int count = 0;
+};
+// Nearest-rank percentiles of the samples.
+Percentiles percentiles(std::vector<double> samples);
+
+struct TimingSummary {
+  Percentiles frame;
+  Percentiles stages[kNumStages];
+  double over_budget = 0.0;  // share of frames with frame_ms > budget_ms
+  double budget_ms = 1000.0 / 30.0;
+};
+TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms = 1000.0 / 30.0);
+// A fixed-width table: stage, median, p95, p99, max (ms).
+std::string format_summary(const TimingSummary& s);
+
+}  // namespace incise

@@ -1,0 +1,142 @@
+// The incise command line, run as a user runs it: files in, files and
+// messages out, exit codes.
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "engine/mesh_io.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Result {
+  int code;
+  std::string out;
+};
+
+Result incise(const std::string& args) {
+  const fs::path log = fs::temp_directory_path() / ("incise_cli_" + std::to_string(::getpid()) + ".log");
+  const std::string cmd = std::string(INCISE_BINARY) + " " + args + " > " + log.string() + " 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream is(log);
+  std::stringstream ss;
+  ss << is.rdbuf();
+  fs::remove(log);
+  return {WEXITSTATUS(status), ss.str()};
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("incise_cli_" + std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  void write(const std::string& name, const std::string& text) const { std::ofstream(dir_ / name) << text; }
+  // A linear cantilever (L = 4, 1 x 1) fixed at x = 0, under gravity.
+  void cantilever_scene(const std::string& extra = "") const {
+    ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 8 2 2 --out " + path("beam.vtu")).code, 0);
+    write("scene.json", R"({"mesh": {"file": "beam.vtu", "order": 2},
+      "material": {"model": "linear", "young": 1e5, "poisson": 0.3, "density": 1},
+      "mass": "consistent", "gravity": [0, 0, -1],
+      "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}])" + extra + "}");
+  }
+  fs::path dir_;
+};
+
+TEST_F(Cli, MeshBeamWritesAReadableMesh) {
+  const Result r = incise("mesh beam --size 2 1 1 --cells 4 2 2 --order 2 --out " + path("b.msh"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const incise::Mesh m = incise::read_mesh(path("b.msh"));
+  EXPECT_EQ(m.order, 2);
+  EXPECT_EQ(m.ntet(), 4 * 2 * 2 * 6);
+  EXPECT_EQ(m.nnode(), 9 * 5 * 5);  // tet10 nodes of a Kuhn grid = the 2x finer lattice
+  EXPECT_NE(r.out.find("dihedral"), std::string::npos) << "quality report expected: " << r.out;
+}
+
+TEST_F(Cli, MeshConvertRaisesToTet10) {
+  ASSERT_EQ(incise("mesh beam --size 1 1 1 --cells 2 2 2 --out " + path("a.vtk")).code, 0);
+  const Result r = incise("mesh convert " + path("a.vtk") + " " + path("a.vtu") + " --order 2");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(incise::read_mesh(path("a.vtu")).nnode(), 125);
+}
+
+TEST_F(Cli, StaticProbeReportsInterpolatedDisplacement) {
+  cantilever_scene();
+  write("probe.csv", "x,y,z\n4,0.5,0.5\n2,0.5,0.5\n0,0.5,0.5\n");
+  const Result r = incise("static " + path("scene.json") + " --probe " + path("probe.csv") + " --out " + path("u.csv"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream is(path("u.csv"));
+  std::string header, line;
+  std::getline(is, header);
+  EXPECT_EQ(header, "x,y,z,ux,uy,uz");
+  double uz[3];
+  for (int k = 0; k < 3; ++k) {
+    ASSERT_TRUE(std::getline(is, line));
+    double x, y, z, ux, uy;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf", &x, &y, &z, &ux, &uy, &uz[k]), 6) << line;
+  }
+  // Euler-Bernoulli: w(L) = q L^4 / (8 E I) = 1 * 256 / (8e5 / 12) = 3.84e-3;
+  // w(L/2) / w(L) = 17/48 for a uniform load.
+  EXPECT_NEAR(uz[0] / -3.84e-3, 1.0, 0.05);
+  EXPECT_NEAR(uz[1] / uz[0], 17.0 / 48.0, 0.03);
+  EXPECT_EQ(uz[2], 0.0);
+}
+
+TEST_F(Cli, StaticProbeOutsideTheMeshIsAnErrorNamingThePoint) {
+  cantilever_scene();
+  write("probe.csv", "1,0.5,0.5\n5,0.5,0.5\n");
+  const Result r = incise("static " + path("scene.json") + " --probe " + path("probe.csv"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("probe.csv: point 2 (5, 0.5, 0.5) is outside the mesh"), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, RunWritesSeriesAndTimingJson) {
+  cantilever_scene();
+  const Result r = incise("run " + path("scene.json") + " --frames 3 --out " + path("out"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_TRUE(fs::exists(path("out/scene.pvd")));
+  int vtu = 0;
+  for (const auto& e : fs::directory_iterator(path("out"))) vtu += e.path().extension() == ".vtu";
+  EXPECT_EQ(vtu, 4);  // frame 0 and three steps
+  std::ifstream js(path("out/timing.json"));
+  const auto j = nlohmann::json::parse(js);
+  EXPECT_EQ(j["frames"], 3);
+  EXPECT_EQ(j["refactorizations"], 1) << "a linear scene factors once";
+}
+
+TEST_F(Cli, BenchJsonHasTheDocumentedFields) {
+  cantilever_scene();
+  const Result r = incise("bench " + path("scene.json") + " --frames 5 --json " + path("b.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream js(path("b.json"));
+  const auto j = nlohmann::json::parse(js);
+  for (const char* k : {"median_ms", "p95_ms", "p99_ms", "max_ms", "over_budget"}) EXPECT_TRUE(j["frame"].contains(k)) << k;
+  for (const char* s : {"assembly", "factorization", "solve", "other"})
+    for (const char* k : {"median_ms", "p95_ms", "p99_ms", "max_ms"}) EXPECT_TRUE(j["stages"][s].contains(k)) << s << k;
+  EXPECT_EQ(j["dof"], 3 * 17 * 5 * 5);
+  EXPECT_GT(j["factor"]["nnz_L"].get<double>(), 0.0);
+  EXPECT_GT(j["factor"]["flops"].get<double>(), 0.0);
+  // a linear scene never refactorizes: factorization is 0 ms after frame 1
+  EXPECT_EQ(j["stages"]["factorization"]["median_ms"].get<double>(), 0.0);
+}
+
+TEST_F(Cli, MalformedSceneGivesItsMessageAndExitCode1) {
+  cantilever_scene();
+  write("bad.json", R"({"mesh": {"file": "beam.vtu"}, "material": {"young": 1, "poisson": 0.5, "density": 1}})");
+  const Result r = incise("run " + path("bad.json") + " --frames 1");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("bad.json: material.poisson must be in (-1, 0.5), got 0.5"), std::string::npos) << r.out;
+}
+
+}  // namespace

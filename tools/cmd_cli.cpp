@@ -1,0 +1,30 @@
+#include <iostream>
+
+#include "engine/error.h"
+#include "tools/cli.h"
+#include "tools/commands.h"
+
+namespace incise {
+
+int cli_main(int argc, char** argv) {
+  CLI::App app{"incise: real-time surgical cutting engine (corotated tet10 FEM, Newmark, CHOLMOD)"};
+  app.require_subcommand(1);
+  add_run_command(app);
+  add_static_command(app);
+  add_bench_command(app);
+  add_mesh_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const Error& e) {
+    std::cerr << "incise: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "incise: internal error: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}
+
+}  // namespace incise

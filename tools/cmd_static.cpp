@@ -1,0 +1,109 @@
+// incise static: Newton to static equilibrium, optional probe of the
+// displacement at reference points.
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "engine/error.h"
+#include "engine/probe.h"
+#include "engine/result_grid.h"
+#include "engine/simulation.h"
+#include "engine/static_solve.h"
+#include "tools/commands.h"
+
+namespace incise {
+
+namespace {
+struct StaticOptions {
+  std::string scene, probe, out, vtu;
+};
+
+// x,y,z per line; an optional header line; blank lines and '#' comments skipped.
+std::vector<std::array<double, 3>> read_probe_points(const std::string& path) {
+  std::ifstream is(path);
+  if (!is) throw Error(path + ": cannot open probe file");
+  std::vector<std::array<double, 3>> pts;
+  std::string line;
+  for (int lineno = 1; std::getline(is, line); ++lineno) {
+    if (line.empty() || line[0] == '#' || line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream ls(line);
+    std::array<double, 3> p;
+    std::string extra;
+    if (!(ls >> p[0] >> p[1] >> p[2])) {
+      if (pts.empty() && lineno == 1) continue;  // header
+      throw Error(path + ":" + std::to_string(lineno) + ": expected three numbers x,y,z");
+    }
+    if (ls >> extra) throw Error(path + ":" + std::to_string(lineno) + ": expected exactly three values x,y,z, got more");
+    for (double v : p)
+      if (!std::isfinite(v)) throw Error(path + ":" + std::to_string(lineno) + ": coordinates must be finite");
+    pts.push_back(p);
+  }
+  if (pts.empty()) throw Error(path + ": no probe points");
+  return pts;
+}
+
+void run_static(const StaticOptions& o) {
+  auto sim = load_simulation(o.scene);
+  print_model_summary(*sim);
+  // Probe points are located before the solve so a bad point fails fast.
+  std::vector<std::array<double, 3>> pts;
+  std::vector<ProbeHit> hits;
+  if (!o.probe.empty()) {
+    pts = read_probe_points(o.probe);
+    for (size_t k = 0; k < pts.size(); ++k) {
+      hits.push_back(locate_point(sim->model, pts[k].data()));
+      if (hits.back().elem < 0) {
+        char buf[256];
+        std::snprintf(buf, sizeof buf, "%s: point %zu (%.9g, %.9g, %.9g) is outside the mesh", o.probe.c_str(), k + 1,
+                      pts[k][0], pts[k][1], pts[k][2]);
+        throw Error(buf);
+      }
+    }
+  }
+  Stopwatch clock;
+  const StaticResult r = solve_static(sim->model, sim->state, sim->scene.static_tolerance,
+                                      sim->scene.static_max_iterations);
+  std::printf("static: %s after %d Newton iteration(s), relative residual %.3e (tolerance %.1e), %.1f ms\n",
+              r.converged ? "converged" : "NOT converged", r.iterations, r.residual, sim->scene.static_tolerance,
+              clock.ms());
+  if (!o.vtu.empty()) write_vtu(result_grid(sim->model, sim->state), o.vtu);
+  if (!pts.empty()) {
+    std::ostringstream os;
+    os.precision(12);
+    os << "x,y,z,ux,uy,uz\n";
+    for (size_t k = 0; k < pts.size(); ++k) {
+      const auto u = interpolate_displacement(sim->model, sim->state.u.data(), hits[k]);
+      os << pts[k][0] << "," << pts[k][1] << "," << pts[k][2] << "," << u[0] << "," << u[1] << "," << u[2] << "\n";
+    }
+    if (o.out.empty()) {
+      std::printf("%s", os.str().c_str());
+    } else {
+      const std::string tmp = o.out + ".tmp";
+      std::ofstream f(tmp);
+      f << os.str();
+      f.close();
+      if (!f || std::rename(tmp.c_str(), o.out.c_str()) != 0) throw Error(o.out + ": cannot write the probe result");
+      std::printf("wrote %s (%zu points)\n", o.out.c_str(), pts.size());
+    }
+  }
+  if (!r.converged)
+    throw Error(o.scene + ": static solve did not reach static.tolerance " + std::to_string(sim->scene.static_tolerance) +
+                " in " + std::to_string(sim->scene.static_max_iterations) +
+                " iterations; raise static.max_iterations or loosen static.tolerance");
+}
+}  // namespace
+
+void add_static_command(CLI::App& app) {
+  auto opts = std::make_shared<StaticOptions>();
+  auto* cmd = app.add_subcommand("static", "Solve the static equilibrium (Newton on the corotated forces)");
+  cmd->add_option("scene", opts->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--probe", opts->probe, "CSV of reference points x,y,z (header allowed)")->check(CLI::ExistingFile);
+  cmd->add_option("--out", opts->out, "Probe result CSV x,y,z,ux,uy,uz (default: stdout)");
+  cmd->add_option("--vtu", opts->vtu, "Also write the deformed mesh with fields to this .vtu");
+  cmd->callback([opts] { run_static(*opts); });
+}
+
+}  // namespace incise

@@ -1,0 +1,24 @@
+#include <cstdio>
+
+#include "engine/simulation.h"
+#include "tools/commands.h"
+
+namespace incise {
+
+void print_model_summary(const Simulation& sim) {
+  const Model& m = sim.model;
+  const FactorStats& f = sim.state.solver.stats();
+  const char* elem = m.mesh.order == 2 ? (m.material.rotation == RotationMode::Single ? "tet10SR" : "tet10") : "tet4";
+  std::printf("scene %s\n", sim.scene.path.c_str());
+  std::printf("  mesh %s: %d nodes, %d %s elements, %d DOF, %s %s, %s mass\n", sim.scene.mesh_file.c_str(), m.nnode,
+              m.nelem, elem, m.ndof(), m.material.model == MaterialModel::Linear ? "linear" : "corotated",
+              m.mesh.order == 2 && m.material.rotation == RotationMode::PerPoint ? "(rotation per cubature point)" : "",
+              m.mass_kind == MassKind::Lumped ? "lumped" : "consistent");
+  std::printf("  constraints: %zu fixed DOF, %zu prescribed DOF; dt %.6g s, %d Newton iteration(s) per step\n",
+              m.fixed_dofs.size(), m.prescribed.size(), m.dt, m.newton_iterations);
+  std::printf("  CHOLMOD %s, ordering %s: nnz(A) %d, nnz(L) %.0f, %.3g Mflop per factorization; setup %.1f ms\n",
+              f.supernodal ? "supernodal" : "simplicial", f.ordering.c_str(), m.nnz(), f.nnz_L, f.flops * 1e-6,
+              sim.setup_ms);
+}
+
+}  // namespace incise

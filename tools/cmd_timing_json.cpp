@@ -1,0 +1,42 @@
+#include <cstdio>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/error.h"
+#include "tools/timing_json.h"
+
+namespace incise {
+
+void write_timing_json(const std::string& path, const Simulation& sim, const TimingSummary& s) {
+  auto pct = [](const Percentiles& p) {
+    return nlohmann::json{{"median_ms", p.median_ms}, {"p95_ms", p.p95_ms}, {"p99_ms", p.p99_ms}, {"max_ms", p.max_ms}};
+  };
+  nlohmann::json j;
+  j["scene"] = sim.scene.path;
+  j["frames"] = s.frame.count;
+  j["frame"] = pct(s.frame);
+  j["frame"]["over_budget"] = s.over_budget;
+  j["frame"]["budget_ms"] = s.budget_ms;
+  for (int k = 0; k < kNumStages; ++k) j["stages"][kStageNames[k]] = pct(s.stages[k]);
+  const Model& m = sim.model;
+  j["dof"] = m.ndof();
+  j["nodes"] = m.nnode;
+  j["elements"] = m.nelem;
+  j["element"] = m.mesh.order == 2 ? (m.material.rotation == RotationMode::Single ? "tet10SR" : "tet10") : "tet4";
+  j["material"] = m.material.model == MaterialModel::Linear ? "linear" : "corotated";
+  const FactorStats& f = sim.state.solver.stats();
+  j["factor"] = {{"nnz_L", f.nnz_L}, {"flops", f.flops}, {"ordering", f.ordering}, {"nnz_A", m.nnz()}};
+  j["refactorizations"] = sim.state.refactorizations;
+  j["setup_ms"] = sim.setup_ms;
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream os(tmp);
+    if (!os) throw Error(path + ": cannot write timing report");
+    os << j.dump(2) << "\n";
+    if (!os) throw Error(path + ": write failed");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw Error(path + ": cannot move the timing report into place");
+}
+
+}  // namespace incise

@@ -1,0 +1,16 @@
+#pragma once
+// Each sub-command registers itself on the CLI11 app; its callback runs it.
+#include <CLI/CLI.hpp>
+
+namespace incise {
+
+void add_run_command(CLI::App& app);     // incise run SCENE --frames N [--out DIR]
+void add_static_command(CLI::App& app);  // incise static SCENE [--probe P.csv] [--out R.csv]
+void add_bench_command(CLI::App& app);   // incise bench SCENE --frames N [--json F]
+void add_mesh_command(CLI::App& app);    // incise mesh beam|convert ...
+
+// Prints the model summary (DOFs, elements, factor) used by run/static/bench.
+struct Simulation;
+void print_model_summary(const Simulation& sim);
+
+}  // namespace incise

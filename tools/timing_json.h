@@ -1,0 +1,14 @@
+#pragma once
+// The JSON timing report shared by `incise run` and `incise bench`.
+#include <string>
+
+#include "engine/simulation.h"
+#include "engine/timing_stats.h"
+
+namespace incise {
+
+// {frame: {median_ms, p95_ms, p99_ms, max_ms, over_budget}, stages: {name: {...}},
+//  dof, factor: {nnz_L, flops, ordering}, ...}; written atomically.
+void write_timing_json(const std::string& path, const Simulation& sim, const TimingSummary& s);
+
+}  // namespace incise
