@@ -52,8 +52,9 @@ int update_rotations(const Model& m, const double* u, double* R) {
 void assemble_internal(const Model& m, const double* u, const double* R, double* f_int, double* K) {
   std::fill(f_int, f_int + m.ndof(), 0.0);
   if (K) std::fill(K, K + m.nnz(), 0.0);
-  std::vector<double> Kloc;  // blocks a <= b, 9 each (row-major within a block)
-  std::vector<double> h;     // (n, 3) rotated gradients
+  // Per-thread scratch kept across calls: no allocation per frame.
+  thread_local std::vector<double> Kloc;  // blocks a <= b, 9 each (row-major within a block)
+  thread_local std::vector<double> h;     // (n, 3) rotated gradients
   for (int e = 0; e < m.nelem; ++e) {
     const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
     const int nblk = n * (n + 1) / 2;

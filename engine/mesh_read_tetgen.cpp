@@ -86,7 +86,6 @@ Mesh read_tetgen(const std::string& path) {
   long long dim = tok.size() > 1 ? get_long(node, tok[1], "the dimension") : 3;
   if (dim != 3) node.fail("dimension must be 3, got " + std::to_string(dim));
   if (n <= 0) node.fail("the .node file lists no points (points inside a .poly are not supported)");
-  raw.X.reserve(3 * n);
   for (long long i = 0; i < n; ++i) {
     if (!data_line(node, tok))
       node.fail("unexpected end of file: " + std::to_string(i) + " of " + std::to_string(n) + " points read");

@@ -99,7 +99,6 @@ Mesh read_legacy(const std::string& path) {
     if (key == "POINTS") {
       long long n = t.need_long("the number of points");
       t.need("the point data type");
-      raw.X.reserve(3 * n);
       for (long long p = 0; p < n; ++p) {
         double x[3];
         for (int c = 0; c < 3; ++c) x[c] = get_coord(f, t.need("a point coordinate"), "a point coordinate");
@@ -109,6 +108,7 @@ Mesh read_legacy(const std::string& path) {
     } else if (key == "CELLS") {
       long long a = t.need_long("the number of cells");
       long long b = t.need_long("the size of the cell list");
+      if (a < 0 || b < 0) f.fail("CELLS sizes must not be negative");
       std::string_view next = a > 0 ? t.need("cell data") : std::string_view();
       if (a == 0) {
         cells.start.assign(1, 0);
@@ -121,6 +121,7 @@ Mesh read_legacy(const std::string& path) {
         if (upper(t.need("CONNECTIVITY")) != "CONNECTIVITY") f.fail("expected CONNECTIVITY after OFFSETS");
         t.need("the connectivity data type");
         for (long long i = 0; i < b; ++i) cells.conn.push_back(t.need_long("a node index"));
+        if (cells.start.empty() || cells.start[0] != 0) f.fail("OFFSETS must start with 0");
         for (size_t i = 1; i < cells.start.size(); ++i)
           if (cells.start[i] < cells.start[i - 1] || cells.start[i] > b)
             f.fail("OFFSETS must increase and stay within the " + std::to_string(b) + " CONNECTIVITY entries");

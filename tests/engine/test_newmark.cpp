@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/error.h"
 #include "engine/mesh_tools.h"
 #include "engine/state.h"
 #include "engine/step.h"
@@ -93,6 +94,29 @@ TEST(Newmark, PrescribedRampIsFollowedExactly) {
     const double expect = 0.3 * std::min(1.0, st.time / 0.5);
     for (const auto& pd : m.prescribed) ASSERT_NEAR(st.u[pd.dof], expect, 1e-14);
     for (int d : m.fixed_dofs) ASSERT_EQ(st.u[d], 0.0);
+  }
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+TEST(Newmark, NaNInTheStateStopsTheStepWithAMessage) {
+  const Mesh mesh = make_beam(2.0, 0.5, 0.5, 4, 1, 1, 1);
+  for (MaterialModel mm : {MaterialModel::Linear, MaterialModel::Corotated}) {
+    const Model m = build_model(mesh, cantilever_scene(mm));
+    State st;
+    init_state(m, st);
+    step(m, st);
+    st.u[3 * (m.nnode - 1) + 1] = std::nan("");
+    try {
+      step(m, st);
+      FAIL() << "expected an error";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("non-finite"), std::string::npos) << e.what();
+    }
   }
 }
 
