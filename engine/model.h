@@ -41,6 +41,7 @@ struct Model {
   std::vector<int> elem_dof_node;  // DOF nodes of each element
   std::vector<int> elem_qp_ptr;    // (nelem + 1) quadrature points of each element
   std::vector<double> elem_volume; // (nelem) reference volume
+  std::vector<unsigned char> tet_face_boundary;  // (nelem, 4) face opposite corner k is on the mesh boundary
 
   // Quadrature points
   std::vector<double> qp_weight;   // (nqp) cubature weight * det J: the volume it stands for

@@ -1,6 +1,7 @@
 // Precomputation of the frozen Model: quadrature, rotation slots, sparse
 // pattern and scatter map, mass, rest stiffness, loads, constraints.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 
@@ -67,6 +68,31 @@ void build_elements(Model& m, const Scene& scene) {
     m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
   }
   m.nrot = static_cast<int>(m.rot_elem.size());
+}
+
+// A face is on the boundary when no other tetrahedron has the same corners.
+void build_boundary_faces(Model& m) {
+  const Mesh& mesh = m.mesh;
+  const int npe = mesh.npe();
+  std::vector<std::array<int, 4>> faces;  // sorted corners + (elem * 4 + k)
+  faces.reserve(4 * static_cast<size_t>(mesh.ntet()));
+  for (int e = 0; e < mesh.ntet(); ++e)
+    for (int k = 0; k < 4; ++k) {
+      std::array<int, 4> f;
+      for (int j = 0, c = 0; j < 4; ++j)
+        if (j != k) f[c++] = mesh.tet[static_cast<size_t>(e) * npe + j];
+      std::sort(f.begin(), f.begin() + 3);
+      f[3] = 4 * e + k;
+      faces.push_back(f);
+    }
+  std::sort(faces.begin(), faces.end());
+  m.tet_face_boundary.assign(4 * static_cast<size_t>(mesh.ntet()), 0);
+  for (size_t i = 0; i < faces.size();) {
+    size_t j = i + 1;
+    while (j < faces.size() && std::equal(faces[j].begin(), faces[j].begin() + 3, faces[i].begin())) ++j;
+    if (j - i == 1) m.tet_face_boundary[faces[i][3]] = 1;
+    i = j;
+  }
 }
 
 void build_pattern(Model& m) {
@@ -260,6 +286,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene) {
   m.nnode = m.ndofnode = m.mesh.nnode();
   m.X = m.mesh.X;
   build_elements(m, scene);
+  build_boundary_faces(m);
   build_pattern(m);
   build_mass(m, scene);
   m.K0_csc.assign(m.nnz(), 0.0);

@@ -1,25 +1,34 @@
 #include "engine/result_grid.h"
 
 #include "engine/assemble.h"
+#include "engine/display_mesh.h"
 
 namespace incise {
 
 VtuGrid result_grid(const Model& m, const State& s) {
+  const DisplayMesh d = display_mesh(m, s);
   VtuGrid g;
-  const int nn = m.nnode, npe = m.mesh.npe();
+  const int np = d.npoint(), npe = d.npe(), nc = d.ncell();
   // Points are written deformed (x = X + u) so the motion shows without a
   // Warp filter; the displacement field is there for colouring and probing.
-  g.points.resize(3 * static_cast<size_t>(nn));
-  for (int i = 0; i < 3 * nn; ++i) g.points[i] = m.X[i] + s.u[i];
-  g.connectivity = m.mesh.tet;
-  g.offsets.resize(m.mesh.ntet());
-  g.types.assign(m.mesh.ntet(), npe == 10 ? 24 : 10);
-  for (int e = 0; e < m.mesh.ntet(); ++e) g.offsets[e] = (e + 1) * npe;
-  g.point_data.push_back({"displacement", 3, std::vector<double>(s.u.begin(), s.u.begin() + 3 * nn)});
-  g.point_data.push_back({"velocity", 3, std::vector<double>(s.v.begin(), s.v.begin() + 3 * nn)});
-  VtuField vm{"von_mises", 1, std::vector<double>(m.nelem)};
-  element_von_mises(m, s.u.data(), s.R.data(), vm.values.data());
+  g.points.resize(3 * static_cast<size_t>(np));
+  for (int i = 0; i < 3 * np; ++i) g.points[i] = d.X[i] + d.u[i];
+  g.connectivity = d.cells;
+  g.offsets.resize(nc);
+  g.types.assign(nc, npe == 10 ? 24 : 10);
+  for (int c = 0; c < nc; ++c) g.offsets[c] = (c + 1) * npe;
+  g.point_data.push_back({"displacement", 3, d.u});
+  g.point_data.push_back({"velocity", 3, d.v});
+  std::vector<double> vm_elem(m.nelem);
+  element_von_mises(m, s.u.data(), s.R.data(), vm_elem.data());
+  VtuField vm{"von_mises", 1, std::vector<double>(nc)};
+  VtuField elem{"element", 1, std::vector<double>(nc)};
+  for (int c = 0; c < nc; ++c) {
+    vm.values[c] = vm_elem[d.cell_elem[c]];
+    elem.values[c] = d.cell_elem[c];
+  }
   g.cell_data.push_back(std::move(vm));
+  g.cell_data.push_back(std::move(elem));
   return g;
 }
 

@@ -408,6 +408,55 @@ void parse_output(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("vtu"); it != v.end()) s.output.write_vtu = p.boolean(*it, at + ".vtu");
 }
 
+void parse_cuts(const Parser& p, const json& v, Scene& s) {
+  p.array(v, "cuts");
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string at = Parser::index("cuts", i);
+    const json& e = p.object(v[i], at);
+    CutSpec c;
+    c.json_path = at;
+    const size_t type = p.choice(p.required(e, at, "type", "\"plane\", \"polygon\", \"mesh\" or \"swept\""),
+                                 at + ".type", {"plane", "polygon", "mesh", "swept"});
+    if (auto it = e.find("at_time"); it != e.end()) c.at_time = p.nonnegative(*it, at + ".at_time");
+    if (type == 0) {
+      c.type = CutSpec::Type::Plane;
+      p.allowed_keys(e, at, {"type", "at_time", "point", "normal"});
+      c.point = p.vec3(p.required(e, at, "point", "[x, y, z]"), at + ".point");
+      const json& nj = p.required(e, at, "normal", "[nx, ny, nz], nonzero");
+      Vec3 n = p.vec3(nj, at + ".normal");
+      const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      if (!(len > 0.0)) p.fail(at + ".normal", " must be a nonzero vector, got " + show(nj));
+      for (double& x : n) x /= len;
+      c.normal = n;
+    } else if (type == 1) {
+      c.type = CutSpec::Type::Polygon;
+      p.allowed_keys(e, at, {"type", "at_time", "points"});
+      const json& pts = p.array(p.required(e, at, "points", "an array of >= 3 points [x, y, z]"), at + ".points");
+      if (pts.size() < 3) p.fail(at + ".points", " must list at least 3 points, got " + std::to_string(pts.size()));
+      for (size_t k = 0; k < pts.size(); ++k) c.points.push_back(p.vec3(pts[k], Parser::index(at + ".points", k)));
+    } else if (type == 2) {
+      c.type = CutSpec::Type::Mesh;
+      p.allowed_keys(e, at, {"type", "at_time", "file"});
+      c.file = p.resolve(p.nonempty_string(p.required(e, at, "file", "a triangle surface .obj or .stl"), at + ".file"));
+      std::error_code ec;
+      if (!fs::is_regular_file(c.file, ec)) p.fail(at + ".file", ": file not found: " + c.file);
+    } else {
+      c.type = CutSpec::Type::Swept;
+      p.allowed_keys(e, at, {"type", "at_time", "edge_start", "edge_end", "duration"});
+      auto edge = [&](const char* k) {
+        const std::string ep = Parser::key(at, k);
+        const json& ev = p.required(e, at, k, "[[x, y, z], [x, y, z]], the blade edge's two ends");
+        if (!ev.is_array() || ev.size() != 2) p.fail(ep, " must be two points [[x, y, z], [x, y, z]], got " + describe(ev));
+        return std::array<Vec3, 2>{p.vec3(ev[0], Parser::index(ep, 0)), p.vec3(ev[1], Parser::index(ep, 1))};
+      };
+      c.edge_start = edge("edge_start");
+      c.edge_end = edge("edge_end");
+      if (auto it = e.find("duration"); it != e.end()) c.duration = p.nonnegative(*it, at + ".duration");
+    }
+    s.cuts.push_back(std::move(c));
+  }
+}
+
 // nlohmann messages start with "[json.exception.parse_error.101] "; drop that.
 std::string strip_id(const std::string& what) {
   if (what.rfind("[json.exception.", 0) == 0) {
@@ -458,7 +507,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path) {
   if (!root.is_object()) throw Error(path + ": the scene must be a JSON object, got " + describe(root));
   p.allowed_keys(root, "",
                  {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
-                  "solver", "static", "run", "output"});
+                  "solver", "static", "run", "output", "cuts"});
 
   Scene s;
   s.path = path;
@@ -476,6 +525,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path) {
   if (auto it = root.find("static"); it != root.end()) parse_static(p, *it, s);
   if (auto it = root.find("run"); it != root.end()) parse_run(p, *it, s);
   if (auto it = root.find("output"); it != root.end()) parse_output(p, *it, s);
+  if (auto it = root.find("cuts"); it != root.end()) parse_cuts(p, *it, s);
   return s;
 }
 

@@ -48,6 +48,19 @@ struct OutputSettings {
   bool write_vtu = true;  // ParaView .vtu + .pvd series
 };
 
+// A cut declared in the scene (applied by cutting/ at at_time; static: all at once).
+struct CutSpec {
+  enum class Type { Plane, Polygon, Mesh, Swept };
+  Type type = Type::Plane;
+  Vec3 point{}, normal{};       // plane: infinite plane through point (normal unit length)
+  std::vector<Vec3> points;     // polygon: >= 3 vertices of a planar polygon, in order
+  std::string file;             // mesh: triangle surface (.obj or ASCII .stl), resolved
+  std::array<Vec3, 2> edge_start{}, edge_end{};  // swept: blade edge segment at start and end
+  double duration = 0.0;        // swept: seconds to move from start to end (0 = at once)
+  double at_time = 0.0;         // seconds, >= 0
+  std::string json_path;        // "cuts[2]"
+};
+
 struct Scene {
   std::string path;       // the scene file as given
   std::string mesh_file;  // resolved relative to the scene file's folder
@@ -64,6 +77,7 @@ struct Scene {
   int static_max_iterations = 50;       // static.max_iterations
   int frames = 60;                      // run.frames default for `incise run`
   OutputSettings output;
+  std::vector<CutSpec> cuts;
 };
 
 // Reads and validates a scene file. Throws incise::Error.

@@ -336,7 +336,7 @@ TEST_F(SceneTest, SolverPolicyOnlyExact) {
 TEST_F(SceneTest, UnknownTopLevelKey) {
   expect_error(minimal(R"("materal": {})"),
                "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
-               "prescribed, integrator, solver, static, run, output; did you mean "
+               "prescribed, integrator, solver, static, run, output, cuts; did you mean "
                "\"material\"?");
 }
 
