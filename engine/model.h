@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/cut_layout.h"
 #include "engine/mesh.h"
 #include "engine/scene.h"
 
@@ -63,9 +64,14 @@ struct Model {
   std::vector<int> elem_scatter;   // per element, blocks (a <= b) x 9: position in Ai, -1 = skip
   int nnz() const { return static_cast<int>(Ai.size()); }
 
+  // X-FEM pieces (empty without cuts): see engine/cut_layout.h
+  CutLayout cuts;
+  bool has_cuts() const { return !cuts.elem_piece_ptr.empty(); }
+
   // Mass and loads
-  std::vector<double> mass_lumped; // (ndof) diagonal lumped mass (HRZ for tet10), always filled
-  std::vector<double> mass_csc;    // (nnz) consistent mass in the pattern (empty if lumped)
+  std::vector<double> mass_lumped; // (ndof) lumped nodal masses (HRZ for tet10); the mass when mass_csc is empty
+  std::vector<double> mass_csc;    // (nnz) the mass matrix in the pattern when not diagonal
+                                   // (consistent, or lumped with enrichment)
   std::vector<double> f_gravity;   // (ndof) M g: exact free fall for either mass
   std::vector<double> K0_csc;      // (nnz) rest stiffness (linear model, and R = I)
 
@@ -86,8 +92,10 @@ struct Model {
 };
 
 // Builds the Model from a mesh (tet4 or tet10, checked) and the scene's
-// material, mass, constraints and loads. order 2 raises a tet4 mesh.
-Model build_model(const Mesh& mesh, const Scene& scene);
+// material, mass, constraints and loads. order 2 raises a tet4 mesh. With a
+// cut layout (from cutting/, computed on the uncut model of the same mesh and
+// scene) cut elements are integrated per piece with enriched DOF nodes.
+Model build_model(const Mesh& mesh, const Scene& scene, const CutLayout* cuts = nullptr);
 
 // Nodes selected by a region (tolerance 1e-9 of the mesh's bounding-box
 // diagonal). Throws naming the region's JSON path when it selects no node or a

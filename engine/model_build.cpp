@@ -15,55 +15,130 @@ namespace incise {
 
 namespace {
 
+// The pieces of element e: with no layout, the whole element as one piece
+// with no enrichment.
+struct PieceView {
+  const int* enr = nullptr;      // (npe) enriched DOF node per element node, -1 none; null = none
+  const double* rst = nullptr;   // (nsub, 4, 3) sub-tetrahedra; null = the element itself
+  int nsub = 1;
+};
+
+std::vector<PieceView> pieces_of(const Model& m, int e) {
+  std::vector<PieceView> out;
+  if (!m.has_cuts()) return {PieceView{}};
+  const CutLayout& L = m.cuts;
+  const int npe = m.mesh.npe();
+  for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
+    PieceView v;
+    v.enr = &L.piece_enr[static_cast<size_t>(P) * npe];
+    v.rst = &L.subtet_rst[static_cast<size_t>(L.piece_subtet_ptr[P]) * 12];
+    v.nsub = L.piece_subtet_ptr[P + 1] - L.piece_subtet_ptr[P];
+    out.push_back(v);
+  }
+  return out;
+}
+
+// Maps a point of sub-tet `sub` (cubature coordinates rst_q) to the element's local coordinates.
+void map_to_element(const double* sub, const double* rst_q, double* r) {
+  const double L[4] = {1.0 - rst_q[0] - rst_q[1] - rst_q[2], rst_q[0], rst_q[1], rst_q[2]};
+  for (int d = 0; d < 3; ++d) r[d] = L[0] * sub[d] + L[1] * sub[3 + d] + L[2] * sub[6 + d] + L[3] * sub[9 + d];
+}
+
+double subtet_ref_volume(const double* v) {
+  double a[3], b[3], c[3];
+  for (int d = 0; d < 3; ++d) {
+    a[d] = v[3 + d] - v[d];
+    b[d] = v[6 + d] - v[d];
+    c[d] = v[9 + d] - v[d];
+  }
+  return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+}
+
+const double kRefTet[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+
+// Per element: DOF nodes (its nodes, then the enriched DOF nodes its pieces
+// use), quadrature points over every piece's sub-tetrahedra with the
+// gradients of each DOF node's shape function in that piece (preprint eq. 64:
+// an enriched DOF node carries N_a in the pieces of its region, 0 elsewhere),
+// and rotation slots: per cubature point (tet10 per_point), else one per
+// piece (tet4, tet10SR; the preprint's one rotation per side, eq. 64-71).
 void build_elements(Model& m, const Scene& scene) {
   const Mesh& mesh = m.mesh;
   const int npe = mesh.npe();
   const Cubature& cub = npe == 4 ? cubature_tet1() : cubature_tet4();
-  const bool single = npe == 10 && scene.material.rotation == RotationMode::Single;
+  const bool per_point = npe == 10 && scene.material.rotation == RotationMode::PerPoint;
   m.nelem = mesh.ntet();
   m.elem_dof_ptr.assign(1, 0);
   m.elem_qp_ptr.assign(1, 0);
   m.qp_grad_ptr.assign(1, 0);
   m.rot_grad_ptr.assign(1, 0);
   m.elem_volume.assign(m.nelem, 0.0);
-  std::vector<double> Xe(3 * npe), grad(3 * npe);
+  std::vector<double> Xe(3 * npe), grad(3 * npe), gmask;
+  std::vector<int> local;  // DOF node list of the element
   for (int e = 0; e < m.nelem; ++e) {
     const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
-    for (int a = 0; a < npe; ++a) {
-      m.elem_dof_node.push_back(nodes[a]);
+    for (int a = 0; a < npe; ++a)
       for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
-    }
+    const std::vector<PieceView> pieces = pieces_of(m, e);
+    local.assign(nodes, nodes + npe);
+    for (const PieceView& P : pieces)
+      for (int a = 0; P.enr && a < npe; ++a)
+        if (P.enr[a] >= 0 && std::find(local.begin() + npe, local.end(), P.enr[a]) == local.end())
+          local.push_back(P.enr[a]);
+    const int n = static_cast<int>(local.size());
+    m.elem_dof_node.insert(m.elem_dof_node.end(), local.begin(), local.end());
     m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
-    if (single) {
-      // tet10SR (book 3.5.2): one rotation from the corner vertices, i.e. the
-      // gradient of the linear interpolation of the four corners.
-      double Xc[12], gc[12];
-      std::copy(Xe.begin(), Xe.begin() + 12, Xc);
-      const double rst[3] = {0.25, 0.25, 0.25};
-      shape_global_gradients(4, Xc, rst, gc);
-      m.rot_elem.push_back(e);
+    // Gradients g (npe, 3) spread over the element's DOF nodes for one piece.
+    auto spread = [&](const PieceView& P, const double* g) {
+      gmask.assign(3 * n, 0.0);
       for (int a = 0; a < npe; ++a)
-        for (int d = 0; d < 3; ++d) m.rot_grad.push_back(a < 4 ? gc[3 * a + d] : 0.0);
-      m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+        for (int d = 0; d < 3; ++d) gmask[3 * a + d] = g[3 * a + d];
+      for (int a = 0; P.enr && a < npe; ++a)
+        if (P.enr[a] >= 0) {
+          const int j = static_cast<int>(std::find(local.begin() + npe, local.end(), P.enr[a]) - local.begin());
+          for (int d = 0; d < 3; ++d) gmask[3 * j + d] = g[3 * a + d];
+        }
+    };
+    double gc[30] = {0};  // corner-linear gradients (tet4 / tet10SR rotation source)
+    if (!per_point) {
+      double Xc[12];
+      std::copy(Xe.begin(), Xe.begin() + 12, Xc);
+      const double mid[3] = {0.25, 0.25, 0.25};
+      shape_global_gradients(4, Xc, mid, gc);
     }
-    for (int q = 0; q < cub.npoint(); ++q) {
-      const double detJ = shape_global_gradients(npe, Xe.data(), &cub.rst[3 * q], grad.data());
-      if (!(detJ > 0.0)) {
-        std::ostringstream os;
-        os << mesh.source << ": element " << e << " has a non-positive Jacobian (" << detJ
-           << ") at a cubature point: inverted or badly curved";
-        throw Error(os.str());
-      }
-      m.qp_weight.push_back(cub.weight[q] * detJ);
-      m.elem_volume[e] += cub.weight[q] * detJ;
-      m.qp_grad.insert(m.qp_grad.end(), grad.begin(), grad.end());
-      m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
-      if (!single) {  // tet4, or tet10 with one rotation per cubature point
+    for (const PieceView& P : pieces) {
+      if (!per_point) {
+        spread(P, gc);  // mid-edge entries of gc are 0
         m.rot_elem.push_back(e);
-        m.rot_grad.insert(m.rot_grad.end(), grad.begin(), grad.end());
+        m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
         m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
       }
-      m.qp_rot.push_back(static_cast<int>(m.rot_elem.size()) - 1);
+      for (int sidx = 0; sidx < P.nsub; ++sidx) {
+        const double* sub = P.rst ? P.rst + 12 * sidx : kRefTet;
+        const double jac = 6.0 * subtet_ref_volume(sub);  // reference tet -> sub-tet
+        for (int q = 0; q < cub.npoint(); ++q) {
+          double r[3];
+          map_to_element(sub, &cub.rst[3 * q], r);
+          const double detJ = shape_global_gradients(npe, Xe.data(), r, grad.data());
+          if (!(detJ > 0.0)) {
+            std::ostringstream os;
+            os << mesh.source << ": element " << e << " has a non-positive Jacobian (" << detJ
+               << ") at a cubature point: inverted or badly curved";
+            throw Error(os.str());
+          }
+          spread(P, grad.data());
+          m.qp_weight.push_back(cub.weight[q] * jac * detJ);
+          m.elem_volume[e] += cub.weight[q] * jac * detJ;
+          m.qp_grad.insert(m.qp_grad.end(), gmask.begin(), gmask.end());
+          m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
+          if (per_point) {
+            m.rot_elem.push_back(e);
+            m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
+            m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+          }
+          m.qp_rot.push_back(static_cast<int>(m.rot_elem.size()) - 1);
+        }
+      }
     }
     m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
   }
@@ -149,46 +224,115 @@ void build_pattern(Model& m) {
   }
 }
 
+// Mass per piece in the "piece DOF" space d_a = u_a + q_enr(a) (the
+// displacement of node a as the piece sees it), then mapped to (u, q):
+// consistent M_ab = int_P rho N_a N_b, or lumped: the element's HRZ diagonal
+// (positive for tet10, where row sums give -1/20 rho V at corners) times the
+// piece's volume fraction. Lumping per piece and mapping keeps the coupling
+// M(u_a, q) = M(q, q) = m_a^P: the diagonal is the preprint's X-FEM lumping
+// (eq. 81-82 with Psi = chi_region), the coupling makes a separated piece fall
+// freely at exactly g. Without enrichment the lumped mass is diagonal.
 void build_mass(Model& m, const Scene& scene) {
   const Mesh& mesh = m.mesh;
   const int npe = mesh.npe();
   const double rho = scene.material.density;
   // rho N_a N_b det J: degree 2p in the shape functions plus 3 for a curved tet10 map.
   const Cubature cub = cubature_duffy(npe == 4 ? 2 : 7);
+  const bool enriched = m.ndofnode > m.nnode;
+  const bool sparse = m.mass_kind == MassKind::Consistent || enriched;
   m.mass_lumped.assign(m.ndof(), 0.0);
-  if (m.mass_kind == MassKind::Consistent) m.mass_csc.assign(m.nnz(), 0.0);
-  std::vector<double> Xe(3 * npe), N(npe), grad(3 * npe), Me(npe * npe);
+  if (sparse) m.mass_csc.assign(m.nnz(), 0.0);
+  std::vector<double> Xe(3 * npe), N(npe), grad(3 * npe), Me(npe * npe), Mp(npe * npe), hrz(npe);
   for (int e = 0; e < m.nelem; ++e) {
     const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
     for (int a = 0; a < npe; ++a)
       for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
-    std::fill(Me.begin(), Me.end(), 0.0);
-    double vol = 0.0;
-    for (int q = 0; q < cub.npoint(); ++q) {
-      const double w = cub.weight[q] * shape_global_gradients(npe, Xe.data(), &cub.rst[3 * q], grad.data());
-      shape_values(npe, &cub.rst[3 * q], N.data());
-      vol += w;
-      for (int a = 0; a < npe; ++a)
-        for (int b = 0; b < npe; ++b) Me[a * npe + b] += rho * w * N[a] * N[b];
-    }
-    // HRZ lumping: diagonal scaled to the element mass. Positive for tet10,
-    // where row sums would give negative corner masses (-1/20 rho V).
+    // rho int N_a N_b over a set of sub-tets (null: the whole element)
+    auto integrate = [&](const double* subs, int nsub, std::vector<double>& out) {
+      std::fill(out.begin(), out.end(), 0.0);
+      double vol = 0.0;
+      for (int k = 0; k < nsub; ++k) {
+        const double* sub = subs ? subs + 12 * k : kRefTet;
+        const double jac = 6.0 * subtet_ref_volume(sub);
+        for (int q = 0; q < cub.npoint(); ++q) {
+          double r[3];
+          map_to_element(sub, &cub.rst[3 * q], r);
+          const double w = cub.weight[q] * jac * shape_global_gradients(npe, Xe.data(), r, grad.data());
+          shape_values(npe, r, N.data());
+          vol += w;
+          for (int a = 0; a < npe; ++a)
+            for (int b = 0; b < npe; ++b) out[a * npe + b] += rho * w * N[a] * N[b];
+        }
+      }
+      return vol;
+    };
+    const double vol = integrate(nullptr, 1, Me);
     double trace = 0.0;
     for (int a = 0; a < npe; ++a) trace += Me[a * npe + a];
-    for (int a = 0; a < npe; ++a)
-      for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += rho * vol * Me[a * npe + a] / trace;
-    if (m.mass_kind == MassKind::Consistent) {
-      const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
-      for (int a = 0, blk = 0; a < npe; ++a)
-        for (int b = a; b < npe; ++b, ++blk)
-          for (int i = 0; i < 3; ++i)
-            if (sc[9 * blk + 4 * i] >= 0) m.mass_csc[sc[9 * blk + 4 * i]] += Me[a * npe + b];
+    for (int a = 0; a < npe; ++a) hrz[a] = rho * vol * Me[a * npe + a] / trace;
+    const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
+    const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+    // Adds value to the (i, j) entries (i, j: local DOF nodes) of every component.
+    auto add = [&](int i, int j, double value) {
+      if (i > j) std::swap(i, j);
+      const int blk = i * n - i * (i - 1) / 2 + (j - i);  // index of block (i, j), i <= j
+      for (int c = 0; c < 3; ++c) m.mass_csc[sc[9 * blk + 4 * c]] += value;
+    };
+    for (const PieceView& P : pieces_of(m, e)) {
+      const bool whole = P.rst == nullptr;
+      double frac = 1.0;
+      if (!whole) {
+        frac = 0.0;
+        for (int k = 0; k < P.nsub; ++k) frac += 6.0 * subtet_ref_volume(P.rst + 12 * k);
+      }
+      if (m.mass_kind == MassKind::Consistent) {
+        if (whole) Mp = Me;
+        else integrate(P.rst, P.nsub, Mp);
+      }
+      // local DOF indices of d_a: u_a (index a) and, if enriched, q (index j)
+      int lq[10];
+      for (int a = 0; a < npe; ++a) {
+        lq[a] = -1;
+        if (P.enr && P.enr[a] >= 0)
+          for (int j = npe; j < n; ++j)
+            if (m.elem_dof_node[b0 + j] == P.enr[a]) lq[a] = j;
+      }
+      for (int a = 0; a < npe; ++a) {
+        // The lumped masses are kept in both modes (reported, and used by lumped-mass policies).
+        const double ma = frac * hrz[a];
+        for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += ma;
+        if (lq[a] >= 0)
+          for (int d = 0; d < 3; ++d) m.mass_lumped[3 * P.enr[a] + d] += ma;
+        if (m.mass_kind == MassKind::Lumped) {
+          if (!sparse) continue;
+          add(a, a, ma);
+          if (lq[a] >= 0) {
+            add(a, lq[a], ma);
+            add(lq[a], lq[a], ma);
+          }
+          continue;
+        }
+        for (int b = a; b < npe; ++b) {
+          const double v = Mp[a * npe + b];
+          const int ia[2] = {a, lq[a]}, ib[2] = {b, lq[b]};
+          for (int x : ia)
+            for (int y : ib) {
+              if (x < 0 || y < 0) continue;
+              // (a, b) and (b, a) both map here when a != b; the block is
+              // symmetric, so add once per unordered pair of local indices.
+              if (a == b && x > y) continue;
+              add(x, y, v);
+            }
+        }
+      }
     }
   }
-  std::vector<double> g(m.ndof());
-  for (int d = 0; d < m.ndof(); ++d) g[d] = scene.gravity[d % 3];
+  // Gravity load f = M g with g on the standard DOFs only: the field u = g t^2/2,
+  // q = 0 is exact free fall for every piece.
+  std::vector<double> g(m.ndof(), 0.0);
+  for (int d = 0; d < 3 * m.nnode; ++d) g[d] = scene.gravity[d % 3];
   m.f_gravity.assign(m.ndof(), 0.0);
-  if (m.mass_kind == MassKind::Consistent) {
+  if (sparse) {
     sym_matvec(m, m.mass_csc.data(), g.data(), m.f_gravity.data());
   } else {
     for (int d = 0; d < m.ndof(); ++d) m.f_gravity[d] = m.mass_lumped[d] * g[d];
@@ -269,7 +413,7 @@ std::vector<int> select_nodes(const Mesh& mesh, const Region& region, const std:
   return out;
 }
 
-Model build_model(const Mesh& mesh_in, const Scene& scene) {
+Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts) {
   check_mesh(mesh_in);
   if (scene.order == 1 && mesh_in.order == 2)
     throw Error(scene.path + ": mesh.order is 1 but " + mesh_in.source +
@@ -285,6 +429,11 @@ Model build_model(const Mesh& mesh_in, const Scene& scene) {
   m.newton_iterations = scene.newton_iterations;
   m.nnode = m.ndofnode = m.mesh.nnode();
   m.X = m.mesh.X;
+  if (cuts && cuts->npiece() > 0) {
+    m.cuts = *cuts;
+    m.ndofnode += cuts->n_enriched;
+    m.X.resize(3 * static_cast<size_t>(m.ndofnode), 0.0);  // enriched DOF nodes: X = 0 (preprint eq. 64)
+  }
   build_elements(m, scene);
   build_boundary_faces(m);
   build_pattern(m);

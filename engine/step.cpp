@@ -10,7 +10,7 @@
 namespace incise {
 
 void mass_matvec(const Model& m, const double* x, double* y) {
-  if (m.mass_kind == MassKind::Consistent) {
+  if (!m.mass_csc.empty()) {
     sym_matvec(m, m.mass_csc.data(), x, y);
   } else {
     for (int d = 0; d < m.ndof(); ++d) y[d] = m.mass_lumped[d] * x[d];
@@ -56,7 +56,7 @@ void init_state(const Model& m, State& s) {
   s.refactorizations = 0;
   // Consistent initial acceleration on the free DOFs: M a0 = f_ext - f_int(0) = f_ext.
   for (int d = 0; d < n; ++d) s.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d];
-  if (m.mass_kind == MassKind::Lumped) {
+  if (m.mass_csc.empty()) {
     for (int d = 0; d < n; ++d) s.a[d] = s.rhs[d] / m.mass_lumped[d];
   } else {
     std::copy(m.mass_csc.begin(), m.mass_csc.end(), s.A.begin());
@@ -130,7 +130,7 @@ void step(const Model& m, State& s) {
     // A = 4/dt^2 M + 2/dt D + K (eq. 3.59), projected. A linear model factors once.
     if (!(linear && s.factor_current)) {
       for (int k = 0; k < m.nnz(); ++k) s.A[k] = cK * K[k];
-      if (m.mass_kind == MassKind::Consistent) {
+      if (!m.mass_csc.empty()) {
         for (int k = 0; k < m.nnz(); ++k) s.A[k] += cM * m.mass_csc[k];
       } else {
         for (int d = 0; d < n; ++d) s.A[m.diag[d]] += cM * m.mass_lumped[d];

@@ -1,0 +1,55 @@
+#pragma once
+// Cut surfaces as sets of planar facets: an infinite plane, a bounded planar
+// polygon, a triangle mesh, and the surface swept by a blade edge (a segment
+// moving between two poses), which grows with time.
+//
+// The level set of a cut at a point is the signed distance to the plane of
+// the nearest facet; its sign is decided exactly against that facet's plane
+// (cutting/exact_sign.h), so "node on the surface" is a yes/no question that
+// does not depend on the model's scale or a tolerance.
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/scene.h"
+
+namespace incise {
+
+struct Facet {
+  std::array<Vec3, 3> v{};  // triangle corners; unused for an unbounded plane
+  Vec3 p{}, n{};            // plane point and unit normal (the sign convention)
+  bool unbounded = false;   // the infinite plane: every point of it is covered
+};
+
+class CutSurface {
+ public:
+  explicit CutSurface(std::vector<Facet> facets, std::string name);
+
+  // Signed distance to the nearest facet's plane and the exact sign of it.
+  struct Value {
+    double phi;
+    int sign;  // -1, 0, +1, exact against the chosen facet's plane
+  };
+  Value value(const double x[3]) const;
+  // Whether y (a point on the zero set near an element) lies on the surface's
+  // extent, within tol: distance to the nearest facet triangle <= tol.
+  bool covers(const double y[3], double tol) const;
+  const std::string& name() const { return name_; }
+  const std::vector<Facet>& facets() const { return facets_; }
+
+ private:
+  std::vector<Facet> facets_;
+  std::string name_;
+  int nearest_facet(const double x[3]) const;
+};
+
+// Builds the surface of a scene cut at time t (a swept cut covers the part of
+// its sweep done by t; nullptr when nothing has been swept yet). Mesh cuts
+// read .obj or ASCII .stl triangle files; errors name the file and line.
+std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& spec, double t);
+
+// Reads a triangle surface (.obj or ASCII .stl) as facets.
+std::vector<Facet> read_triangle_surface(const std::string& path);
+
+}  // namespace incise

@@ -1,0 +1,30 @@
+#pragma once
+// Sub-element decomposition of a tetrahedron cut by planes. The cut planes are
+// given by level-set values at the four corners, interpolated linearly in the
+// element's local coordinates, so the decomposition is done in the reference
+// tetrahedron and holds for curved tet10 elements too. Each part on one side
+// of every plane is convex; it is tetrahedralized by coning its boundary
+// polygons (clipped element faces and the cut polygon) to its centroid.
+#include <vector>
+
+namespace incise {
+
+// Face tags of a sub-tetrahedron face: 0..3 = lies in that face of the parent
+// element, kSubFaceCut = lies on a cut surface, kSubFaceInside = interior.
+inline constexpr signed char kSubFaceCut = 4, kSubFaceInside = 5;
+
+struct SubTets {
+  std::vector<double> rst;          // (nsub, 4, 3) vertices in local coordinates (r, s, t)
+  std::vector<signed char> face;    // (nsub, 4) tag of the face opposite vertex k
+  std::vector<signed char> side;    // (nsub, ncut) side (+1 / -1) of each cut
+  std::vector<double> volume;       // (nsub) reference volume (the parent has 1/6)
+  int ncut = 0;
+  int size() const { return static_cast<int>(volume.size()); }
+};
+
+// phi: (ncut, 4) level-set values at the corners, with exact signs already
+// applied (a corner exactly on a surface has phi == 0). Every cut must have
+// corners strictly on both sides (the element is cut by it).
+SubTets subdivide_tet(const std::vector<double>& phi, int ncut);
+
+}  // namespace incise

@@ -1,0 +1,32 @@
+#pragma once
+// How cuts split the mesh, as the engine needs it to integrate: produced by
+// cutting/ (X-FEM), consumed by build_model. Engine code never looks at cut
+// surfaces; it sees pieces of elements, their sub-tetrahedra, and which
+// enriched DOF node each piece adds to each element node.
+//
+// Enrichment (preprint 4.2, shifted Heaviside generalised to several cuts):
+// in piece P of element e the displacement is
+//   u(x) = sum_a N_a(x) (u_a + q_{enr(P,a)}),
+// i.e. node a's standard DOF u_a plus, when P lies in another region of a's
+// support than a's home region, that region's enriched DOF q. This is
+// N_a * Psi with Psi = chi_region(x) - chi_region(x_a): standard DOFs keep
+// their meaning as nodal displacements of the home region.
+#include <vector>
+
+namespace incise {
+
+struct CutLayout {
+  int n_enriched = 0;                 // enriched DOF nodes, appended after the mesh nodes
+  std::vector<int> enr_node;          // (n_enriched) mesh node each enriched DOF node enriches
+  std::vector<int> elem_piece_ptr;    // (nelem + 1) pieces of each element (an uncut element has 1)
+  std::vector<int> piece_enr;         // (npiece, npe) enriched DOF node id (>= nnode) or -1
+  std::vector<int> piece_subtet_ptr;  // (npiece + 1) sub-tetrahedra of each piece
+  std::vector<double> subtet_rst;     // (nsubtet, 4, 3) vertices in the element's local coordinates
+  std::vector<signed char> subtet_face;  // (nsubtet, 4) 0..3 parent face, 4 cut, 5 inside
+  std::vector<double> piece_fraction;    // (npiece) volume fraction of the piece in its element
+  std::vector<unsigned char> elem_face_cut;  // (nelem, 4) a whole element face lies on a cut
+  std::vector<unsigned char> elem_split;     // (nelem) 1 when the element is cut into pieces
+  int npiece() const { return static_cast<int>(piece_fraction.size()); }
+};
+
+}  // namespace incise
