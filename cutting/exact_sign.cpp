@@ -1,6 +1,7 @@
 #include "cutting/exact_sign.h"
 
 #include <cmath>
+#include <initializer_list>
 
 namespace incise {
 

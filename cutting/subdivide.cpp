@@ -53,7 +53,7 @@ class Splitter {
       return;
     }
     edge_point_.clear();
-    for (int sgn : {1, -1}) part(t, c, f, s, sgn, out);
+    for (int sgn : {1, -1}) part(t, f, s, sgn, out);
   }
 
  private:
@@ -80,7 +80,7 @@ class Splitter {
     return id;
   }
 
-  void part(const Tet& t, int c, const std::array<double, 4>& f, const std::array<int, 4>& s, int sgn,
+  void part(const Tet& t, const std::array<double, 4>& f, const std::array<int, 4>& s, int sgn,
             std::vector<Tet>& out) {
     struct Poly {
       std::vector<int> v;
@@ -156,7 +156,7 @@ class Splitter {
 
 }  // namespace
 
-SubTets subdivide_tet(const std::vector<double>& phi, int ncut) {
+SubTets subdivide_tet(const std::vector<double>& phi, int ncut, const std::vector<int>& only) {
   std::vector<Vertex> pool(4);
   const V corners[4] = {V(0, 0, 0), V(1, 0, 0), V(0, 1, 0), V(0, 0, 1)};
   double scale = 0.0;
@@ -176,7 +176,15 @@ SubTets subdivide_tet(const std::vector<double>& phi, int ncut) {
   tets[0].face = {0, 1, 2, 3};
   for (int c = 0; c < ncut; ++c) {
     std::vector<Tet> next;
-    for (const Tet& t : tets) splitter.split(t, c, next);
+    for (const Tet& t : tets) {
+      if (!only.empty() && only[2 * c] >= 0 && t.side[only[2 * c]] != only[2 * c + 1]) {
+        Tet u = t;
+        u.side.push_back(0);
+        next.push_back(u);
+        continue;
+      }
+      splitter.split(t, c, next);
+    }
     tets.swap(next);
   }
   SubTets out;

@@ -25,6 +25,10 @@ struct SubTets {
 // phi: (ncut, 4) level-set values at the corners, with exact signs already
 // applied (a corner exactly on a surface has phi == 0). Every cut must have
 // corners strictly on both sides (the element is cut by it).
-SubTets subdivide_tet(const std::vector<double>& phi, int ncut);
+// only (optional, (ncut, 2)): cut c splits only the sub-tets on side
+// only[2c+1] of the earlier cut only[2c] (-1: everywhere); the others get
+// side 0 for c. A cut ending on another cut inside the element (a T) splits
+// just its own side.
+SubTets subdivide_tet(const std::vector<double>& phi, int ncut, const std::vector<int>& only = {});
 
 }  // namespace incise

@@ -34,10 +34,5 @@ inline constexpr unsigned char kFaceBoundary = 1, kFaceCut = 2;
 
 DisplayMesh display_mesh(const Model& model, const State& state);
 
-// Corner indices of face k of a tet (the face opposite corner k), ordered so
-// the normal points out of a positively oriented tet; for tet10 also the
-// three mid-edge nodes of the face (between corners 0-1, 1-2, 2-0 of the face).
-inline constexpr int kTetFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-inline constexpr int kTet10FaceMid[4][3] = {{5, 9, 8}, {7, 9, 6}, {4, 8, 7}, {6, 5, 4}};
 
 }  // namespace incise

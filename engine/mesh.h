@@ -13,6 +13,12 @@ namespace incise {
 // Mid-edge node k (4..9) of a tet10 sits between corners kTet10Edge[k-4][0..1].
 inline constexpr int kTet10Edge[6][2] = {{0, 1}, {1, 2}, {0, 2}, {0, 3}, {1, 3}, {2, 3}};
 
+// Corner indices of face k of a tet (the face opposite corner k), ordered so
+// the normal points out of a positively oriented tet; for tet10 also the
+// three mid-edge nodes of the face (between corners 0-1, 1-2, 2-0 of the face).
+inline constexpr int kTetFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+inline constexpr int kTet10FaceMid[4][3] = {{5, 9, 8}, {7, 9, 6}, {4, 8, 7}, {6, 5, 4}};
+
 struct Mesh {
   int order = 1;             // 1: tet4, 2: tet10
   std::vector<double> X;     // (nnode, 3) reference positions

@@ -55,6 +55,28 @@ ProbeHit locate_point(const Model& m, const double x[3]) {
     }
   }
   if (best_min < -1e-9) best.elem = -1;
+  if (best.elem >= 0) best.piece = piece_containing(m, best.elem, best.rst);
+  return best;
+}
+
+int piece_containing(const Model& m, int e, const double rst[3]) {
+  if (!m.has_cuts()) return -1;
+  const CutLayout& L = m.cuts;
+  int best = -1;
+  double best_min = -1e300;
+  for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P)
+    for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
+      const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
+      Eigen::Matrix3d A;
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < 3; ++d) A(d, k) = v[3 * (k + 1) + d] - v[d];
+      const Eigen::Vector3d l = A.partialPivLu().solve(Eigen::Vector3d(rst[0] - v[0], rst[1] - v[1], rst[2] - v[2]));
+      const double mn = std::min({1.0 - l.sum(), l[0], l[1], l[2]});
+      if (std::isfinite(mn) && mn > best_min) {
+        best_min = mn;
+        best = P;
+      }
+    }
   return best;
 }
 
@@ -64,8 +86,10 @@ std::array<double, 3> interpolate_displacement(const Model& m, const double* u, 
   double N[10];
   shape_values(npe, hit.rst, N);
   const int* nodes = &m.mesh.tet[static_cast<size_t>(hit.elem) * npe];
+  const int* enr = hit.piece >= 0 ? &m.cuts.piece_enr[static_cast<size_t>(hit.piece) * npe] : nullptr;
   for (int a = 0; a < npe; ++a)
-    for (int d = 0; d < 3; ++d) out[d] += N[a] * u[3 * nodes[a] + d];
+    for (int d = 0; d < 3; ++d)
+      out[d] += N[a] * (u[3 * nodes[a] + d] + (enr && enr[a] >= 0 ? u[3 * enr[a] + d] : 0.0));
   return out;
 }
 

@@ -12,6 +12,8 @@ namespace incise {
 
 struct Simulation {
   Scene scene;
+  Mesh mesh;                          // as read (a cut rebuilds the model from it)
+  std::vector<double> cut_progress;   // (scene.cuts) share of each cut applied: -1 none, 1 whole
   Model model;
   State state;
   double setup_ms = 0.0;  // reading the mesh, precomputation, symbolic analysis

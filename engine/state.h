@@ -26,8 +26,9 @@ struct State {
   double last_residual = 0.0;   // relative residual of the last Newton iteration
 };
 
-// Sizes the arrays, analyzes the pattern, sets u = v = 0 and a consistent
-// initial acceleration a0 = M^-1 (f_ext - f_int(0)) on the free DOFs.
-void init_state(const Model& model, State& state);
+// Sizes the arrays, analyzes the pattern, sets u = v = 0 and (when
+// consistent_a0) the consistent initial acceleration a0 = M^-1 f_ext on the
+// free DOFs; otherwise a = 0 (the caller sets the kinematics, e.g. after a cut).
+void init_state(const Model& model, State& state, bool consistent_a0 = true);
 
 }  // namespace incise

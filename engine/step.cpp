@@ -39,7 +39,7 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
 
 }  // namespace
 
-void init_state(const Model& m, State& s) {
+void init_state(const Model& m, State& s, bool consistent_a0) {
   const int n = m.ndof();
   s.time = 0.0;
   s.frame = 0;
@@ -54,6 +54,7 @@ void init_state(const Model& m, State& s) {
   s.solver.analyze(n, m.Ap, m.Ai);
   s.factor_current = false;
   s.refactorizations = 0;
+  if (!consistent_a0) return;
   // Consistent initial acceleration on the free DOFs: M a0 = f_ext - f_int(0) = f_ext.
   for (int d = 0; d < n; ++d) s.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d];
   if (m.mass_csc.empty()) {

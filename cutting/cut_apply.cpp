@@ -1,0 +1,129 @@
+#include "cutting/cut_apply.h"
+
+#include <algorithm>
+
+#include "engine/probe.h"
+#include "engine/timing.h"
+
+namespace incise {
+
+namespace {
+
+// Old model's effective value (u, v or a) of node a of element e, in the piece
+// holding local point rst.
+void old_piece_values(const Model& m, const Kinematics& s, int e, const double rst[3], int a, double out[9]) {
+  const int npe = m.mesh.npe();
+  const int i = m.mesh.tet[static_cast<size_t>(e) * npe + a];
+  const int P = piece_containing(m, e, rst);
+  const int q = P >= 0 ? m.cuts.piece_enr[static_cast<size_t>(P) * npe + a] : -1;
+  const std::vector<double>* f[3] = {&s.u, &s.v, &s.a};
+  for (int k = 0; k < 3; ++k)
+    for (int c = 0; c < 3; ++c) out[3 * k + c] = (*f[k])[3 * i + c] + (q >= 0 ? (*f[k])[3 * q + c] : 0.0);
+}
+
+bool same_layout(const Model& m, const CutLayout& L) {
+  const CutLayout& O = m.cuts;
+  return m.has_cuts() && O.n_enriched == L.n_enriched && O.elem_piece_ptr == L.elem_piece_ptr &&
+         O.piece_enr == L.piece_enr && O.subtet_rst == L.subtet_rst && O.elem_face_cut == L.elem_face_cut;
+}
+
+CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t_sweep) {
+  Stopwatch clock;
+  CutUpdate up;
+  std::vector<std::unique_ptr<CutSurface>> owned;
+  std::vector<const CutSurface*> surfaces;
+  for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
+    if (progress[k] <= 0.0) continue;
+    auto s = make_cut_surface(sim.scene.cuts[k], t_sweep);
+    if (!s) continue;
+    surfaces.push_back(s.get());
+    owned.push_back(std::move(s));
+  }
+  sim.cut_progress = progress;
+  if (surfaces.empty()) return up;
+  CutLayout layout = compute_cut_layout(sim.model, surfaces, &up.report);
+  if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && up.report.cut_elements == 0)) {
+    up.ms = clock.ms();
+    return up;
+  }
+  Model next = build_model(sim.mesh, sim.scene, &layout);
+  Kinematics k = transfer_kinematics(sim.model, {sim.state.u, sim.state.v, sim.state.a}, next);
+  const double time = sim.state.time;
+  const int frame = sim.state.frame, refactorizations = sim.state.refactorizations;
+  sim.model = std::move(next);
+  init_state(sim.model, sim.state, /*consistent_a0=*/false);  // new pattern: symbolic analysis
+  sim.state.u.swap(k.u);
+  sim.state.v.swap(k.v);
+  sim.state.a.swap(k.a);
+  sim.state.time = time;
+  sim.state.frame = frame;
+  sim.state.refactorizations = refactorizations;
+  up.changed = true;
+  up.ms = clock.ms();
+  return up;
+}
+
+}  // namespace
+
+Kinematics transfer_kinematics(const Model& from, const Kinematics& os, const Model& to) {
+  Kinematics ns;
+  const int n = to.ndof(), nstd = 3 * to.nnode, npe = to.mesh.npe();
+  ns.u.assign(os.u.begin(), os.u.begin() + nstd);
+  ns.v.assign(os.v.begin(), os.v.begin() + nstd);
+  ns.a.assign(os.a.begin(), os.a.begin() + nstd);
+  for (auto* f : {&ns.u, &ns.v, &ns.a}) f->resize(n, 0.0);
+  if (!to.has_cuts()) return ns;
+  const CutLayout& L = to.cuts;
+  // Two passes: home values (standard DOFs) first, then enriched = old - home.
+  for (int pass = 0; pass < 2; ++pass)
+    for (int e = 0; e < to.nelem; ++e)
+      for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
+        // a point inside the piece: the centroid of its first sub-tetrahedron
+        const double* v = &L.subtet_rst[12 * static_cast<size_t>(L.piece_subtet_ptr[P])];
+        const double rst[3] = {0.25 * (v[0] + v[3] + v[6] + v[9]), 0.25 * (v[1] + v[4] + v[7] + v[10]),
+                               0.25 * (v[2] + v[5] + v[8] + v[11])};
+        for (int a = 0; a < npe; ++a) {
+          const int q = L.piece_enr[static_cast<size_t>(P) * npe + a];
+          if ((pass == 0) != (q < 0)) continue;
+          double val[9];
+          old_piece_values(from, os, e, rst, a, val);
+          const int i = to.mesh.tet[static_cast<size_t>(e) * npe + a];
+          std::vector<double>* f[3] = {&ns.u, &ns.v, &ns.a};
+          for (int k = 0; k < 3; ++k)
+            for (int c = 0; c < 3; ++c) {
+              if (q < 0) (*f[k])[3 * i + c] = val[3 * k + c];
+              else (*f[k])[3 * q + c] = val[3 * k + c] - (*f[k])[3 * i + c];
+            }
+        }
+      }
+  return ns;
+}
+
+CutUpdate update_cuts(Simulation& sim, double t, double t_sweep) {
+  std::vector<double> progress = sim.cut_progress;
+  bool changed = false;
+  for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
+    const CutSpec& c = sim.scene.cuts[k];
+    double p = -1.0;
+    if (c.at_time <= t) {
+      p = 1.0;
+      if (c.type == CutSpec::Type::Swept && c.duration > 0)
+        p = std::clamp((t_sweep - c.at_time) / c.duration, 0.0, 1.0);
+    }
+    if (p != progress[k]) {
+      progress[k] = p;
+      changed = true;
+    }
+  }
+  if (!changed) return {};
+  return rebuild(sim, progress, t_sweep);
+}
+
+CutUpdate apply_all_cuts(Simulation& sim) {
+  std::vector<double> progress(sim.scene.cuts.size(), 1.0);
+  double t_end = 0.0;
+  for (const CutSpec& c : sim.scene.cuts) t_end = std::max(t_end, c.at_time + c.duration);
+  return rebuild(sim, progress, t_end);
+}
+
+}  // namespace incise

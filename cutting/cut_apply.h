@@ -1,0 +1,33 @@
+#pragma once
+// The cutting stage of a frame: applies the scene's cuts that are due,
+// rebuilds the Model with the new X-FEM layout (a new DOF set, so a fresh
+// symbolic analysis) and carries the State over to it.
+#include "cutting/xfem_layout.h"
+#include "engine/simulation.h"
+
+namespace incise {
+
+struct CutUpdate {
+  bool changed = false;  // the model (DOF set) changed this frame
+  CutReport report;      // of the new layout
+  double ms = 0.0;       // time spent (layout, model, analysis, transfer)
+};
+
+// Cuts with at_time <= t are active; a swept cut covers its sweep up to time
+// t_sweep (pass the end of the coming frame). Rebuilds only when the set of
+// split elements changes (a blade tip moving inside an element changes nothing).
+CutUpdate update_cuts(Simulation& sim, double t, double t_sweep);
+
+// Applies every scene cut completely (static solves).
+CutUpdate apply_all_cuts(Simulation& sim);
+
+struct Kinematics {
+  std::vector<double> u, v, a;  // (ndof) of some model
+};
+
+// Moves kinematics to a model with more cuts (same mesh): every piece of the
+// new model keeps the displacement, velocity and acceleration of the old piece
+// it lies in, so the field is unchanged by the cut itself. Returns (to.ndof) arrays.
+Kinematics transfer_kinematics(const Model& from, const Kinematics& old, const Model& to);
+
+}  // namespace incise

@@ -1,0 +1,46 @@
+#pragma once
+// X-FEM layout of a mesh cut by surfaces: element classification, sub-element
+// decomposition, the regions of each node's support and the enriched DOF
+// nodes they need. The result feeds build_model (engine/cut_layout.h).
+//
+// Classification of an element against one cut, from the exact signs of the
+// level set at its corners:
+//   - corners strictly on both sides and every zero crossing on the surface's
+//     extent: CUT (split into pieces);
+//   - corners strictly on both sides but the surface ends inside: the cut
+//     front. The element stays whole and its nodes get no enrichment from
+//     this front, so the opening closes at the last fully crossed element
+//     face (documented in docs/cutting.md);
+//   - otherwise untouched or touched (a node, an edge or a face exactly on the
+//     surface). A face exactly on a covered surface separates its two
+//     elements: their pieces are not connected across it.
+// Regions: pieces connect across shared faces where they overlap with positive
+// area; the connected components of the pieces in a node's support are its
+// regions. The home region (largest volume) keeps the standard DOF; every
+// other region gets an enriched DOF node. Choosing the largest region, not
+// the one holding the node, keeps a cut 1e-12 h from a node from making the
+// standard and enriched functions nearly equal (an ill-conditioned pair).
+#include <string>
+#include <vector>
+
+#include "cutting/cut_surface.h"
+#include "engine/cut_layout.h"
+#include "engine/model.h"
+
+namespace incise {
+
+struct CutReport {
+  int cut_elements = 0;    // elements split into pieces
+  int front_elements = 0;  // crossed but not fully (cut front)
+  int separated_faces = 0; // element faces lying on a cut
+  int pieces = 0;          // pieces in split elements
+  int enriched_nodes = 0;  // enriched DOF nodes
+  double min_fraction = 1.0;  // smallest piece volume fraction
+  int bodies = 1;          // connected pieces of tissue after the cuts
+};
+
+// cuts: the active surfaces (order = enrichment order). base: the uncut model
+// of the mesh (its mesh, volumes and boundary faces are used).
+CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts, CutReport* report = nullptr);
+
+}  // namespace incise

@@ -1,0 +1,47 @@
+#pragma once
+// Helpers for the cutting tests: a block scene, a cut model, steps.
+#include <memory>
+#include <string>
+
+#include "cutting/cut_apply.h"
+#include "cutting/cut_surface.h"
+#include "cutting/xfem_layout.h"
+#include "engine/mesh_tools.h"
+#include "engine/model.h"
+#include "engine/scene.h"
+
+namespace incise::test {
+
+inline Scene block_scene(int order) {
+  Scene s;
+  s.path = "test-scene";
+  s.order = order;
+  s.material.young = 1e4;
+  s.material.poisson = 0.3;
+  s.material.density = 1.0;
+  s.gravity = {0.0, 0.0, -9.81};
+  return s;
+}
+
+inline CutSpec plane_cut(Vec3 p, Vec3 n, const std::string& name = "cuts[0]") {
+  CutSpec c;
+  c.type = CutSpec::Type::Plane;
+  c.point = p;
+  const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  c.normal = {n[0] / l, n[1] / l, n[2] / l};
+  c.json_path = name;
+  return c;
+}
+
+// A Simulation built in memory (no files).
+inline std::unique_ptr<Simulation> make_sim(const Mesh& mesh, const Scene& scene) {
+  auto sim = std::make_unique<Simulation>();
+  sim->scene = scene;
+  sim->mesh = mesh;
+  sim->model = build_model(mesh, scene);
+  sim->cut_progress.assign(scene.cuts.size(), -1.0);
+  init_state(sim->model, sim->state);
+  return sim;
+}
+
+}  // namespace incise::test

@@ -1,0 +1,134 @@
+// X-FEM: separation, free fall of a cut-off piece, masses, pieces and bodies,
+// probes on each side, degenerate cuts through nodes and faces.
+#include <cmath>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include "engine/probe.h"
+#include "engine/step.h"
+#include "test_util.h"
+
+namespace incise {
+namespace {
+
+// Beam [0,4]x[0,1]x[0,1], 8x2x2 cells, fixed at x = 0, gravity -z.
+std::unique_ptr<Simulation> cantilever(int order, std::vector<CutSpec> cuts, MassKind mass = MassKind::Lumped) {
+  Scene s = test::block_scene(order);
+  s.mass = mass;
+  Region r;
+  r.kind = Region::Kind::Box;
+  r.lo = {-1, -1, -1};
+  r.hi = {0, 2, 2};
+  r.json_path = "fixed[0]";
+  s.fixed.push_back(r);
+  s.cuts = std::move(cuts);
+  return test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
+}
+
+// Mean acceleration (z) of the material beyond x > x0, from probes.
+double piece_acceleration(const Simulation& sim, double x0) {
+  double az = 0;
+  int n = 0;
+  for (double x = x0 + 0.2; x < 4.0; x += 0.4) {
+    const double p[3] = {x, 0.5, 0.5};
+    const ProbeHit h = locate_point(sim.model, p);
+    az += interpolate_displacement(sim.model, sim.state.a.data(), h)[2];
+    ++n;
+  }
+  return az / n;
+}
+
+TEST(Xfem, CutOffPieceFallsFreelyAndNoForceCrossesTheCut) {
+  for (int order : {1, 2})
+    for (MassKind mk : {MassKind::Lumped, MassKind::Consistent}) {
+      // plane x = 2.3 does not conform to the mesh (cells of 0.5)
+      auto sim = cantilever(order, {test::plane_cut({2.3, 0, 0}, {1, 0, 0})}, mk);
+      const CutUpdate up = update_cuts(*sim, 0.0, 0.0);
+      ASSERT_TRUE(up.changed);
+      EXPECT_EQ(up.report.bodies, 2);
+      EXPECT_GT(up.report.enriched_nodes, 0);
+      for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+      const double g = 9.81;
+      EXPECT_NEAR(piece_acceleration(*sim, 2.3) / -g, 1.0, 0.01) << "order " << order;
+      // the free piece is not stretched: its displacement is uniform (rigid fall)
+      const double t = sim->state.time;
+      const double p[3] = {3.9, 0.5, 0.5}, q[3] = {2.5, 0.1, 0.9};
+      const auto up1 = interpolate_displacement(sim->model, sim->state.u.data(), locate_point(sim->model, p));
+      const auto up2 = interpolate_displacement(sim->model, sim->state.u.data(), locate_point(sim->model, q));
+      EXPECT_NEAR(up1[2], -0.5 * g * t * t, 1e-3 * 0.5 * g * t * t);
+      EXPECT_NEAR(up1[2], up2[2], 1e-6);
+    }
+}
+
+TEST(Xfem, MassesPositiveAndSumToTheUncutMass) {
+  for (int order : {1, 2}) {
+    auto sim = cantilever(order, {test::plane_cut({2.3, 0, 0}, {1, 0.2, 0.1})});
+    const double total = 4.0 * 1.0;  // rho = 1
+    update_cuts(*sim, 0.0, 0.0);
+    const Model& m = sim->model;
+    ASSERT_FALSE(m.mass_csc.empty());
+    // rigid translation: 1' M 1 over one component = total mass
+    std::vector<double> one(m.ndof(), 0.0), Mo(m.ndof());
+    for (int i = 0; i < m.nnode; ++i) one[3 * i] = 1.0;
+    mass_matvec(m, one.data(), Mo.data());
+    double mass = 0;
+    for (int d = 0; d < m.ndof(); ++d) mass += one[d] * Mo[d];
+    EXPECT_NEAR(mass, total, 1e-12 * total);
+    for (int d = 0; d < m.ndof(); ++d) EXPECT_GT(m.mass_lumped[d], 0.0);
+    // the two sides' masses (phantom view): a unit velocity of one side only
+    double side_mass = 0;
+    for (int q = m.nnode; q < m.ndofnode; ++q) side_mass += m.mass_lumped[3 * q];
+    EXPECT_GT(side_mass, 0.0);
+    EXPECT_LT(side_mass, total);
+  }
+}
+
+TEST(Xfem, ProbesAboveAndBelowTheCutReportEachSide) {
+  auto sim = cantilever(2, {test::plane_cut({2.3, 0, 0}, {1, 0, 0})});
+  update_cuts(*sim, 0.0, 0.0);
+  for (int k = 0; k < 15; ++k) step(sim->model, sim->state);
+  const double below[3] = {2.3 - 1e-6, 0.5, 0.5}, above[3] = {2.3 + 1e-6, 0.5, 0.5};
+  const ProbeHit hb = locate_point(sim->model, below), ha = locate_point(sim->model, above);
+  ASSERT_EQ(hb.elem, ha.elem);  // same element, different pieces
+  EXPECT_NE(hb.piece, ha.piece);
+  const double ub = interpolate_displacement(sim->model, sim->state.u.data(), hb)[2];
+  const double ua = interpolate_displacement(sim->model, sim->state.u.data(), ha)[2];
+  const double t = sim->state.time;
+  EXPECT_NEAR(ua, -0.5 * 9.81 * t * t, 1e-3 * 0.5 * 9.81 * t * t);  // falling piece
+  EXPECT_GT(ub, 0.5 * ua);  // the clamped side hangs on its support
+}
+
+TEST(Xfem, CutExactlyThroughNodesAndFacesSeparates) {
+  // x = 2.0 is a layer of mesh nodes and faces: no element is crossed, the
+  // separation comes from faces lying on the cut.
+  for (int order : {1, 2}) {
+    auto sim = cantilever(order, {test::plane_cut({2.0, 0, 0}, {1, 0, 0})});
+    const CutUpdate up = update_cuts(*sim, 0.0, 0.0);
+    EXPECT_EQ(up.report.cut_elements, 0);
+    EXPECT_GT(up.report.separated_faces, 0);
+    EXPECT_EQ(up.report.bodies, 2);
+    for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+    EXPECT_NEAR(piece_acceleration(*sim, 2.0) / -9.81, 1.0, 0.01);
+  }
+}
+
+TEST(Xfem, CrossingCutsGiveTheRightNumberOfPieces) {
+  Scene s = test::block_scene(1);
+  const Mesh block = make_beam(2, 2, 1, 4, 4, 2, 1);
+  // X: two full planes crossing at the centre -> 4 bodies
+  s.cuts = {test::plane_cut({1.03, 0, 0}, {1, 0.1, 0}), test::plane_cut({0, 0.97, 0}, {0.05, 1, 0}, "cuts[1]")};
+  auto sim = test::make_sim(block, s);
+  EXPECT_EQ(update_cuts(*sim, 0.0, 0.0).report.bodies, 4);
+  // T: a full plane and a half plane (polygon) ending on it -> 3 bodies
+  CutSpec half;
+  half.type = CutSpec::Type::Polygon;
+  half.points = {{-1, 0.97, -1}, {1.03, 0.97, -1}, {1.03, 0.97, 2}, {-1, 0.97, 2}};
+  half.json_path = "cuts[1]";
+  s.cuts = {test::plane_cut({1.03, 0, 0}, {1, 0, 0}), half};
+  auto sim2 = test::make_sim(block, s);
+  EXPECT_EQ(update_cuts(*sim2, 0.0, 0.0).report.bodies, 3);
+}
+
+}  // namespace
+}  // namespace incise
