@@ -6,12 +6,14 @@
 
 namespace incise {
 
-enum Stage { kStageAssembly, kStageFactorization, kStageSolve, kStageOther, kNumStages };
-inline constexpr std::array<const char*, kNumStages> kStageNames = {"assembly", "factorization", "solve", "other"};
+enum Stage { kStageCutting, kStageAssembly, kStageFactorization, kStageSolve, kStageOther, kNumStages };
+inline constexpr std::array<const char*, kNumStages> kStageNames = {"cutting", "assembly", "factorization", "solve",
+                                                                    "other"};
 
 struct FrameTiming {
   std::array<double, kNumStages> ms{};  // per stage
-  double frame_ms = 0.0;                // whole step, wall clock
+  double frame_ms = 0.0;                // whole frame, wall clock
+  bool cut_frame = false;               // the DOF set changed this frame (new symbolic analysis)
 };
 
 class Stopwatch {

@@ -25,15 +25,18 @@ Percentiles percentiles(std::vector<double> x) {
 TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms) {
   TimingSummary s;
   s.budget_ms = budget_ms;
-  std::vector<double> f;
+  std::vector<double> f, cut, plain;
   std::vector<double> st[kNumStages];
   int over = 0;
   for (const auto& t : frames) {
     f.push_back(t.frame_ms);
+    (t.cut_frame ? cut : plain).push_back(t.frame_ms);
     over += t.frame_ms > budget_ms;
     for (int k = 0; k < kNumStages; ++k) st[k].push_back(t.ms[k]);
   }
   s.frame = percentiles(f);
+  s.cut_frames = percentiles(cut);
+  s.plain_frames = percentiles(plain);
   for (int k = 0; k < kNumStages; ++k) s.stages[k] = percentiles(st[k]);
   s.over_budget = frames.empty() ? 0.0 : static_cast<double>(over) / frames.size();
   return s;
@@ -51,8 +54,12 @@ std::string format_summary(const TimingSummary& s) {
   };
   for (int k = 0; k < kNumStages; ++k) row(kStageNames[k], s.stages[k]);
   row("frame", s.frame);
-  std::snprintf(line, sizeof line, "frames over the %.1f ms budget: %.1f%% of %d\n", s.budget_ms, 100.0 * s.over_budget,
-                s.frame.count);
+  if (s.cut_frames.count > 0) {
+    row("cut frame", s.cut_frames);
+    row("other frames", s.plain_frames);
+  }
+  std::snprintf(line, sizeof line, "frames over the %.1f ms budget: %.1f%% of %d (%d cut frames)\n", s.budget_ms,
+                100.0 * s.over_budget, s.frame.count, s.cut_frames.count);
   out += line;
   return out;
 }

@@ -2,9 +2,9 @@
 #include <cstdio>
 
 #include "engine/simulation.h"
-#include "engine/step.h"
 #include "engine/timing_stats.h"
 #include "tools/commands.h"
+#include "tools/frame_loop.h"
 #include "tools/timing_json.h"
 
 namespace incise {
@@ -21,8 +21,8 @@ void bench(const BenchOptions& o) {
   std::vector<FrameTiming> timings;
   timings.reserve(o.frames);
   for (int k = 0; k < o.warmup + o.frames; ++k) {
-    step(sim->model, sim->state);
-    if (k >= o.warmup) timings.push_back(sim->state.timing);
+    const FrameTiming t = advance_frame(*sim);
+    if (k >= o.warmup) timings.push_back(t);
   }
   const TimingSummary s = summarize(timings);
   std::printf("%s", format_summary(s).c_str());

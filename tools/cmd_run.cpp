@@ -6,9 +6,9 @@
 #include "engine/error.h"
 #include "engine/result_grid.h"
 #include "engine/simulation.h"
-#include "engine/step.h"
 #include "engine/timing_stats.h"
 #include "tools/commands.h"
+#include "tools/frame_loop.h"
 #include "tools/timing_json.h"
 
 namespace incise {
@@ -22,7 +22,6 @@ struct RunOptions {
 
 void run(const RunOptions& o) {
   auto sim = load_simulation(o.scene);
-  const Model& m = sim->model;
   State& s = sim->state;
   print_model_summary(*sim);
   const int frames = o.frames > 0 ? o.frames : sim->scene.frames;
@@ -32,24 +31,23 @@ void run(const RunOptions& o) {
     std::filesystem::create_directories(out);
     const std::string stem = std::filesystem::path(o.scene).stem().string();
     series = std::make_unique<PvdSeries>((std::filesystem::path(out) / (stem + ".pvd")).string());
-    series->add(0.0, result_grid(m, s));
+    series->add(0.0, result_grid(sim->model, s));
   }
   std::vector<FrameTiming> timings;
   timings.reserve(frames);
   Stopwatch wall, progress;
   for (int k = 0; k < frames; ++k) {
-    step(m, s);
-    timings.push_back(s.timing);
-    if (series && s.frame % sim->scene.output.every == 0) series->add(s.time, result_grid(m, s));
+    timings.push_back(advance_frame(*sim));
+    if (series && s.frame % sim->scene.output.every == 0) series->add(s.time, result_grid(sim->model, s));
     if (progress.ms() > 1000.0 || k + 1 == frames) {
-      std::fprintf(stderr, "\rframe %d/%d  t = %.3f s  %.2f ms/frame", k + 1, frames, s.time, s.timing.frame_ms);
+      std::fprintf(stderr, "frame %d/%d  t = %.3f s  %.2f ms/frame  %d DOF\n", k + 1, frames, s.time,
+                   timings.back().frame_ms, sim->model.ndof());
       progress.lap();
     }
   }
-  std::fprintf(stderr, "\n");
   const TimingSummary summary = summarize(timings);
   std::printf("%d frames in %.1f ms (%.2fx real time); %d numeric factorizations\n", frames, wall.ms(),
-              frames * m.dt * 1000.0 / wall.ms(), s.refactorizations);
+              frames * sim->model.dt * 1000.0 / wall.ms(), s.refactorizations);
   std::printf("%s", format_summary(summary).c_str());
   if (!out.empty()) {
     const std::string json = (std::filesystem::path(out) / "timing.json").string();

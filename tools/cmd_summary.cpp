@@ -14,6 +14,9 @@ void print_model_summary(const Simulation& sim) {
               m.nelem, elem, m.ndof(), m.material.model == MaterialModel::Linear ? "linear" : "corotated",
               m.mesh.order == 2 && m.material.rotation == RotationMode::PerPoint ? "(rotation per cubature point)" : "",
               m.mass_kind == MassKind::Lumped ? "lumped" : "consistent");
+  if (m.ndofnode > m.nnode)
+    std::printf("  X-FEM: %d enriched DOF nodes (%d DOF) appended after the %d standard DOF\n", m.ndofnode - m.nnode,
+                3 * (m.ndofnode - m.nnode), 3 * m.nnode);
   std::printf("  constraints: %zu fixed DOF, %zu prescribed DOF; dt %.6g s, %d Newton iteration(s) per step\n",
               m.fixed_dofs.size(), m.prescribed.size(), m.dt, m.newton_iterations);
   std::printf("  CHOLMOD %s, ordering %s: nnz(A) %d, nnz(L) %.0f, %.3g Mflop per factorization; setup %.1f ms\n",
