@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "engine/probe.h"
+#include "engine/step.h"
 #include "engine/timing.h"
 
 namespace incise {
@@ -57,6 +58,7 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   sim.state.a.swap(k.a);
   sim.state.time = time;
   sim.state.frame = frame;
+  consistent_acceleration(sim.model, sim.state);
   sim.state.refactorizations = refactorizations;
   up.changed = true;
   up.ms = clock.ms();

@@ -284,7 +284,8 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
               for (int i = 0; i < 3; ++i) f3[i] = phi[static_cast<size_t>(c) * nn + tri[i]];
               cons.push_back({f3, s});
             }
-          connected = !clash && overlap_area(cons) > 1e-14;
+          // any positive overlap: a sliver 1e-12 h thin still connects to its neighbours
+          connected = !clash && overlap_area(cons) > 0.0;
         }
         if (connected) {
           adj[P].push_back(Q);

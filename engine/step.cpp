@@ -170,6 +170,61 @@ void step(const Model& m, State& s) {
   s.timing.frame_ms = frame_clock.ms();
 }
 
+void consistent_acceleration(const Model& m, State& s) {
+  const int n = m.ndof();
+  const bool linear = m.material.model == MaterialModel::Linear;
+  const double* K = linear ? m.K0_csc.data() : s.K.data();
+  if (linear) {
+    sym_matvec(m, K, s.u.data(), s.f_int.data());
+  } else {
+    update_rotations(m, s.u.data(), s.R.data());
+    assemble_internal(m, s.u.data(), s.R.data(), s.f_int.data(), s.K.data());
+  }
+  // r = f_ext - f_int - (a_ray M + b_ray K) v
+  std::vector<double> r(n), Mv(n), Kv(n, 0.0), z(n), p(n), Ap(n), diag(n);
+  mass_matvec(m, s.v.data(), Mv.data());
+  if (m.material.rayleigh_stiffness > 0) sym_matvec(m, K, s.v.data(), Kv.data());
+  for (int d = 0; d < n; ++d) {
+    r[d] = m.constrained[d] ? 0.0
+                            : m.f_gravity[d] - s.f_int[d] - m.material.rayleigh_mass * Mv[d] -
+                                  m.material.rayleigh_stiffness * Kv[d];
+    diag[d] = m.mass_csc.empty() ? m.mass_lumped[d] : m.mass_csc[m.diag[d]];
+  }
+  std::fill(s.a.begin(), s.a.end(), 0.0);
+  if (m.mass_csc.empty()) {
+    for (int d = 0; d < n; ++d) s.a[d] = r[d] / diag[d];
+    return;
+  }
+  // PCG on the free DOFs (constrained rows of r and of every iterate stay 0).
+  double rz = 0, r0 = 0;
+  for (int d = 0; d < n; ++d) {
+    z[d] = r[d] / diag[d];
+    p[d] = z[d];
+    rz += r[d] * z[d];
+    r0 += r[d] * r[d];
+  }
+  for (int it = 0; it < 500 && rz > 0; ++it) {
+    mass_matvec(m, p.data(), Ap.data());
+    for (int d = 0; d < n; ++d)
+      if (m.constrained[d]) Ap[d] = 0.0;
+    double pAp = 0;
+    for (int d = 0; d < n; ++d) pAp += p[d] * Ap[d];
+    const double alpha = rz / pAp;
+    double rr = 0, rz_new = 0;
+    for (int d = 0; d < n; ++d) {
+      s.a[d] += alpha * p[d];
+      r[d] -= alpha * Ap[d];
+      z[d] = r[d] / diag[d];
+      rr += r[d] * r[d];
+      rz_new += r[d] * z[d];
+    }
+    if (rr <= 1e-28 * r0) break;
+    const double beta = rz_new / rz;
+    rz = rz_new;
+    for (int d = 0; d < n; ++d) p[d] = z[d] + beta * p[d];
+  }
+}
+
 double total_energy(const Model& m, const State& s) {
   std::vector<double> Mv(m.ndof());
   mass_matvec(m, s.v.data(), Mv.data());

@@ -11,6 +11,14 @@ namespace incise {
 // non-positive-definite system or a non-finite result (never lets NaN on).
 void step(const Model& model, State& state);
 
+// Sets state.a to the acceleration consistent with the current u and v:
+// M a = f_ext - f_int(u) - D v on the free DOFs (0 on constrained ones), by
+// Jacobi-preconditioned CG on M (well conditioned: lumped or consistent).
+// Needed after a cut: the old acceleration does not satisfy the new
+// model's equations, and Newmark's trapezoidal update would turn that
+// mismatch into an energy jump.
+void consistent_acceleration(const Model& model, State& state);
+
 // Kinetic + elastic - gravity potential energy (for verification): for the
 // linear model 1/2 v'Mv + 1/2 u'K0u - f'u.
 double total_energy(const Model& model, const State& state);

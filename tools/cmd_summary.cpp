@@ -19,6 +19,10 @@ void print_model_summary(const Simulation& sim) {
                 3 * (m.ndofnode - m.nnode), 3 * m.nnode);
   std::printf("  constraints: %zu fixed DOF, %zu prescribed DOF; dt %.6g s, %d Newton iteration(s) per step\n",
               m.fixed_dofs.size(), m.prescribed.size(), m.dt, m.newton_iterations);
+  if (m.material.model == MaterialModel::Corotated && m.material.rayleigh_stiffness == 0.0 &&
+      m.newton_iterations == 1 && m.material.poisson > 0.49)
+    std::printf("  warning: undamped corotated tissue with nu > 0.49 and one linearised solve per step can gain\n"
+                "  energy at large dt; set material.rayleigh.stiffness (1e-4 s is enough) or more Newton iterations\n");
   std::printf("  CHOLMOD %s, ordering %s: nnz(A) %d, nnz(L) %.0f, %.3g Mflop per factorization; setup %.1f ms\n",
               f.supernodal ? "supernodal" : "simplicial", f.ordering.c_str(), m.nnz(), f.nnz_L, f.flops * 1e-6,
               sim.setup_ms);

@@ -1,5 +1,6 @@
 #pragma once
 // Helpers for the cutting tests: a block scene, a cut model, steps.
+#include <cmath>
 #include <memory>
 #include <string>
 

@@ -132,3 +132,44 @@ TEST(Xfem, CrossingCutsGiveTheRightNumberOfPieces) {
 
 }  // namespace
 }  // namespace incise
+
+#include "engine/display_mesh.h"
+#include "engine/result_grid.h"
+
+namespace incise {
+namespace {
+
+TEST(Xfem, DisplayShowsTheCutOpeningWithInnerFacesFlagged) {
+  auto sim = cantilever(2, {test::plane_cut({2.3, 0, 0}, {1, 0, 0})});
+  const DisplayMesh before = display_mesh(sim->model, sim->state);
+  int cut_faces = 0;
+  for (unsigned char f : before.face_flags) cut_faces += (f & kFaceCut) != 0;
+  EXPECT_EQ(cut_faces, 0);
+  update_cuts(*sim, 0.0, 0.0);
+  for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+  const DisplayMesh after = display_mesh(sim->model, sim->state);
+  EXPECT_GT(after.ncell(), before.ncell());
+  // Cut faces exist, and the faces on the two sides have moved apart: the
+  // gap between the lowest point of the fixed side's cut face and the free
+  // side's, measured in z, is the free fall distance.
+  double zmin_fixed = 1e9, zmin_free = 1e9;
+  for (int c = 0; c < after.ncell(); ++c)
+    for (int k = 0; k < 4; ++k) {
+      if (!(after.face_flags[4 * c + k] & kFaceCut)) continue;
+      for (int j = 0; j < 3; ++j) {
+        const int p = after.cells[c * after.npe() + kTetFace[k][j]];
+        // which side: compare the cell's centroid with the cut plane
+        double cx = 0;
+        for (int a = 0; a < 4; ++a) cx += after.X[3 * after.cells[c * after.npe() + a]] / 4;
+        (cx < 2.3 ? zmin_fixed : zmin_free) =
+            std::min(cx < 2.3 ? zmin_fixed : zmin_free, after.x(p, 2));
+      }
+    }
+  const double t = sim->state.time;
+  EXPECT_LT(zmin_free, zmin_fixed - 0.5 * 0.5 * 9.81 * t * t);
+  const VtuGrid g = result_grid(sim->model, sim->state);
+  EXPECT_EQ(static_cast<int>(g.types.size()), after.ncell());
+}
+
+}  // namespace
+}  // namespace incise
