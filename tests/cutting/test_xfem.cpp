@@ -173,3 +173,65 @@ TEST(Xfem, DisplayShowsTheCutOpeningWithInnerFacesFlagged) {
 
 }  // namespace
 }  // namespace incise
+
+#include "cutting/conforming_slit.h"
+#include "engine/static_solve.h"
+
+namespace incise {
+namespace {
+
+// A face-aligned slit through the X-FEM (separated faces) and through a mesh
+// with duplicated nodes are the same discrete model: equal displacements.
+TEST(Xfem, FaceAlignedSlitEqualsANodeDuplicatedMesh) {
+  for (int order : {1, 2})
+    for (MaterialModel mm : {MaterialModel::Linear, MaterialModel::Corotated}) {
+      Scene s = test::block_scene(order);
+      s.material.model = mm;
+      s.mass = MassKind::Consistent;
+      Region r;
+      r.kind = Region::Kind::Box;
+      r.lo = {-1, -1, -1};
+      r.hi = {0, 2, 2};
+      r.json_path = "fixed[0]";
+      s.fixed.push_back(r);
+      const Mesh beam = make_beam(4, 1, 1, 8, 2, 2, 1);
+      // X-FEM: slit polygon x = 2, z >= 0.5
+      CutSpec slit;
+      slit.type = CutSpec::Type::Polygon;
+      slit.points = {{2, -1, 0.5}, {2, 2, 0.5}, {2, 2, 3}, {2, -1, 3}};
+      slit.json_path = "cuts[0]";
+      s.cuts = {slit};
+      auto sim = test::make_sim(beam, s);
+      const CutUpdate up = apply_all_cuts(*sim);
+      EXPECT_EQ(up.report.cut_elements, 0);
+      EXPECT_GT(up.report.separated_faces, 0);
+      ASSERT_TRUE(solve_static(sim->model, sim->state, 1e-11, 60).converged);
+      // conforming mesh
+      Scene sc = s;
+      sc.cuts.clear();
+      const Mesh dup = duplicate_nodes_along_slit(order == 2 ? raise_to_tet10(beam) : beam, 2.0, 0.5);
+      sc.order = order;
+      auto ref = test::make_sim(dup, sc);
+      ASSERT_TRUE(solve_static(ref->model, ref->state, 1e-11, 60).converged);
+      double err = 0, mag = 0;
+      for (double x : {0.7, 1.9, 2.1, 3.3, 4.0})
+        for (double z : {0.1, 0.9}) {
+          const double p[3] = {x, 0.5, z};
+          const auto a = interpolate_displacement(sim->model, sim->state.u.data(), locate_point(sim->model, p));
+          const auto b = interpolate_displacement(ref->model, ref->state.u.data(), locate_point(ref->model, p));
+          for (int d = 0; d < 3; ++d) {
+            err = std::max(err, std::abs(a[d] - b[d]));
+            mag = std::max(mag, std::abs(b[d]));
+          }
+        }
+      EXPECT_LT(err, 1e-8 * mag) << "order " << order;
+      // and the slit is open: at the top the two faces separate
+      const double lo[3] = {2 - 1e-9, 0.5, 1.0}, hi[3] = {2 + 1e-9, 0.5, 1.0};
+      const double gap = interpolate_displacement(sim->model, sim->state.u.data(), locate_point(sim->model, hi))[0] -
+                         interpolate_displacement(sim->model, sim->state.u.data(), locate_point(sim->model, lo))[0];
+      EXPECT_GT(std::abs(gap), 1e-3 * mag);
+    }
+}
+
+}  // namespace
+}  // namespace incise
