@@ -235,3 +235,67 @@ TEST(Xfem, FaceAlignedSlitEqualsANodeDuplicatedMesh) {
 
 }  // namespace
 }  // namespace incise
+
+#include <filesystem>
+#include <fstream>
+
+#include "engine/error.h"
+
+namespace incise {
+namespace {
+
+TEST(Xfem, TriangleMeshCutFromObjAndStlMatchesThePlane) {
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string obj = (dir / "incise_cut_square.obj").string(), stl = (dir / "incise_cut_square.stl").string();
+  std::ofstream(obj) << "# square x = 2.3\nv 2.3 -1 -1\nv 2.3 2 -1\nv 2.3 2 2\nv 2.3 -1 2\nf 1 2 3\nf 1 3 4\n";
+  std::ofstream(stl) << "solid s\nfacet normal 1 0 0\nouter loop\nvertex 2.3 -1 -1\nvertex 2.3 2 -1\nvertex 2.3 2 2\n"
+                        "endloop\nendfacet\nfacet normal 1 0 0\nouter loop\nvertex 2.3 -1 -1\nvertex 2.3 2 2\n"
+                        "vertex 2.3 -1 2\nendloop\nendfacet\nendsolid s\n";
+  for (const std::string& f : {obj, stl}) {
+    CutSpec c;
+    c.type = CutSpec::Type::Mesh;
+    c.file = f;
+    c.json_path = "cuts[0]";
+    auto sim = cantilever(1, {c});
+    const CutUpdate up = update_cuts(*sim, 0.0, 0.0);
+    EXPECT_EQ(up.report.bodies, 2) << f;
+    auto ref = cantilever(1, {test::plane_cut({2.3, 0, 0}, {1, 0, 0})});
+    const CutUpdate upr = update_cuts(*ref, 0.0, 0.0);
+    EXPECT_EQ(up.report.enriched_nodes, upr.report.enriched_nodes);
+    EXPECT_EQ(up.report.pieces, upr.report.pieces);
+  }
+  std::ofstream(obj) << "v 0 0 0\nv 1 0 0\nf 1 2 7\n";
+  try {
+    read_triangle_surface(obj);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("incise_cut_square.obj:3: face references vertex 7, but only 2 are defined"),
+              std::string::npos)
+        << e.what();
+  }
+  std::filesystem::remove(obj);
+  std::filesystem::remove(stl);
+}
+
+TEST(Xfem, CutAlongAnEdgeAndAFlapCutTwice) {
+  // A plane containing the vertical mesh edge x = 2, y = 0 but no face.
+  auto sim = cantilever(2, {test::plane_cut({2.0, 0.0, 0.0}, {1, 0.37, 0})});
+  CutUpdate up = update_cuts(*sim, 0.0, 0.0);
+  EXPECT_EQ(up.report.bodies, 2);
+  for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+  for (double x : sim->state.u) ASSERT_TRUE(std::isfinite(x));
+  // Two parallel cuts through the same column of elements: three bodies.
+  auto twice = cantilever(1, {test::plane_cut({2.3, 0, 0}, {1, 0, 0}), test::plane_cut({2.4, 0, 0}, {1, 0, 0}, "cuts[1]")});
+  up = update_cuts(*twice, 0.0, 0.0);
+  EXPECT_EQ(up.report.bodies, 3);
+  for (int k = 0; k < 10; ++k) step(twice->model, twice->state);
+  // the thin slab between the cuts falls freely too
+  const double p[3] = {2.35, 0.5, 0.5};
+  const double t = twice->state.time;
+  EXPECT_NEAR(interpolate_displacement(twice->model, twice->state.u.data(), locate_point(twice->model, p))[2] /
+                  (-0.5 * 9.81 * t * t),
+              1.0, 0.01);
+}
+
+}  // namespace
+}  // namespace incise

@@ -452,3 +452,36 @@ TEST_F(SceneTest, RunAndOutputChecked) {
   expect_error(minimal(R"("output": {"dir": ""})"),
                "output.dir must be a non-empty string, got \"\"");
 }
+
+TEST_F(SceneTest, CutsParseWithDefaultsAndResolvedFiles) {
+  std::ofstream(root_ / "meshes" / "cut.obj") << "v 0 0 0\n";
+  const Scene s = parse_scene(minimal(R"("cuts": [
+      {"type": "plane", "point": [1, 0, 0], "normal": [2, 0, 0]},
+      {"type": "polygon", "points": [[0,0,0],[1,0,0],[1,1,0]], "at_time": 0.5},
+      {"type": "mesh", "file": "../meshes/cut.obj"},
+      {"type": "swept", "edge_start": [[0,0,1],[0,1,1]], "edge_end": [[0,0,0],[0,1,0]], "duration": 2}])"),
+                              scene_path_);
+  ASSERT_EQ(s.cuts.size(), 4u);
+  EXPECT_EQ(s.cuts[0].type, incise::CutSpec::Type::Plane);
+  EXPECT_DOUBLE_EQ(s.cuts[0].normal[0], 1.0);  // normalised
+  EXPECT_DOUBLE_EQ(s.cuts[1].at_time, 0.5);
+  EXPECT_EQ(s.cuts[2].file, resolved(root_ / "meshes" / "cut.obj"));
+  EXPECT_DOUBLE_EQ(s.cuts[3].duration, 2.0);
+  EXPECT_EQ(s.cuts[3].json_path, "cuts[3]");
+}
+
+TEST_F(SceneTest, CutErrorsNameThePathAndWhatIsAllowed) {
+  expect_error(minimal(R"("cuts": [{"type": "knife"}])"),
+               R"(cuts[0].type must be one of "plane", "polygon", "mesh", "swept", got "knife")");
+  expect_error(minimal(R"("cuts": [{"type": "plane", "point": [0,0,0], "normal": [0,0,0]}])"),
+               "cuts[0].normal must be a nonzero vector, got [0,0,0]");
+  expect_error(minimal(R"("cuts": [{"type": "polygon", "points": [[0,0,0],[1,0,0]]}])"),
+               "cuts[0].points must list at least 3 points, got 2");
+  expect_error_contains(minimal(R"("cuts": [{"type": "mesh", "file": "nope.obj"}])"), "cuts[0].file: file not found:");
+  expect_error(minimal(R"("cuts": [{"type": "plane", "point": [0,0,0], "normal": [1,0,0], "at_time": -1}])"),
+               "cuts[0].at_time must be >= 0, got -1");
+  expect_error_contains(minimal(R"("cuts": [{"type": "swept", "edge_start": [[0,0,0]], "edge_end": [[0,0,0],[1,1,1]]}])"),
+                        "cuts[0].edge_start must be two points");
+  expect_error_contains(minimal(R"("cuts": [{"type": "plane", "point": [0,0,0], "normal": [1,0,0], "pointt": 1}])"),
+                        "cuts[0].pointt: unknown key");
+}

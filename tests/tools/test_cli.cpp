@@ -140,3 +140,42 @@ TEST_F(Cli, MalformedSceneGivesItsMessageAndExitCode1) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST_F(Cli, RunWithACutWritesTheOpeningAndReportsTheCutFrame) {
+  cantilever_scene(R"(, "cuts": [{"type": "plane", "point": [2.3, 0, 0], "normal": [1, 0, 0], "at_time": 0.05}])");
+  const Result r = incise("bench " + path("scene.json") + " --frames 6 --json " + path("b.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("cut frame"), std::string::npos) << r.out;
+  std::ifstream js(path("b.json"));
+  const auto j = nlohmann::json::parse(js);
+  EXPECT_EQ(j["cut_frames"]["count"], 1);
+  EXPECT_GT(j["enriched_dof"].get<int>(), 0);
+  const Result run = incise("run " + path("scene.json") + " --frames 3 --out " + path("out"));
+  ASSERT_EQ(run.code, 0) << run.out;
+  const incise::Mesh first = incise::read_mesh(path("out/scene_000000.vtu"));
+  const incise::Mesh last = incise::read_mesh(path("out/scene_000003.vtu"));
+  EXPECT_GT(last.ntet(), first.ntet());  // cut elements are written as their sub-elements
+}
+
+TEST_F(Cli, StaticWithACutProbesEachSide) {
+  cantilever_scene(R"(, "cuts": [{"type": "polygon", "points": [[2.3,-1,0.5],[2.3,2,0.5],[2.3,2,2],[2.3,-1,2]]}])");
+  write("probe.csv", "x,y,z\n2.2999,0.5,0.9\n2.3001,0.5,0.9\n");
+  const Result r = incise("static " + path("scene.json") + " --probe " + path("probe.csv") + " --out " + path("u.csv"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("cuts:"), std::string::npos) << r.out;
+  std::ifstream is(path("u.csv"));
+  std::string line;
+  std::getline(is, line);
+  double ux[2];
+  for (double& v : ux) {
+    std::getline(is, line);
+    double x, y, z;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &x, &y, &z, &v), 4) << line;
+  }
+  // The slit opens at the top under gravity: the two faces move apart in x.
+  EXPECT_GT(std::abs(ux[1] - ux[0]), 1e-5);
+}
+
+}  // namespace
