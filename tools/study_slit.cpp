@@ -55,8 +55,10 @@ Scene scene_for(const Case& c, int order) {
     p.displacement = {0, 0, -0.4};  // L / 10: a large deflection for corotation
     s.prescribed.push_back(p);
   }
-  s.static_tolerance = 1e-9;
-  s.static_max_iterations = 200;
+  // The errors measured are >= 1e-3: a 1e-7 residual is far below them, and
+  // the corotated Newton (tangent without dR/du) converges linearly.
+  s.static_tolerance = 1e-7;
+  s.static_max_iterations = 100;
   return s;
 }
 
@@ -85,7 +87,8 @@ std::vector<double> solve(const Mesh& mesh, Scene s, bool xfem, int* dof) {
   init_state(sim.model, sim.state);
   if (xfem) apply_all_cuts(sim);
   const StaticResult r = solve_static(sim.model, sim.state, s.static_tolerance, s.static_max_iterations);
-  if (!r.converged) std::fprintf(stderr, "  (static residual %.2e after %d iterations)\n", r.residual, r.iterations);
+  std::fprintf(stderr, "  %d DOF: %s after %d Newton iterations (residual %.1e)\n", sim.model.ndof(),
+               r.converged ? "converged" : "NOT converged", r.iterations, r.residual);
   *dof = sim.model.ndof();
   std::vector<double> out;
   for (const auto& p : probes()) {
