@@ -35,6 +35,21 @@ CholmodSolver::~CholmodSolver() {
   cholmod_finish(&c_);
 }
 
+void CholmodSolver::configure(FactorMethod method, OrderingMethod ordering) {
+  c_.supernodal = method == FactorMethod::Simplicial ? CHOLMOD_SIMPLICIAL : CHOLMOD_SUPERNODAL;
+  if (method == FactorMethod::Simplicial) c_.final_ll = 1;  // L L^T, like the supernodal factor
+  cholmod_common defaults;
+  cholmod_start(&defaults);
+  if (ordering == OrderingMethod::Auto) {
+    c_.nmethods = defaults.nmethods;
+    for (int k = 0; k < CHOLMOD_MAXMETHODS + 1; ++k) c_.method[k] = defaults.method[k];
+  } else {
+    c_.nmethods = 1;
+    c_.method[0].ordering = ordering == OrderingMethod::Amd ? CHOLMOD_AMD : CHOLMOD_METIS;
+  }
+  cholmod_finish(&defaults);
+}
+
 void CholmodSolver::release() {
   if (A_) cholmod_free_sparse(&A_, &c_);
   if (L_) cholmod_free_factor(&L_, &c_);

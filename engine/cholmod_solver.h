@@ -9,6 +9,8 @@
 
 #include <cholmod.h>
 
+#include "engine/scene.h"
+
 namespace incise {
 
 struct FactorStats {
@@ -25,6 +27,10 @@ class CholmodSolver {
   CholmodSolver(const CholmodSolver&) = delete;
   CholmodSolver& operator=(const CholmodSolver&) = delete;
 
+  // Supernodal/simplicial and the fill-reducing ordering, before analyze.
+  // Auto/Auto is CHOLMOD's default choice (AMD, or METIS when its fill is lower)
+  // with the supernodal method.
+  void configure(FactorMethod method, OrderingMethod ordering);
   // Symbolic analysis of the pattern (n x n, upper triangle, sorted rows).
   void analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai);
   // Numeric factorization with these values (nnz). Throws incise::Error if the
