@@ -18,6 +18,8 @@ struct FactorStats {
   double flops = 0;        // flop count of one numeric factorization
   std::string ordering;    // the ordering CHOLMOD chose
   bool supernodal = true;
+  int factorizations = 0;       // numeric factorizations done with this object
+  double factor_ms_total = 0;   // their wall time (on whichever thread ran them)
 };
 
 class CholmodSolver {
@@ -36,8 +38,14 @@ class CholmodSolver {
   // Numeric factorization with these values (nnz). Throws incise::Error if the
   // matrix is not positive definite, naming the failing column (a DOF).
   void factorize(const double* values);
-  // x = A^-1 b with the current factor (x and b may alias).
+  // x = A^-1 b with the current factor (x and b may alias). A supernodal factor
+  // is solved by our own substitution (no BLAS): Debian's serial OpenBLAS has
+  // no locks, so BLAS must not run on two threads at once, and the lagged
+  // policy's background factorization is BLAS-heavy. A simplicial factor goes
+  // through cholmod_solve2 (which uses no BLAS for it).
   void solve(const double* b, double* x);
+  // The same through cholmod_solve2 (reference for tests and timing).
+  void solve_cholmod(const double* b, double* x);
 
   bool analyzed() const { return L_ != nullptr; }
   bool factorized() const { return factorized_; }
@@ -54,6 +62,7 @@ class CholmodSolver {
   cholmod_dense* E_ = nullptr;  // solve2 workspace
   int n_ = 0;
   bool factorized_ = false;
+  std::vector<double> work_y_, work_w_;  // own substitution: permuted vector, supernode gather
   FactorStats stats_;
   void release();
 };

@@ -196,8 +196,13 @@ void prepare_solver(const Model& m, State& s) {
   w.Rn.assign(9 * static_cast<size_t>(m.ndofnode), 0.0);
   for (int node = 0; node < m.ndofnode; ++node) w.Rn[9 * node] = w.Rn[9 * node + 4] = w.Rn[9 * node + 8] = 1.0;
   w.node_identity.assign(m.ndofnode, 0);
-  for (int d = 0; d < n; ++d)
-    if (m.constrained[d]) w.node_identity[d / 3] = 1;
+  // A node with some but not all components constrained keeps R = I so the
+  // warped matrix stays projected; a fully constrained node may rotate (its
+  // block is the identity either way).
+  for (int node = 0; node < m.ndofnode; ++node) {
+    const int c = m.constrained[3 * node] + m.constrained[3 * node + 1] + m.constrained[3 * node + 2];
+    w.node_identity[node] = c > 0 && c < 3;
+  }
   if (m.solver.policy == SolverPolicy::Warped || m.solver.policy == SolverPolicy::WarpedCG) {
     const auto& ep = w.plan.elem_rot_ptr;
     std::vector<int> count(m.ndofnode + 1, 0);

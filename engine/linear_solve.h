@@ -37,7 +37,7 @@ void solve_system(const Model& model, State& state, const double* K, int iterati
 
 // Node rotations of the warped policies from the slot rotations in state.R:
 // the polar rotation of the volume-weighted sum of the incident slots' R;
-// identity on nodes with a constrained component.
+// identity on nodes with some but not all components constrained.
 void update_node_rotations(const Model& model, State& state);
 
 }  // namespace incise

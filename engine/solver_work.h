@@ -35,7 +35,7 @@ struct SolverWork {
   std::vector<int> node_rot_ptr, node_rot;  // (ndofnode + 1), slots
   std::vector<double> node_rot_weight;
   std::vector<double> Rn;            // (ndofnode, 9) node rotations, column-major
-  std::vector<char> node_identity;   // (ndofnode) 1 where a component is constrained: R = I keeps the projection
+  std::vector<char> node_identity;   // (ndofnode) 1 where 1 or 2 components are constrained: R = I keeps the projection
 
   std::vector<double> r, z, p, q, t;  // (ndof) CG work
 
