@@ -87,10 +87,11 @@ nlohmann::json solver_report_json(const SolverReport& r) {
 
 namespace incise {
 
-void add_solver_options(void* cli_app, SolverOverrides& o) {
+void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
   auto* cmd = static_cast<CLI::App*>(cli_app);
-  cmd->add_option("--policy", o.policy, "Solver policy (overrides solver.policy)")
-      ->check(CLI::IsMember({"exact", "lagged", "warped", "warped_cg"}));
+  if (with_policy)
+    cmd->add_option("--policy", o.policy, "Solver policy (overrides solver.policy)")
+        ->check(CLI::IsMember({"exact", "lagged", "warped", "warped_cg"}));
   cmd->add_option("--tolerance", o.tolerance, "CG relative tolerance (lagged, warped_cg)")->check(CLI::Range(1e-300, 0.999));
   cmd->add_option("--max-iterations", o.max_iterations, "CG iterations per solve")->check(CLI::PositiveNumber);
   cmd->add_option("--refresh-every", o.refresh_every, "lagged: refactor every K frames")->check(CLI::PositiveNumber);

@@ -50,7 +50,7 @@ struct SolverOverrides {
   std::string factorization, ordering;  // empty: the scene's
 };
 // Registers --policy, --tolerance, ... on a sub-command.
-void add_solver_options(void* cli_app, SolverOverrides& o);
+void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy = true);
 // Applies the overrides to the model and re-initialises the state (t = 0).
 void apply_solver_overrides(Simulation& sim, const SolverOverrides& o);
 
