@@ -76,7 +76,8 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   if (!L_ || c_.status < CHOLMOD_OK) throw Error("CHOLMOD: symbolic analysis failed (status " + std::to_string(c_.status) + ")");
   stats_.nnz_L = c_.lnz;
   stats_.flops = c_.fl;
-  stats_.ordering = ordering_name(L_->ordering);
+  // The method CHOLMOD kept (with nmethods = 0 it tries AMD, then METIS when AMD fills much).
+  stats_.ordering = ordering_name(c_.selected >= 0 && c_.selected <= CHOLMOD_MAXMETHODS ? c_.method[c_.selected].ordering : L_->ordering);
   stats_.supernodal = L_->is_super;
   stats_.factorizations = 0;
   stats_.factor_ms_total = 0;
