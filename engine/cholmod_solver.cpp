@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "engine/error.h"
+#include "engine/timing.h"
 
 namespace incise {
 
@@ -35,6 +36,21 @@ CholmodSolver::~CholmodSolver() {
   cholmod_finish(&c_);
 }
 
+void CholmodSolver::configure(FactorMethod method, OrderingMethod ordering) {
+  c_.supernodal = method == FactorMethod::Simplicial ? CHOLMOD_SIMPLICIAL : CHOLMOD_SUPERNODAL;
+  if (method == FactorMethod::Simplicial) c_.final_ll = 1;  // L L^T, like the supernodal factor
+  cholmod_common defaults;
+  cholmod_start(&defaults);
+  if (ordering == OrderingMethod::Auto) {
+    c_.nmethods = defaults.nmethods;
+    for (int k = 0; k < CHOLMOD_MAXMETHODS + 1; ++k) c_.method[k] = defaults.method[k];
+  } else {
+    c_.nmethods = 1;
+    c_.method[0].ordering = ordering == OrderingMethod::Amd ? CHOLMOD_AMD : CHOLMOD_METIS;
+  }
+  cholmod_finish(&defaults);
+}
+
 void CholmodSolver::release() {
   if (A_) cholmod_free_sparse(&A_, &c_);
   if (L_) cholmod_free_factor(&L_, &c_);
@@ -43,6 +59,8 @@ void CholmodSolver::release() {
   if (Y_) cholmod_free_dense(&Y_, &c_);
   if (E_) cholmod_free_dense(&E_, &c_);
   factorized_ = false;
+  work_y_.clear();
+  work_w_.clear();
 }
 
 void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai) {
@@ -58,15 +76,21 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   if (!L_ || c_.status < CHOLMOD_OK) throw Error("CHOLMOD: symbolic analysis failed (status " + std::to_string(c_.status) + ")");
   stats_.nnz_L = c_.lnz;
   stats_.flops = c_.fl;
-  stats_.ordering = ordering_name(L_->ordering);
+  // The method CHOLMOD kept (with nmethods = 0 it tries AMD, then METIS when AMD fills much).
+  stats_.ordering = ordering_name(c_.selected >= 0 && c_.selected <= CHOLMOD_MAXMETHODS ? c_.method[c_.selected].ordering : L_->ordering);
   stats_.supernodal = L_->is_super;
+  stats_.factorizations = 0;
+  stats_.factor_ms_total = 0;
   B_ = cholmod_zeros(n, 1, CHOLMOD_REAL, &c_);
 }
 
 void CholmodSolver::factorize(const double* values) {
   if (!L_) throw Error("CHOLMOD: factorize called before analyze");
   std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
+  Stopwatch clock;
   cholmod_factorize(A_, L_, &c_);
+  stats_.factor_ms_total += clock.ms();
+  ++stats_.factorizations;
   factorized_ = false;
   if (c_.status == CHOLMOD_NOT_POSDEF || L_->minor < static_cast<size_t>(n_)) {
     std::ostringstream os;
@@ -80,12 +104,66 @@ void CholmodSolver::factorize(const double* values) {
   factorized_ = true;
 }
 
-void CholmodSolver::solve(const double* b, double* x) {
+void CholmodSolver::solve_cholmod(const double* b, double* x) {
   if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
   std::memcpy(B_->x, b, sizeof(double) * n_);
   if (!cholmod_solve2(CHOLMOD_A, L_, B_, nullptr, &X_, nullptr, &Y_, &E_, &c_))
     throw Error("CHOLMOD: solve failed (status " + std::to_string(c_.status) + ")");
   std::memcpy(x, X_->x, sizeof(double) * n_);
+}
+
+void CholmodSolver::solve(const double* b, double* x) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (!L_->is_super) {
+    solve_cholmod(b, x);
+    return;
+  }
+  // P A P^T = L L^T, L stored as supernodes: a dense column-major block of
+  // nsrow x nscol per supernode (rows Ls[pi[s]..pi[s+1]), the first nscol
+  // being the supernode's own columns).
+  const int* Perm = static_cast<const int*>(L_->Perm);
+  const int* super = static_cast<const int*>(L_->super);
+  const int* pi = static_cast<const int*>(L_->pi);
+  const int* px = static_cast<const int*>(L_->px);
+  const int* Ls = static_cast<const int*>(L_->s);
+  const double* Lx = static_cast<const double*>(L_->x);
+  const int nsuper = static_cast<int>(L_->nsuper);
+  if (work_y_.size() != static_cast<size_t>(n_)) work_y_.assign(n_, 0.0);
+  if (work_w_.empty()) {
+    size_t mx = 0;
+    for (int sn = 0; sn < nsuper; ++sn) mx = std::max(mx, static_cast<size_t>(pi[sn + 1] - pi[sn]));
+    work_w_.assign(mx + 1, 0.0);
+  }
+  double* y = work_y_.data();
+  double* w = work_w_.data();
+  for (int k = 0; k < n_; ++k) y[k] = b[Perm[k]];
+  // Forward: L z = y.
+  for (int sn = 0; sn < nsuper; ++sn) {
+    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
+    const double* B = Lx + px[sn];
+    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+    for (int j = 0; j < nscol; ++j) {
+      const double* col = B + static_cast<size_t>(j) * nsrow;
+      const double wj = w[j] / col[j];
+      w[j] = wj;
+      for (int i = j + 1; i < nsrow; ++i) w[i] -= col[i] * wj;
+    }
+    for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
+  }
+  // Backward: L^T z = y.
+  for (int sn = nsuper - 1; sn >= 0; --sn) {
+    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
+    const double* B = Lx + px[sn];
+    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+    for (int j = nscol - 1; j >= 0; --j) {
+      const double* col = B + static_cast<size_t>(j) * nsrow;
+      double t = w[j];
+      for (int i = j + 1; i < nsrow; ++i) t -= col[i] * w[i];
+      w[j] = t / col[j];
+    }
+    for (int j = 0; j < nscol; ++j) y[k1 + j] = w[j];
+  }
+  for (int k = 0; k < n_; ++k) x[Perm[k]] = y[k];
 }
 
 }  // namespace incise

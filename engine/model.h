@@ -29,6 +29,7 @@ struct Model {
   MassKind mass_kind = MassKind::Lumped;
   double dt = 1.0 / 30.0;
   int newton_iterations = 1;
+  SolverSettings solver;        // solver.* of the scene: policy, CG tolerance, threads
 
   // DOF nodes
   int nnode = 0;                // standard DOF nodes (= mesh nodes)

@@ -427,6 +427,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.mass_kind = scene.mass;
   m.dt = scene.dt;
   m.newton_iterations = scene.newton_iterations;
+  m.solver = scene.solver;
   m.nnode = m.ndofnode = m.mesh.nnode();
   m.X = m.mesh.X;
   if (cuts && cuts->npiece() > 0) {

@@ -373,11 +373,37 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
 void parse_solver(const Parser& p, const json& v, Scene& s) {
   const std::string at = "solver";
   p.object(v, at);
-  p.allowed_keys(v, at, {"policy"});
-  if (auto it = v.find("policy"); it != v.end()) {
-    static const std::vector<std::string> policies = {"exact"};
-    s.solver_policy = policies[p.choice(*it, at + ".policy", policies)];
+  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "tolerance", "max_iterations", "threads",
+                         "factorization", "ordering"});
+  SolverSettings& o = s.solver;
+  if (auto it = v.find("policy"); it != v.end())
+    o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
+  if (auto it = v.find("refresh_every"); it != v.end())
+    o.refresh_every = p.at_least_one(*it, at + ".refresh_every");
+  if (auto it = v.find("background"); it != v.end()) o.background = p.boolean(*it, at + ".background");
+  if (auto it = v.find("tolerance"); it != v.end()) {
+    o.tolerance = p.positive(*it, at + ".tolerance");
+    if (!(o.tolerance < 1.0)) p.fail(at + ".tolerance", " must be in (0, 1), got " + show(*it));
   }
+  if (auto it = v.find("max_iterations"); it != v.end())
+    o.max_iterations = p.at_least_one(*it, at + ".max_iterations");
+  if (auto it = v.find("threads"); it != v.end()) {
+    o.threads = p.at_least_one(*it, at + ".threads");
+    if (o.threads > 64) p.fail(at + ".threads", " must be an integer in [1, 64], got " + show(*it));
+  }
+  if (auto it = v.find("factorization"); it != v.end())
+    o.factor = static_cast<FactorMethod>(p.choice(*it, at + ".factorization", {"auto", "supernodal", "simplicial"}));
+  if (auto it = v.find("ordering"); it != v.end())
+    o.ordering = static_cast<OrderingMethod>(p.choice(*it, at + ".ordering", {"auto", "amd", "metis"}));
+  const bool iterative = o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG;
+  for (const char* k : {"tolerance", "max_iterations"})
+    if (v.contains(k) && !iterative)
+      p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
+                                     std::string(policy_name(o.policy)) + "\"");
+  for (const char* k : {"refresh_every", "background"})
+    if (v.contains(k) && o.policy != SolverPolicy::Lagged)
+      p.fail(Parser::key(at, k), ": only used by solver.policy \"lagged\"; solver.policy is \"" +
+                                     std::string(policy_name(o.policy)) + "\"");
 }
 
 void parse_static(const Parser& p, const json& v, Scene& s) {
@@ -500,6 +526,16 @@ json parse_text(const std::string& text, const std::string& path) {
 }
 
 }  // namespace
+
+const char* policy_name(SolverPolicy p) {
+  switch (p) {
+    case SolverPolicy::Exact: return "exact";
+    case SolverPolicy::Lagged: return "lagged";
+    case SolverPolicy::Warped: return "warped";
+    case SolverPolicy::WarpedCG: return "warped_cg";
+  }
+  return "unknown";
+}
 
 Scene parse_scene(const std::string& json_text, const std::string& path) {
   json root = parse_text(json_text, path);

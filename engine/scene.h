@@ -61,6 +61,29 @@ struct CutSpec {
   std::string json_path;        // "cuts[2]"
 };
 
+// Linear-solver policy of the dynamics (issue 4). Every policy is measured
+// against `exact` by `incise compare`; none is applied silently.
+enum class SolverPolicy {
+  Exact,     // numeric refactorization of the corotated system every frame
+  Lagged,    // CG on the current system, preconditioned by an older frame's factor
+  Warped,    // factor of the rest system, per-node rotations around the solve
+  WarpedCG,  // CG on the current system, preconditioned by the warped solve
+};
+enum class FactorMethod { Auto, Supernodal, Simplicial };  // CHOLMOD's choice or forced
+enum class OrderingMethod { Auto, Amd, Metis };            // CHOLMOD's default tries both
+
+struct SolverSettings {
+  SolverPolicy policy = SolverPolicy::Exact;  // solver.policy
+  int refresh_every = 1;       // lagged: refactor every k frames (>= 1)
+  bool background = false;     // lagged: factorize on a second thread, used from the next refresh on
+  double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
+  int max_iterations = 50;     // CG iterations per solve (>= 1)
+  int threads = 2;             // assembly workers incl. the calling thread (>= 1)
+  FactorMethod factor = FactorMethod::Auto;
+  OrderingMethod ordering = OrderingMethod::Auto;
+};
+const char* policy_name(SolverPolicy p);
+
 struct Scene {
   std::string path;       // the scene file as given
   std::string mesh_file;  // resolved relative to the scene file's folder
@@ -72,7 +95,7 @@ struct Scene {
   std::vector<Prescribed> prescribed;
   double dt = 1.0 / 30.0;        // integrator.dt, > 0
   int newton_iterations = 1;     // integrator.newton_iterations, >= 1
-  std::string solver_policy = "exact";  // solver.policy; only "exact" for now
+  SolverSettings solver;                // solver.*
   double static_tolerance = 1e-8;       // static.tolerance: relative residual
   int static_max_iterations = 50;       // static.max_iterations
   int frames = 60;                      // run.frames default for `incise run`

@@ -5,6 +5,7 @@
 
 #include "engine/cholmod_solver.h"
 #include "engine/model.h"
+#include "engine/solver_work.h"
 #include "engine/timing.h"
 
 namespace incise {
@@ -18,7 +19,8 @@ struct State {
   // Work arrays (ndof or nnz), allocated by init_state, reused every frame.
   std::vector<double> f_int, K, A, rhs, delta, du, tmp, tmp2;
   CholmodSolver solver;
-  bool factor_current = false;  // linear model: the factor never changes
+  bool factor_current = false;  // the factor in `solver` is valid for the policy (linear: never changes)
+  SolverWork work;              // policies, worker pool, assembly plan (engine/linear_solve.h)
 
   FrameTiming timing;           // last frame
   int refactorizations = 0;     // numeric factorizations so far

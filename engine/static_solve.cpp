@@ -11,6 +11,8 @@ namespace incise {
 StaticResult solve_static(const Model& m, State& s, double tolerance, int max_iterations) {
   const int n = m.ndof();
   const bool linear = m.material.model == MaterialModel::Linear;
+  s.work.wait_job();  // a lagged policy's background factorization may use s.solver
+  s.work.job_running = false;
   for (int d : m.fixed_dofs) s.u[d] = 0.0;
   for (const auto& p : m.prescribed) s.u[p.dof] = p.value;
   double fext = 0.0;

@@ -5,7 +5,9 @@
 #include <sstream>
 
 #include "engine/assemble.h"
+#include "engine/assemble_parallel.h"
 #include "engine/error.h"
+#include "engine/linear_solve.h"
 
 namespace incise {
 
@@ -51,8 +53,7 @@ void init_state(const Model& m, State& s, bool consistent_a0) {
   for (auto* w : {&s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) w->assign(n, 0.0);
   s.K.assign(m.nnz(), 0.0);
   s.A.assign(m.nnz(), 0.0);
-  s.solver.analyze(n, m.Ap, m.Ai);
-  s.factor_current = false;
+  prepare_solver(m, s);  // worker pool, assembly plan, symbolic analysis
   s.refactorizations = 0;
   if (!consistent_a0) return;
   // Consistent initial acceleration on the free DOFs: M a0 = f_ext - f_int(0) = f_ext.
@@ -64,6 +65,7 @@ void init_state(const Model& m, State& s, bool consistent_a0) {
     project_matrix(m, s.A.data());
     s.solver.factorize(s.A.data());
     s.solver.solve(s.rhs.data(), s.a.data());
+    s.factor_current = false;  // the factor holds M, not the dynamics matrix
   }
   for (int d = 0; d < n; ++d)
     if (m.constrained[d]) s.a[d] = 0.0;
@@ -76,7 +78,6 @@ void step(const Model& m, State& s) {
   const double dt = m.dt, t1 = s.time + dt;
   const double a_ray = m.material.rayleigh_mass, b_ray = m.material.rayleigh_stiffness;
   const bool linear = m.material.model == MaterialModel::Linear;
-  const double cM = 4.0 / (dt * dt) + 2.0 * a_ray / dt, cK = 1.0 + 2.0 * b_ray / dt;
 
   // Increment Delta = u(t+dt) - u(t): constrained DOFs take their known
   // increments up front (projection, Algorithm 1); the solves then keep
@@ -101,10 +102,10 @@ void step(const Model& m, State& s) {
     for (int d = 0; d < n; ++d) x[d] = s.u[d] + s.delta[d];
     const double* K = linear ? m.K0_csc.data() : s.K.data();
     if (linear) {
-      sym_matvec(m, K, x, s.f_int.data());
-    } else {
-      s.rotation_fallbacks += update_rotations(m, x, s.R.data());
-      assemble_internal(m, x, s.R.data(), s.f_int.data(), s.K.data());
+      sym_matvec_parallel(m, s.work.plan, *s.work.pool, K, x, s.f_int.data());
+    } else {  // rotations, forces and (unless the policy needs none) the tangent, on solver.threads workers
+      s.rotation_fallbacks += assemble_corotated(m, s.work.plan, *s.work.pool, x, s.R.data(), s.f_int.data(),
+                                                 policy_needs_tangent(m) ? s.K.data() : nullptr);
     }
     s.timing.ms[kStageAssembly] += clock.lap();
 
@@ -123,7 +124,8 @@ void step(const Model& m, State& s) {
     mass_matvec(m, a1, s.rhs.data());
     for (int d = 0; d < n; ++d) s.rhs[d] = m.f_gravity[d] - s.f_int[d] - s.rhs[d];
     if (b_ray > 0.0) {
-      sym_matvec(m, K, v1, a1);
+      if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, s.work.plan, *s.work.pool, K, v1, a1);
+      else stiffness_matvec(m, s.work.plan, *s.work.pool, s.R.data(), v1, a1);  // warped: K v without K
       for (int d = 0; d < n; ++d) s.rhs[d] -= b_ray * a1[d];
     }
     double rnorm = 0.0, fnorm = 0.0;
@@ -136,25 +138,11 @@ void step(const Model& m, State& s) {
     check_finite(s.rhs, "residual", s);
     s.timing.ms[kStageOther] += clock.lap();
 
-    // A = 4/dt^2 M + 2/dt D + K (eq. 3.59), projected. A linear model factors once.
-    if (!(linear && s.factor_current)) {
-      for (int k = 0; k < m.nnz(); ++k) s.A[k] = cK * K[k];
-      if (!m.mass_csc.empty()) {
-        for (int k = 0; k < m.nnz(); ++k) s.A[k] += cM * m.mass_csc[k];
-      } else {
-        for (int d = 0; d < n; ++d) s.A[m.diag[d]] += cM * m.mass_lumped[d];
-      }
-      project_matrix(m, s.A.data());
-      s.timing.ms[kStageAssembly] += clock.lap();
-      s.solver.factorize(s.A.data());
-      ++s.refactorizations;
-      s.factor_current = true;
-      s.timing.ms[kStageFactorization] += clock.lap();
-    }
-    s.solver.solve(s.rhs.data(), s.du.data());
+    // A = 4/dt^2 M + 2/dt D + K (eq. 3.59), projected, solved per solver.policy.
+    solve_system(m, s, K, it, clock);
     check_finite(s.du, "displacement increment", s);
     for (int d = 0; d < n; ++d) s.delta[d] += s.du[d];
-    s.timing.ms[kStageSolve] += clock.lap();
+    s.timing.ms[kStageOther] += clock.lap();
   }
 
   // Newmark update (eq. 3.58).

@@ -14,6 +14,12 @@ struct FrameTiming {
   std::array<double, kNumStages> ms{};  // per stage
   double frame_ms = 0.0;                // whole frame, wall clock
   bool cut_frame = false;               // the DOF set changed this frame (new symbolic analysis)
+  // Linear solver of the frame (all Newton iterations together).
+  int iterations = 0;         // CG iterations (lagged, warped_cg); 0 for direct policies
+  int solves = 0;             // forward+back substitutions with a Cholesky factor
+  double solve_kernel_ms = 0; // time inside those substitutions
+  double residual = 0;        // last relative residual |A du - b| / |b| of CG (0 when direct)
+  bool converged = true;      // CG reached solver.tolerance within solver.max_iterations
 };
 
 class Stopwatch {

@@ -5,6 +5,7 @@
 #include "engine/timing_stats.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
+#include "tools/solver_report.h"
 #include "tools/timing_json.h"
 
 namespace incise {
@@ -13,10 +14,13 @@ namespace {
 struct BenchOptions {
   std::string scene, json;
   int frames = 100, warmup = 0;
+  double bandwidth_gbs = 11.0;
+  SolverOverrides solver;
 };
 
 void bench(const BenchOptions& o) {
   auto sim = load_simulation(o.scene);
+  apply_solver_overrides(*sim, o.solver);
   print_model_summary(*sim);
   std::vector<FrameTiming> timings;
   timings.reserve(o.frames);
@@ -26,11 +30,9 @@ void bench(const BenchOptions& o) {
   }
   const TimingSummary s = summarize(timings);
   std::printf("%s", format_summary(s).c_str());
-  const FactorStats& f = sim->state.solver.stats();
-  const double fact_ms = s.stages[kStageFactorization].median_ms;
-  if (fact_ms > 0) std::printf("factorization: %.2f GFLOP/s (median)\n", f.flops / (fact_ms * 1e-3) * 1e-9);
+  std::printf("%s", format_solver_report(solver_report(*sim, timings, s, o.bandwidth_gbs)).c_str());
   if (!o.json.empty()) {
-    write_timing_json(o.json, *sim, s);
+    write_timing_json(o.json, *sim, s, &timings, o.bandwidth_gbs);
     std::printf("wrote %s\n", o.json.c_str());
   }
 }
@@ -43,6 +45,10 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--frames", opts->frames, "Frames to time")->check(CLI::PositiveNumber);
   cmd->add_option("--warmup", opts->warmup, "Frames stepped before timing starts")->check(CLI::NonNegativeNumber);
   cmd->add_option("--json", opts->json, "Write the summary as JSON");
+  cmd->add_option("--bandwidth-gbs", opts->bandwidth_gbs,
+                  "Memory bandwidth (GB/s) for the one-substitution limit the frame time is compared with")
+      ->check(CLI::PositiveNumber);
+  add_solver_options(cmd, opts->solver);
   cmd->callback([opts] { bench(*opts); });
 }
 

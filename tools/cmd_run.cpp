@@ -51,7 +51,7 @@ void run(const RunOptions& o) {
   std::printf("%s", format_summary(summary).c_str());
   if (!out.empty()) {
     const std::string json = (std::filesystem::path(out) / "timing.json").string();
-    write_timing_json(json, *sim, summary);
+    write_timing_json(json, *sim, summary, &timings);
     std::printf("wrote %s%s\n", series ? (series->files().size() ? (out + "/*.vtu + .pvd, ").c_str() : "") : "",
                 json.c_str());
   }

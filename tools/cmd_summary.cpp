@@ -26,6 +26,13 @@ void print_model_summary(const Simulation& sim) {
   std::printf("  CHOLMOD %s, ordering %s: nnz(A) %d, nnz(L) %.0f, %.3g Mflop per factorization; setup %.1f ms\n",
               f.supernodal ? "supernodal" : "simplicial", f.ordering.c_str(), m.nnz(), f.nnz_L, f.flops * 1e-6,
               sim.setup_ms);
+  const SolverSettings& o = m.solver;
+  std::printf("  solver.policy %s, %d assembly thread(s)", policy_name(o.policy), o.threads);
+  if (o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG)
+    std::printf(", CG tolerance %.3g, max %d iterations", o.tolerance, o.max_iterations);
+  if (o.policy == SolverPolicy::Lagged)
+    std::printf(", refresh every %d frame(s)%s", o.refresh_every, o.background ? " on a background thread" : "");
+  std::printf("\n");
 }
 
 }  // namespace incise

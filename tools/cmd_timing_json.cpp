@@ -4,11 +4,13 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/error.h"
+#include "tools/solver_report.h"
 #include "tools/timing_json.h"
 
 namespace incise {
 
-void write_timing_json(const std::string& path, const Simulation& sim, const TimingSummary& s) {
+void write_timing_json(const std::string& path, const Simulation& sim, const TimingSummary& s,
+                       const std::vector<FrameTiming>* frames, double bandwidth_gbs) {
   auto pct = [](const Percentiles& p) {
     return nlohmann::json{{"median_ms", p.median_ms}, {"p95_ms", p.p95_ms}, {"p99_ms", p.p99_ms}, {"max_ms", p.max_ms}};
   };
@@ -29,7 +31,21 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["element"] = m.mesh.order == 2 ? (m.material.rotation == RotationMode::Single ? "tet10SR" : "tet10") : "tet4";
   j["material"] = m.material.model == MaterialModel::Linear ? "linear" : "corotated";
   const FactorStats& f = sim.state.solver.stats();
-  j["factor"] = {{"nnz_L", f.nnz_L}, {"flops", f.flops}, {"ordering", f.ordering}, {"nnz_A", m.nnz()}};
+  j["factor"] = {{"nnz_L", f.nnz_L}, {"flops", f.flops}, {"ordering", f.ordering}, {"nnz_A", m.nnz()},
+                 {"supernodal", f.supernodal}};
+  if (frames) {
+    const SolverReport r = solver_report(sim, *frames, s, bandwidth_gbs);
+    j["solver"] = solver_report_json(r);
+    j["factor"]["gflops"] = r.gflops;
+    j["factor"]["factorizations"] = r.factorizations;
+    j["factor"]["mean_ms"] = r.factor_ms_mean;
+    j["solve"] = {{"gbs", r.solve_gbs}, {"substitution_ms", r.substitution_ms},
+                  {"substitutions_per_frame", r.substitutions_per_frame}};
+    j["frame"]["bandwidth_limit_ms"] = r.bandwidth_limit_ms;
+    j["frame"]["bandwidth_multiple"] = r.frame_multiple;
+  } else {
+    j["solver"] = {{"policy", policy_name(m.solver.policy)}, {"threads", m.solver.threads}};
+  }
   j["refactorizations"] = sim.state.refactorizations;
   j["setup_ms"] = sim.setup_ms;
   const std::string tmp = path + ".tmp";

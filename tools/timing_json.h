@@ -1,6 +1,7 @@
 #pragma once
 // The JSON timing report shared by `incise run` and `incise bench`.
 #include <string>
+#include <vector>
 
 #include "engine/simulation.h"
 #include "engine/timing_stats.h"
@@ -9,6 +10,8 @@ namespace incise {
 
 // {frame: {median_ms, p95_ms, p99_ms, max_ms, over_budget}, stages: {name: {...}},
 //  dof, factor: {nnz_L, flops, ordering}, ...}; written atomically.
-void write_timing_json(const std::string& path, const Simulation& sim, const TimingSummary& s);
+// With `frames`, also the solver report (solver.*, factor.gflops, solve.gbs, frame.bandwidth_multiple).
+void write_timing_json(const std::string& path, const Simulation& sim, const TimingSummary& s,
+                       const std::vector<FrameTiming>* frames = nullptr, double bandwidth_gbs = 11.0);
 
 }  // namespace incise

@@ -150,7 +150,7 @@ TEST_F(SceneTest, FullSceneParsesAllValues) {
 
   EXPECT_DOUBLE_EQ(s.dt, 0.001);
   EXPECT_EQ(s.newton_iterations, 3);
-  EXPECT_EQ(s.solver_policy, "exact");
+  EXPECT_EQ(s.solver.policy, incise::SolverPolicy::Exact);
   EXPECT_DOUBLE_EQ(s.static_tolerance, 1e-6);
   EXPECT_EQ(s.static_max_iterations, 20);
   EXPECT_EQ(s.frames, 90);
@@ -175,7 +175,7 @@ TEST_F(SceneTest, MinimalSceneGetsDefaults) {
   EXPECT_TRUE(s.prescribed.empty());
   EXPECT_DOUBLE_EQ(s.dt, 1.0 / 30.0);
   EXPECT_EQ(s.newton_iterations, 1);
-  EXPECT_EQ(s.solver_policy, "exact");
+  EXPECT_EQ(s.solver.policy, incise::SolverPolicy::Exact);
   EXPECT_DOUBLE_EQ(s.static_tolerance, 1e-8);
   EXPECT_EQ(s.static_max_iterations, 50);
   EXPECT_EQ(s.frames, 60);
@@ -326,9 +326,48 @@ TEST_F(SceneTest, BadEnumListsAllowedValues) {
                "mass must be one of \"lumped\", \"consistent\", got \"diagonal\"");
 }
 
-TEST_F(SceneTest, SolverPolicyOnlyExact) {
+TEST_F(SceneTest, SolverPolicyListsAllowedValues) {
   expect_error(minimal(R"("solver": {"policy": "cg"})"),
-               "solver.policy must be one of \"exact\", got \"cg\"");
+               "solver.policy must be one of \"exact\", \"lagged\", \"warped\", \"warped_cg\", got \"cg\"");
+}
+
+TEST_F(SceneTest, SolverSettingsParsed) {
+  Scene s = parse_scene(minimal(R"("solver": {"policy": "lagged", "refresh_every": 4, "background": true,
+      "tolerance": 1e-7, "max_iterations": 30, "threads": 1, "factorization": "simplicial", "ordering": "metis"})"),
+                        scene_path_);
+  EXPECT_EQ(s.solver.policy, incise::SolverPolicy::Lagged);
+  EXPECT_EQ(s.solver.refresh_every, 4);
+  EXPECT_TRUE(s.solver.background);
+  EXPECT_DOUBLE_EQ(s.solver.tolerance, 1e-7);
+  EXPECT_EQ(s.solver.max_iterations, 30);
+  EXPECT_EQ(s.solver.threads, 1);
+  EXPECT_EQ(s.solver.factor, incise::FactorMethod::Simplicial);
+  EXPECT_EQ(s.solver.ordering, incise::OrderingMethod::Metis);
+  Scene w = parse_scene(minimal(R"("solver": {"policy": "warped_cg", "tolerance": 1e-3})"), scene_path_);
+  EXPECT_EQ(w.solver.policy, incise::SolverPolicy::WarpedCG);
+  EXPECT_EQ(w.solver.threads, 2);
+}
+
+TEST_F(SceneTest, SolverSettingsChecked) {
+  expect_error(minimal(R"("solver": {"policy": "lagged", "refresh_every": 0})"),
+               "solver.refresh_every must be an integer >= 1, got 0");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "tolerance": 1.5})"),
+               "solver.tolerance must be in (0, 1), got 1.5");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "tolerance": 0})"), "solver.tolerance must be > 0, got 0");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "background": 1})"),
+               "solver.background must be a boolean (true or false), got number 1");
+  expect_error(minimal(R"("solver": {"threads": 0})"), "solver.threads must be an integer >= 1, got 0");
+  expect_error(minimal(R"("solver": {"threads": 65})"), "solver.threads must be an integer in [1, 64], got 65");
+  expect_error(minimal(R"("solver": {"ordering": "nesdis"})"),
+               "solver.ordering must be one of \"auto\", \"amd\", \"metis\", got \"nesdis\"");
+  expect_error(minimal(R"("solver": {"factorization": "dense"})"),
+               "solver.factorization must be one of \"auto\", \"supernodal\", \"simplicial\", got \"dense\"");
+  expect_error(minimal(R"("solver": {"policy": "exact", "tolerance": 1e-6})"),
+               "solver.tolerance: only used by the iterative policies \"lagged\" and \"warped_cg\"; "
+               "solver.policy is \"exact\"");
+  expect_error(minimal(R"("solver": {"policy": "warped", "refresh_every": 3})"),
+               "solver.refresh_every: only used by solver.policy \"lagged\"; solver.policy is \"warped\"");
+  expect_error_contains(minimal(R"("solver": {"polcy": "exact"})"), "did you mean \"policy\"?");
 }
 
 // --- unknown keys and types ----------------------------------------------------

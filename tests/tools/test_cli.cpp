@@ -131,6 +131,40 @@ TEST_F(Cli, BenchJsonHasTheDocumentedFields) {
   EXPECT_EQ(j["stages"]["factorization"]["median_ms"].get<double>(), 0.0);
 }
 
+TEST_F(Cli, BenchReportsTheSolverFields) {
+  cantilever_scene();
+  const Result r = incise("bench " + path("scene.json") + " --frames 4 --policy lagged --refresh-every 2 --json " +
+                          path("b.json") + " --bandwidth-gbs 5");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("GFLOP/s"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("GB/s"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("CG: iterations/frame"), std::string::npos) << r.out;
+  std::ifstream js(path("b.json"));
+  const auto j = nlohmann::json::parse(js);
+  EXPECT_EQ(j["solver"]["policy"], "lagged");
+  for (const char* k : {"median", "p99", "max"}) EXPECT_TRUE(j["solver"]["iterations"].contains(k)) << k;
+  EXPECT_GT(j["factor"]["gflops"].get<double>(), 0.0);
+  EXPECT_GT(j["solve"]["gbs"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(j["solver"]["bandwidth_gbs"].get<double>(), 5.0);
+  EXPECT_GT(j["frame"]["bandwidth_multiple"].get<double>(), 0.0);
+  EXPECT_TRUE(j["frame"].contains("median_ms"));
+}
+
+TEST_F(Cli, ComparePrintsTheErrorAtEachFrame) {
+  cantilever_scene();
+  const Result r = incise("compare " + path("scene.json") + " --policy warped,lagged --frames 1,3 --json " + path("c.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("--- warped"), std::string::npos) << r.out;
+  std::ifstream js(path("c.json"));
+  const auto j = nlohmann::json::parse(js);
+  ASSERT_EQ(j["policies"].size(), 2u);
+  // linear scene: warped is the exact factor, lagged converges to 1e-6
+  EXPECT_LT(j["policies"][0]["errors"][1]["rel_l2_error"].get<double>(), 1e-12);
+  EXPECT_LT(j["policies"][1]["errors"][1]["rel_l2_error"].get<double>(), 1e-5);
+  EXPECT_EQ(j["policies"][1]["errors"][1]["frame"], 3);
+  EXPECT_NE(incise("compare " + path("scene.json") + " --policy cg").code, 0) << "an unknown policy is rejected";
+}
+
 TEST_F(Cli, MalformedSceneGivesItsMessageAndExitCode1) {
   cantilever_scene();
   write("bad.json", R"({"mesh": {"file": "beam.vtu"}, "material": {"young": 1, "poisson": 0.5, "density": 1}})");

@@ -1,0 +1,341 @@
+#include "engine/assemble_parallel.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include <Eigen/Core>
+
+#include "engine/polar.h"
+
+namespace incise {
+
+AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
+  AssemblyPlan p;
+  p.nthreads = std::max(1, nthreads);
+  // Rotation slots of each element (counting sort of rot_elem).
+  p.elem_rot_ptr.assign(m.nelem + 1, 0);
+  for (int r = 0; r < m.nrot; ++r) ++p.elem_rot_ptr[m.rot_elem[r] + 1];
+  for (int e = 0; e < m.nelem; ++e) p.elem_rot_ptr[e + 1] += p.elem_rot_ptr[e];
+  p.elem_rot.assign(m.nrot, 0);
+  {
+    std::vector<int> next(p.elem_rot_ptr.begin(), p.elem_rot_ptr.end() - 1);
+    for (int r = 0; r < m.nrot; ++r) p.elem_rot[next[m.rot_elem[r]]++] = r;
+  }
+  for (int e = 0; e < m.nelem; ++e) p.max_elem_nodes = std::max(p.max_elem_nodes, m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e]);
+
+  // Blocks: slabs of equal element count across the longest axis of the
+  // mesh's bounding box (by element centroid), so the separator layer is the
+  // smallest cross-section; a DOF node touched by two blocks makes its
+  // elements separators. Enriched DOF nodes (X = 0) do not move centroids
+  // much: the corner nodes dominate.
+  const int T = p.nthreads;
+  std::vector<int> block_of(m.nelem, 0);
+  if (T > 1) {
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    for (int node = 0; node < m.nnode; ++node)
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], m.X[3 * node + d]);
+        hi[d] = std::max(hi[d], m.X[3 * node + d]);
+      }
+    int axis = 0;
+    for (int d = 1; d < 3; ++d)
+      if (hi[d] - lo[d] > hi[axis] - lo[axis]) axis = d;
+    std::vector<std::pair<double, int>> key(m.nelem);
+    for (int e = 0; e < m.nelem; ++e) {
+      double c = 0.0;
+      int cnt = 0;
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+        if (m.elem_dof_node[k] < m.nnode) c += m.X[3 * m.elem_dof_node[k] + axis], ++cnt;
+      key[e] = {cnt ? c / cnt : 0.0, e};
+    }
+    std::sort(key.begin(), key.end());
+    for (int t = 0; t < T; ++t) {
+      int b, e;
+      ThreadPool::split(m.nelem, T, t, b, e);
+      for (int k = b; k < e; ++k) block_of[key[k].second] = t;
+    }
+  }
+  std::vector<int> node_block(m.ndofnode, -1);  // -2 = touched by several blocks
+  for (int e = 0; e < m.nelem; ++e)
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) {
+      int& nb = node_block[m.elem_dof_node[k]];
+      if (nb == -1) nb = block_of[e];
+      else if (nb != block_of[e]) nb = -2;
+    }
+  std::vector<std::vector<int>> blocks(T);
+  std::vector<int> separators;
+  for (int e = 0; e < m.nelem; ++e) {
+    bool interior = true;
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) interior = interior && node_block[m.elem_dof_node[k]] >= 0;
+    (interior ? blocks[block_of[e]] : separators).push_back(e);
+  }
+  p.block_ptr.assign(1, 0);
+  for (auto& b : blocks) {
+    p.block_elem.insert(p.block_elem.end(), b.begin(), b.end());
+    p.block_ptr.push_back(static_cast<int>(p.block_elem.size()));
+  }
+  // Greedy colouring of the separators: the smallest colour none of its nodes has yet.
+  std::vector<std::vector<int>> node_colors(m.ndofnode);
+  std::vector<int> color(separators.size());
+  int ncolor = 0;
+  std::vector<char> used;
+  for (size_t s = 0; s < separators.size(); ++s) {
+    const int e = separators[s];
+    used.assign(ncolor + 1, 0);
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+      for (int c : node_colors[m.elem_dof_node[k]]) used[c] = 1;
+    int c = 0;
+    while (used[c]) ++c;
+    color[s] = c;
+    ncolor = std::max(ncolor, c + 1);
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) node_colors[m.elem_dof_node[k]].push_back(c);
+  }
+  p.color_ptr.assign(ncolor + 1, 0);
+  for (int c : color) ++p.color_ptr[c + 1];
+  for (int c = 0; c < ncolor; ++c) p.color_ptr[c + 1] += p.color_ptr[c];
+  p.color_elem.assign(separators.size(), 0);
+  {
+    std::vector<int> next(p.color_ptr.begin(), p.color_ptr.end() - 1);
+    for (size_t s = 0; s < separators.size(); ++s) p.color_elem[next[color[s]]++] = separators[s];
+  }
+  const int n = p.max_elem_nodes;
+  p.scratch.assign(T, std::vector<double>(6 * n + 9 * n * (n + 1) / 2 + 16));
+  // sym_matvec: column ranges of about equal nnz; workers t > 0 scatter into their own buffer.
+  p.matvec_col_ptr.assign(T + 1, m.ndof());
+  p.matvec_col_ptr[0] = 0;
+  for (int t = 1, c = 0; t < T; ++t) {
+    const long long target = static_cast<long long>(m.nnz()) * t / T;
+    while (c < m.ndof() && m.Ap[c] < target) ++c;
+    p.matvec_col_ptr[t] = c;
+  }
+  p.matvec_buf.assign(T, std::vector<double>());
+  for (int t = 1; t < T; ++t) p.matvec_buf[t].assign(m.ndof(), 0.0);
+  return p;
+}
+
+namespace {
+
+using Mat3 = Eigen::Matrix3d;
+
+// F(i, j) = sum_a x[3a + i] g[3a + j], column-major.
+template <int NN>
+inline void grad_sum(int n_dyn, const double* x, const double* g, double* F) {
+  const int n = NN > 0 ? NN : n_dyn;
+  double f[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  for (int a = 0; a < n; ++a)
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i) f[i + 3 * j] += x[3 * a + i] * g[3 * a + j];
+  std::memcpy(F, f, sizeof f);
+}
+
+// P = w R sig(S) with S = R^T F; sig = mu (S + S^T) + lambda tr(S) I (- (2 mu + 3 lambda) I when `strain`).
+inline void rotated_stress(const double* R, const double* F, double w, double mu, double lambda, bool strain, double* P) {
+  const Eigen::Map<const Mat3> Rm(R), Fm(F);
+  const Mat3 S = Rm.transpose() * Fm;
+  Mat3 sig = mu * (S + S.transpose());
+  const double tr = strain ? S.trace() - 3.0 : S.trace();
+  sig.diagonal().array() += lambda * tr - (strain ? 2.0 * mu : 0.0);
+  Eigen::Map<Mat3> Pm(P);
+  Pm.noalias() = w * (Rm * sig);
+}
+
+template <int NN>
+int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double* u, double* Rall, double* f, double* K,
+                  double* scratch) {
+  const int b0 = m.elem_dof_ptr[e];
+  const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
+  const int* nodes = &m.elem_dof_node[b0];
+  double* xe = scratch;      // (n, 3) current positions
+  double* h = xe + 3 * n;    // (n, 3) rotated gradients
+  double* Kl = h + 3 * n;    // blocks a <= b, 9 each, row-major
+  const int nblk = n * (n + 1) / 2;
+  for (int a = 0; a < n; ++a)
+    for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
+  int fallbacks = 0;
+  const bool linear = m.material.model == MaterialModel::Linear;
+  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+    const int r = plan.elem_rot[k];
+    Eigen::Map<Mat3> Rm(Rall + 9 * r);
+    if (linear) {
+      Rm.setIdentity();
+      continue;
+    }
+    double F[9];
+    grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+    Mat3 Rr = Rm;
+    if (extract_rotation(Eigen::Map<const Mat3>(F), Rr) < 0) ++fallbacks;
+    Rm = Rr;
+  }
+  if (K) std::fill(Kl, Kl + 9 * nblk, 0.0);
+  const double mu = m.mu, lambda = m.lambda;
+  for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
+    const double w = m.qp_weight[q];
+    const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
+    const double* R = Rall + 9 * m.qp_rot[q];
+    double F[9], P[9];
+    grad_sum<NN>(n, xe, g, F);
+    rotated_stress(R, F, w, mu, lambda, /*strain=*/true, P);
+    for (int a = 0; a < n; ++a) {
+      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
+      double* fa = f + 3 * nodes[a];
+      fa[0] += P[0] * g0 + P[3] * g1 + P[6] * g2;
+      fa[1] += P[1] * g0 + P[4] * g1 + P[7] * g2;
+      fa[2] += P[2] * g0 + P[5] * g1 + P[8] * g2;
+      h[3 * a] = R[0] * g0 + R[3] * g1 + R[6] * g2;
+      h[3 * a + 1] = R[1] * g0 + R[4] * g1 + R[7] * g2;
+      h[3 * a + 2] = R[2] * g0 + R[5] * g1 + R[8] * g2;
+    }
+    if (!K) continue;
+    // K_ab = w (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I)
+    const double wl = w * lambda, wm = w * mu;
+    double* blk = Kl;
+    for (int a = 0; a < n; ++a) {
+      const double la0 = wl * h[3 * a], la1 = wl * h[3 * a + 1], la2 = wl * h[3 * a + 2];
+      const double ma0 = wm * h[3 * a], ma1 = wm * h[3 * a + 1], ma2 = wm * h[3 * a + 2];
+      const double ga0 = wm * g[3 * a], ga1 = wm * g[3 * a + 1], ga2 = wm * g[3 * a + 2];
+      for (int b = a; b < n; ++b, blk += 9) {
+        const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
+        const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
+        blk[0] += la0 * hb0 + hb0 * ma0 + gg;
+        blk[1] += la0 * hb1 + hb0 * ma1;
+        blk[2] += la0 * hb2 + hb0 * ma2;
+        blk[3] += la1 * hb0 + hb1 * ma0;
+        blk[4] += la1 * hb1 + hb1 * ma1 + gg;
+        blk[5] += la1 * hb2 + hb1 * ma2;
+        blk[6] += la2 * hb0 + hb2 * ma0;
+        blk[7] += la2 * hb1 + hb2 * ma1;
+        blk[8] += la2 * hb2 + hb2 * ma2 + gg;
+      }
+    }
+  }
+  if (K) {
+    const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+    for (int k = 0; k < 9 * nblk; ++k)
+      if (sc[k] >= 0) K[sc[k]] += Kl[k];
+  }
+  return fallbacks;
+}
+
+template <int NN>
+void element_matvec(const Model& m, int e, const double* Rall, const double* v, double* y, double* scratch) {
+  const int b0 = m.elem_dof_ptr[e];
+  const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
+  const int* nodes = &m.elem_dof_node[b0];
+  double* ve = scratch;
+  for (int a = 0; a < n; ++a)
+    for (int i = 0; i < 3; ++i) ve[3 * a + i] = v[3 * nodes[a] + i];
+  for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
+    const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
+    double G[9], P[9];
+    grad_sum<NN>(n, ve, g, G);
+    rotated_stress(Rall + 9 * m.qp_rot[q], G, m.qp_weight[q], m.mu, m.lambda, /*strain=*/false, P);
+    for (int a = 0; a < n; ++a) {
+      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
+      double* ya = y + 3 * nodes[a];
+      ya[0] += P[0] * g0 + P[3] * g1 + P[6] * g2;
+      ya[1] += P[1] * g0 + P[4] * g1 + P[7] * g2;
+      ya[2] += P[2] * g0 + P[5] * g1 + P[8] * g2;
+    }
+  }
+}
+
+// Runs body(e, tid) over every element with the plan's race-free schedule,
+// after zeroing `zero_a` (na) and `zero_b` (nb) in parallel.
+template <class Body>
+void for_each_element(const AssemblyPlan& plan, ThreadPool& pool, double* zero_a, int na, double* zero_b, int nb,
+                      const Body& body) {
+  pool.run([&](int tid) {
+    const int T = pool.size();
+    int b, e;
+    if (zero_a) {
+      ThreadPool::split(na, T, tid, b, e);
+      std::fill(zero_a + b, zero_a + e, 0.0);
+    }
+    if (zero_b) {
+      ThreadPool::split(nb, T, tid, b, e);
+      std::fill(zero_b + b, zero_b + e, 0.0);
+    }
+    pool.barrier();
+    for (int k = plan.block_ptr[tid]; k < plan.block_ptr[tid + 1]; ++k) body(plan.block_elem[k], tid);
+    for (int c = 0; c < plan.ncolors(); ++c) {
+      pool.barrier();
+      ThreadPool::split(plan.color_ptr[c + 1] - plan.color_ptr[c], T, tid, b, e);
+      for (int k = plan.color_ptr[c] + b; k < plan.color_ptr[c] + e; ++k) body(plan.color_elem[k], tid);
+    }
+  });
+}
+
+}  // namespace
+
+int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, double* R, double* f,
+                       double* K) {
+  if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  int fb[64] = {0};
+  for_each_element(plan, pool, f, m.ndof(), K, K ? m.nnz() : 0, [&](int e, int tid) {
+    double* s = plan.scratch[tid].data();
+    const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
+    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s)
+                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s)
+                                : element_terms<0>(m, plan, e, u, R, f, K, s);
+  });
+  int total = 0;
+  for (int t = 0; t < pool.size(); ++t) total += fb[t];
+  return total;
+}
+
+void stiffness_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* R, const double* v,
+                      double* y) {
+  if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  for_each_element(plan, pool, y, m.ndof(), nullptr, 0, [&](int e, int tid) {
+    double* s = plan.scratch[tid].data();
+    const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
+    if (n == 10) element_matvec<10>(m, e, R, v, y, s);
+    else if (n == 4) element_matvec<4>(m, e, R, v, y, s);
+    else element_matvec<0>(m, e, R, v, y, s);
+  });
+}
+
+void sym_matvec_parallel(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* A, const double* x,
+                         double* y) {
+  if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  const int n = m.ndof();
+  pool.run([&](int tid) {
+    const int c0 = plan.matvec_col_ptr[tid], c1 = plan.matvec_col_ptr[tid + 1];
+    // Worker 0 owns y[0, c1) outright (its rows r <= c < c1); the others scatter
+    // rows below their range into a private buffer merged afterwards.
+    double* ys = tid == 0 ? y : plan.matvec_buf[tid].data();
+    if (tid == 0) std::fill(y, y + c1, 0.0);
+    else std::fill(ys, ys + c0, 0.0);
+    std::fill(y + c0, y + c1, 0.0);
+    pool.barrier();
+    for (int c = c0; c < c1; ++c) {
+      double acc = 0.0;
+      const double xc = x[c];
+      int k = m.Ap[c];
+      const int kend = m.Ap[c + 1];
+      for (; k < kend; ++k) {
+        const int r = m.Ai[k];
+        if (r >= c0) break;
+        acc += A[k] * x[r];
+        ys[r] += A[k] * xc;
+      }
+      for (; k < kend; ++k) {
+        const int r = m.Ai[k];
+        acc += A[k] * x[r];
+        if (r != c) y[r] += A[k] * xc;
+      }
+      y[c] += acc;
+    }
+    pool.barrier();
+    // Merge the buffers: rows [0, c0_t) of worker t's buffer.
+    int b, e;
+    ThreadPool::split(n, pool.size(), tid, b, e);
+    for (int t = 1; t < pool.size(); ++t) {
+      const int lim = std::min(e, plan.matvec_col_ptr[t]);
+      const double* bt = plan.matvec_buf[t].data();
+      for (int r = b; r < lim; ++r) y[r] += bt[r];
+    }
+  });
+}
+
+}  // namespace incise

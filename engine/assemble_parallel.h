@@ -1,0 +1,56 @@
+#pragma once
+// Fused, parallel corotated assembly: rotation extraction, internal forces and
+// the tangent in one pass over the elements, on the workers of a ThreadPool.
+//
+// Race freedom without atomics or per-thread copies of K: the elements are
+// split into one contiguous block per worker; an element whose DOF nodes are
+// touched by one block only is "interior" and is assembled by its block's
+// worker; the others ("separators", a thin layer between blocks) are greedily
+// coloured so no two elements of a colour share a DOF node, and each colour is
+// split over the workers with a barrier between colours. With one worker the
+// plan is the element order of the serial reference (assemble_internal).
+// Results equal the serial reference up to the order of floating-point sums
+// (verified in tests/engine/test_assemble_parallel.cpp).
+#include <vector>
+
+#include "engine/model.h"
+#include "engine/thread_pool.h"
+
+namespace incise {
+
+struct AssemblyPlan {
+  int nthreads = 1;
+  std::vector<int> elem_rot_ptr;  // (nelem + 1) into elem_rot
+  std::vector<int> elem_rot;      // rotation slots of each element
+  std::vector<int> block_ptr;     // (nthreads + 1) into block_elem
+  std::vector<int> block_elem;    // interior elements of each worker, in element order
+  std::vector<int> color_ptr;     // (ncolor + 1) into color_elem
+  std::vector<int> color_elem;    // separator elements grouped by colour
+  int max_elem_nodes = 0;         // largest element (DOF nodes)
+  std::vector<std::vector<double>> scratch;  // (nthreads) per-worker work space
+  std::vector<std::vector<double>> matvec_buf;  // (nthreads) per-worker partial y of sym_matvec
+  std::vector<int> matvec_col_ptr;  // (nthreads + 1) column ranges of about equal nnz
+  int ncolors() const { return static_cast<int>(color_ptr.size()) - 1; }
+  int nseparators() const { return static_cast<int>(color_elem.size()); }
+};
+
+// The plan for this model and worker count (done once per Model version).
+AssemblyPlan make_assembly_plan(const Model& model, int nthreads);
+
+// R (nrot, 9): warm start in, the rotation of every slot out (identity for the
+// linear model); f_int (ndof) and K (nnz, skipped when null) overwritten.
+// Returns the number of SVD fallbacks of the rotation extraction.
+int assemble_corotated(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, double* R,
+                       double* f_int, double* K);
+
+// y = K(R) v without forming K: per point f_a = w R (mu (S + S^T) + lambda tr(S) I) g_a with
+// S = R^T sum_b v_b (x) g_b, which is R K0 R^T v element by element.
+void stiffness_matvec(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* R, const double* v,
+                      double* y);
+
+// y = A x for a symmetric matrix stored as the pattern's upper triangle, on the
+// pool's workers (same result as sym_matvec up to the order of sums).
+void sym_matvec_parallel(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* A, const double* x,
+                         double* y);
+
+}  // namespace incise

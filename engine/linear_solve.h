@@ -1,0 +1,43 @@
+#pragma once
+// The linear solve of a Newton iteration, A du = rhs with A = 4/dt^2 M +
+// 2/dt D + K (projected), under the scene's solver.policy:
+//
+//   exact      numeric refactorization of the current A every iteration (reference)
+//   lagged     CG on the current A, preconditioned by the factor of an earlier
+//              frame's A: refreshed every solver.refresh_every frames, either
+//              in the step (synchronously) or, with solver.background, on a
+//              second thread whose factor is taken refresh_every frames after
+//              it was started (deterministic: replays give the same states)
+//   warped     the factor of the REST matrix A0 = 4/dt^2 M + 2/dt D0 + K0
+//              with per-node rotations around the solve: du = Rn A0^-1 Rn^T rhs
+//              (exact when the mass is lumped and every element has the same
+//              rotation; no tangent is assembled)
+//   warped_cg  CG on the current A preconditioned by the warped solve
+//
+// Iterations, substitutions, the final CG residual and convergence go into
+// State::timing, so no policy is silent about what it did.
+#include "engine/model.h"
+#include "engine/state.h"
+#include "engine/timing.h"
+
+namespace incise {
+
+// Worker pool, assembly plan, factor configuration and symbolic analysis, node
+// rotation adjacency. Called by init_state; call again after the Model changes
+// (a cut) before the next step. Invalidates the factor.
+void prepare_solver(const Model& model, State& state);
+
+// Whether the policy needs the assembled corotated tangent K (warped does not).
+bool policy_needs_tangent(const Model& model);
+
+// du = A^-1 rhs (state.rhs -> state.du) for Newton iteration `iteration` of the
+// current frame; K is the tangent in the pattern (K0 for the linear model; may
+// be null for warped). Adds stage times to state.timing through `clock`.
+void solve_system(const Model& model, State& state, const double* K, int iteration, Stopwatch& clock);
+
+// Node rotations of the warped policies from the slot rotations in state.R:
+// the polar rotation of the volume-weighted sum of the incident slots' R;
+// identity on nodes with some but not all components constrained.
+void update_node_rotations(const Model& model, State& state);
+
+}  // namespace incise

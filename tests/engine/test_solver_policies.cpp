@@ -1,0 +1,273 @@
+// Solver policies (issue 4): warped is exact where it should be, every
+// iterative policy converges to the exact trajectory as its tolerance
+// tightens, and the background factorization is deterministic.
+#include <cmath>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "engine/linear_solve.h"
+#include "engine/mesh_tools.h"
+#include "engine/state.h"
+#include "engine/step.h"
+#include "test_util.h"
+
+namespace incise {
+namespace {
+
+double rel_diff(const std::vector<double>& a, const std::vector<double>& b) {
+  double d = 0, n = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    d += (a[i] - b[i]) * (a[i] - b[i]);
+    n += b[i] * b[i];
+  }
+  return std::sqrt(d / n);
+}
+
+// A free body (no constraints), rigidly rotated by Q, released under gravity:
+// every slot has rotation Q, so A = cM M + Q K0 Q^T = Q A0 Q^T with lumped mass.
+std::vector<double> rigid_step(SolverPolicy policy, int order, RotationMode rot) {
+  const Mesh mesh = make_beam(1.0, 0.4, 0.3, 3, 2, 2, 1);
+  Scene s = test::basic_scene(order, MaterialModel::Corotated, rot);
+  s.gravity = {0.3, -0.2, -9.81};
+  s.material.rayleigh_stiffness = 0.01;
+  s.material.rayleigh_mass = 0.5;
+  s.solver.policy = policy;
+  const Model m = build_model(mesh, s);
+  State st;
+  init_state(m, st);
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(1.2, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  for (int n = 0; n < m.nnode; ++n) {
+    const Eigen::Vector3d X(m.X[3 * n], m.X[3 * n + 1], m.X[3 * n + 2]);
+    const Eigen::Vector3d x = Q * X;
+    for (int d = 0; d < 3; ++d) {
+      st.u[3 * n + d] = x[d] - X[d];
+      st.v[3 * n + d] = 0.1 * (d + 1);  // a rigid translation velocity
+    }
+  }
+  step(m, st);
+  return st.u;
+}
+
+TEST(SolverPolicies, WarpedIsExactForARigidRotationWithLumpedMass) {
+  for (int order : {1, 2})
+    for (RotationMode rot : {RotationMode::PerPoint, RotationMode::Single}) {
+      if (order == 1 && rot == RotationMode::Single) continue;
+      const auto exact = rigid_step(SolverPolicy::Exact, order, rot);
+      const auto warped = rigid_step(SolverPolicy::Warped, order, rot);
+      EXPECT_LT(rel_diff(warped, exact), 1e-12) << "order " << order;
+    }
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+// The own BLAS-free supernodal substitution equals cholmod_solve2.
+TEST(SolverPolicies, OwnSupernodalSubstitutionMatchesCholmod) {
+  const Mesh mesh = make_beam(2.0, 0.5, 0.5, 8, 2, 2, 1);
+  Scene s = test::basic_scene(2);
+  s.fixed.push_back(test::box_region({-1, -1, -1}, {0, 2, 2}));
+  const Model m = build_model(mesh, s);
+  for (FactorMethod method : {FactorMethod::Supernodal, FactorMethod::Simplicial}) {
+    CholmodSolver solver;
+    solver.configure(method, OrderingMethod::Auto);
+    solver.analyze(m.ndof(), m.Ap, m.Ai);
+    std::vector<double> A = m.K0_csc;
+    for (int d = 0; d < m.ndof(); ++d) A[m.diag[d]] += 1e3 * m.mass_lumped[d];
+    solver.factorize(A.data());
+    EXPECT_EQ(solver.stats().supernodal, method == FactorMethod::Supernodal);
+    std::vector<double> b(m.ndof()), x1(m.ndof()), x2(m.ndof());
+    for (int d = 0; d < m.ndof(); ++d) b[d] = std::sin(0.37 * d) + 0.1;
+    solver.solve(b.data(), x1.data());
+    solver.solve_cholmod(b.data(), x2.data());
+    EXPECT_LT(rel_diff(x1, x2), 1e-12);
+  }
+}
+
+}  // namespace
+}  // namespace incise
+
+#include "engine/assemble.h"
+#include "engine/assemble_parallel.h"
+
+namespace incise {
+namespace {
+
+// A small swinging cantilever: clamped at x = 0, the free end prescribed to
+// move through a large arc while gravity acts (a miniature of
+// assets/scenes/swing_beam.json).
+Scene swing_scene(SolverSettings solver) {
+  Scene s = test::basic_scene(2);
+  s.material.young = 2e4;
+  s.material.poisson = 0.4;
+  s.material.density = 1.0;
+  s.material.rayleigh_mass = 0.5;
+  s.material.rayleigh_stiffness = 0.002;
+  s.gravity = {0, 0, -9.81};
+  s.fixed.push_back(test::box_region({-1, -1, -1}, {0, 2, 2}));
+  Prescribed p;
+  p.region = test::box_region({2.0, -1, -1}, {3, 2, 2}, "prescribed[0]");
+  p.active = {true, true, true};
+  p.displacement = {-0.8, 0.6, 0.5};
+  p.ramp = 0.5;
+  s.prescribed.push_back(p);
+  s.solver = solver;
+  return s;
+}
+
+std::vector<double> run_swing(const SolverSettings& solver, int frames, std::vector<int>* iterations = nullptr) {
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  const Model m = build_model(mesh, swing_scene(solver));
+  State st;
+  init_state(m, st);
+  for (int k = 0; k < frames; ++k) {
+    step(m, st);
+    if (iterations) iterations->push_back(st.timing.iterations);
+  }
+  return st.u;
+}
+
+TEST(SolverPolicies, IterativePoliciesConvergeToExactAsToleranceTightens) {
+  const int frames = 30;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  struct Case {
+    const char* name;
+    SolverSettings s;
+  };
+  std::vector<Case> cases;
+  {
+    SolverSettings s;
+    s.policy = SolverPolicy::Lagged;
+    s.refresh_every = 4;
+    cases.push_back({"lagged refresh 4", s});
+    s.background = true;
+    s.refresh_every = 2;
+    cases.push_back({"lagged background refresh 2", s});
+    SolverSettings w;
+    w.policy = SolverPolicy::WarpedCG;
+    cases.push_back({"warped_cg", w});
+  }
+  for (auto c : cases) {
+    c.s.max_iterations = 500;
+    double prev = 1e300;
+    for (double tol : {1e-2, 1e-4, 1e-6, 1e-8, 1e-10}) {
+      c.s.tolerance = tol;
+      std::vector<int> its;
+      const double err = rel_diff(run_swing(c.s, frames, &its), exact);
+      if (tol == 1e-2) {
+        EXPECT_GT(err, 1e-8) << c.name << ": the loosest tolerance should show an error";
+      }
+      EXPECT_LT(err, prev * 1.0000001 + 1e-13) << c.name << " tolerance " << tol;
+      prev = err;
+      int total = 0;
+      for (int i : its) total += i;
+      EXPECT_GT(total, 0) << c.name;
+    }
+    EXPECT_LT(prev, 1e-8) << c.name << " at the tightest tolerance";
+  }
+}
+
+TEST(SolverPolicies, WarpedIsExactForTheLinearMaterial) {
+  SolverSettings w;
+  w.policy = SolverPolicy::Warped;
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  Scene se = swing_scene(SolverSettings{}), sw = swing_scene(w);
+  se.material.model = sw.material.model = MaterialModel::Linear;
+  const Model me = build_model(mesh, se), mw = build_model(mesh, sw);
+  State a, b;
+  init_state(me, a);
+  init_state(mw, b);
+  for (int k = 0; k < 20; ++k) {
+    step(me, a);
+    step(mw, b);
+  }
+  EXPECT_LT(rel_diff(b.u, a.u), 1e-13);
+}
+
+TEST(SolverPolicies, WarpedAloneIsReportedAsOneSubstitutionAndNoIterations) {
+  SolverSettings w;
+  w.policy = SolverPolicy::Warped;
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  const Model m = build_model(mesh, swing_scene(w));
+  State st;
+  init_state(m, st);
+  step(m, st);
+  step(m, st);
+  EXPECT_EQ(st.timing.solves, 1);
+  EXPECT_EQ(st.timing.iterations, 0);
+  EXPECT_EQ(st.refactorizations, 1) << "the rest factor is computed once";
+}
+
+TEST(SolverPolicies, BackgroundFactorizationIsDeterministic) {
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.background = true;
+  s.tolerance = 1e-5;
+  const auto a = run_swing(s, 20), b = run_swing(s, 20);
+  EXPECT_EQ(a, b) << "the factor started k frames ago is always the one used";
+}
+
+TEST(SolverPolicies, LaggedRefreshEveryFrameIsOneIterationPerFrame) {
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.refresh_every = 1;
+  std::vector<int> its;
+  run_swing(s, 10, &its);
+  for (int i : its) EXPECT_EQ(i, 1);
+}
+
+// Parallel fused assembly equals the serial reference (assemble_internal +
+// update_rotations) for tet4, tet10 and tet10SR, for 1, 2 and 3 workers.
+TEST(SolverPolicies, ParallelAssemblyMatchesSerial) {
+  for (int order : {1, 2})
+    for (RotationMode rot : {RotationMode::PerPoint, RotationMode::Single}) {
+      if (order == 1 && rot == RotationMode::Single) continue;
+      const Mesh mesh = make_beam(2.0, 0.5, 0.4, 7, 3, 2, 1);
+      const Model m = build_model(mesh, test::basic_scene(order, MaterialModel::Corotated, rot));
+      std::vector<double> u(m.ndof());
+      for (int n = 0; n < m.nnode; ++n) {  // a bend plus a twist: large, varied rotations
+        const double x = m.X[3 * n], y = m.X[3 * n + 1], z = m.X[3 * n + 2];
+        u[3 * n] = -0.3 * x * z + 0.01 * std::sin(7 * y);
+        u[3 * n + 1] = 0.4 * x * z - 0.02 * y;
+        u[3 * n + 2] = 0.5 * x * x - 0.4 * x * y + 0.01 * std::cos(5 * z);
+      }
+      std::vector<double> R0(9 * m.nrot, 0.0), f0(m.ndof()), K0(m.nnz());
+      for (int r = 0; r < m.nrot; ++r) R0[9 * r] = R0[9 * r + 4] = R0[9 * r + 8] = 1.0;
+      std::vector<double> Rs = R0;
+      update_rotations(m, u.data(), Rs.data());
+      assemble_internal(m, u.data(), Rs.data(), f0.data(), K0.data());
+      double fn = 0, kn = 0;
+      for (double v : f0) fn = std::max(fn, std::abs(v));
+      for (double v : K0) kn = std::max(kn, std::abs(v));
+      for (int threads : {1, 2, 3}) {
+        ThreadPool pool(threads);
+        AssemblyPlan plan = make_assembly_plan(m, threads);
+        if (threads > 1) {
+          EXPECT_GT(plan.nseparators(), 0);
+        }
+        std::vector<double> R = R0, f(m.ndof()), K(m.nnz());
+        assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), K.data());
+        double df = 0, dk = 0, dr = 0;
+        for (int d = 0; d < m.ndof(); ++d) df = std::max(df, std::abs(f[d] - f0[d]));
+        for (int k = 0; k < m.nnz(); ++k) dk = std::max(dk, std::abs(K[k] - K0[k]));
+        for (size_t k = 0; k < R.size(); ++k) dr = std::max(dr, std::abs(R[k] - Rs[k]));
+        EXPECT_LT(df, 1e-14 * fn) << "order " << order << " threads " << threads;
+        EXPECT_LT(dk, 1e-14 * kn) << "order " << order << " threads " << threads;
+        EXPECT_LT(dr, 1e-14) << "order " << order << " threads " << threads;
+        // Matrix-free K v and the parallel sym_matvec agree with the assembled K.
+        std::vector<double> v(m.ndof()), y1(m.ndof()), y2(m.ndof()), y3(m.ndof());
+        for (int d = 0; d < m.ndof(); ++d) v[d] = std::cos(0.3 * d);
+        sym_matvec(m, K0.data(), v.data(), y1.data());
+        stiffness_matvec(m, plan, pool, R.data(), v.data(), y2.data());
+        sym_matvec_parallel(m, plan, pool, K0.data(), v.data(), y3.data());
+        EXPECT_LT(rel_diff(y2, y1), 1e-13);
+        EXPECT_LT(rel_diff(y3, y1), 1e-14);
+      }
+    }
+}
+
+}  // namespace
+}  // namespace incise

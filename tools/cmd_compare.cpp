@@ -1,0 +1,141 @@
+// incise compare: run a scene under the exact policy and under another policy
+// side by side and print the relative L2 difference of the displacement field
+// at chosen frames, with both policies' frame times and CG iterations.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/error.h"
+#include "engine/simulation.h"
+#include "engine/step.h"
+#include "engine/timing_stats.h"
+#include "tools/commands.h"
+#include "tools/solver_report.h"
+
+namespace incise {
+
+namespace {
+struct CompareOptions {
+  std::string scene, frames = "1,30,300", json;
+  std::vector<std::string> policies;
+  SolverOverrides solver;
+};
+
+std::vector<int> parse_frames(const std::string& text) {
+  std::vector<int> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    char* end = nullptr;
+    const long v = std::strtol(item.c_str(), &end, 10);
+    if (item.empty() || *end != '\0' || v < 1 || v > 1000000)
+      throw Error("compare: --frames must be a comma-separated list of frame numbers >= 1, got \"" + text + "\"");
+    out.push_back(static_cast<int>(v));
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+void compare(const CompareOptions& o) {
+  if (o.policies.empty()) throw Error("compare: --policy is required");
+  const std::vector<int> checkpoints = parse_frames(o.frames);
+  auto ref = load_simulation(o.scene);
+  SolverOverrides exact;
+  exact.policy = "exact";
+  exact.threads = o.solver.threads;
+  apply_solver_overrides(*ref, exact);
+  print_model_summary(*ref);
+  // The reference runs first, then each policy: never two at once, because a
+  // lagged background factorization must be the only BLAS user (Debian's
+  // serial OpenBLAS has no locks).
+  std::vector<FrameTiming> t_ref;
+  std::vector<std::vector<double>> u_ref;
+  for (int k = 1; k <= checkpoints.back(); ++k) {
+    step(ref->model, ref->state);
+    t_ref.push_back(ref->state.timing);
+    if (std::find(checkpoints.begin(), checkpoints.end(), k) != checkpoints.end()) u_ref.push_back(ref->state.u);
+  }
+  const TimingSummary sr = summarize(t_ref);
+  std::printf("exact: frame median %.2f ms, p99 %.2f ms\n", sr.frame.median_ms, sr.frame.p99_ms);
+  nlohmann::json j;
+  j["scene"] = o.scene;
+  j["dof"] = ref->model.ndof();
+  j["exact"] = {{"frame_median_ms", sr.frame.median_ms}, {"frame_p99_ms", sr.frame.p99_ms},
+                {"nnz_L", ref->state.solver.stats().nnz_L}};
+  j["policies"] = nlohmann::json::array();
+  for (const std::string& policy : o.policies) {
+    SolverOverrides ov = o.solver;
+    ov.policy = policy;
+    auto sim = load_simulation(o.scene);
+    apply_solver_overrides(*sim, ov);
+    std::printf("--- %s\n", policy.c_str());
+    std::printf("%8s %14s %14s\n", "frame", "rel L2 error", "|u_exact|");
+    std::vector<FrameTiming> t_pol;
+    nlohmann::json rows = nlohmann::json::array();
+    try {
+      for (int k = 1, c = 0; k <= checkpoints.back(); ++k) {
+        step(sim->model, sim->state);
+        t_pol.push_back(sim->state.timing);
+        if (checkpoints[c] != k) continue;
+        const std::vector<double>& ue = u_ref[c++];
+        double d2 = 0, u2 = 0;
+        for (size_t i = 0; i < ue.size(); ++i) {
+          const double d = sim->state.u[i] - ue[i];
+          d2 += d * d;
+          u2 += ue[i] * ue[i];
+        }
+        const double err = u2 > 0 ? std::sqrt(d2 / u2) : std::sqrt(d2);
+        std::printf("%8d %14.3e %14.3e\n", k, err, std::sqrt(u2));
+        std::fflush(stdout);
+        rows.push_back({{"frame", k}, {"rel_l2_error", std::isfinite(err) ? err : 1e300}, {"u_norm", std::sqrt(u2)}});
+      }
+    } catch (const Error& e) {  // a diverging policy is a result, not the end of the comparison
+      std::printf("%s: stopped at frame %d: %s\n", policy.c_str(), sim->state.frame + 1, e.what());
+      rows.push_back({{"frame", sim->state.frame + 1}, {"failed", e.what()}});
+    }
+    const TimingSummary sp = summarize(t_pol);
+    const SolverReport rp = solver_report(*sim, t_pol, sp);
+    std::printf("%s: frame median %.2f ms, p99 %.2f ms; substitutions/frame %.0f\n", policy.c_str(), sp.frame.median_ms,
+                sp.frame.p99_ms, rp.substitutions_per_frame);
+    if (policy == "lagged" || policy == "warped_cg")
+      std::printf("CG iterations/frame: median %.0f, max %.0f; %d frame(s) not converged (max residual %.2g)\n",
+                  rp.iterations.median_ms, rp.iterations.max_ms, rp.not_converged_frames, rp.max_residual);
+    nlohmann::json pj = solver_report_json(rp);
+    pj["errors"] = rows;
+    pj["frame_median_ms"] = sp.frame.median_ms;
+    pj["frame_p99_ms"] = sp.frame.p99_ms;
+    pj["tolerance"] = sim->model.solver.tolerance;
+    pj["refresh_every"] = sim->model.solver.refresh_every;
+    pj["background"] = sim->model.solver.background;
+    j["policies"].push_back(pj);
+  }
+  if (!o.json.empty()) {
+    std::ofstream os(o.json);
+    if (!os) throw Error(o.json + ": cannot write the comparison");
+    os << j.dump(2) << "\n";
+    std::printf("wrote %s\n", o.json.c_str());
+  }
+}
+}  // namespace
+
+void add_compare_command(CLI::App& app) {
+  auto opts = std::make_shared<CompareOptions>();
+  auto* cmd = app.add_subcommand(
+      "compare", "Run a scene under solver.policy exact and under --policy; print the relative L2 displacement error");
+  cmd->add_option("scene", opts->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--frames", opts->frames, "Frames at which to report the error, comma-separated (default 1,30,300)");
+  cmd->add_option("--json", opts->json, "Write the errors and timings as JSON");
+  cmd->add_option("--policy", opts->policies, "Policy (or comma-separated policies) to compare with exact")
+      ->required()
+      ->delimiter(',')
+      ->check(CLI::IsMember({"exact", "lagged", "warped", "warped_cg"}));
+  add_solver_options(cmd, opts->solver, /*with_policy=*/false);
+  cmd->callback([opts] { compare(*opts); });
+}
+
+}  // namespace incise

@@ -1,0 +1,126 @@
+#include <algorithm>
+#include <cstdio>
+
+#include "tools/solver_report.h"
+
+namespace incise {
+
+SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>& frames, const TimingSummary& s,
+                           double bandwidth_gbs) {
+  SolverReport r;
+  const Model& m = sim.model;
+  const State& st = sim.state;
+  r.policy = policy_name(m.solver.policy);
+  r.threads = m.solver.threads;
+  const FactorStats& f = st.solver.stats();
+  r.nnz_L = f.nnz_L;
+  r.flops = f.flops;
+  r.factorizations = f.factorizations + st.work.back.stats().factorizations;
+  const double total_ms = f.factor_ms_total + st.work.back.stats().factor_ms_total;
+  if (r.factorizations > 0) r.factor_ms_mean = total_ms / r.factorizations;
+  if (r.factor_ms_mean > 0) r.gflops = r.flops / (r.factor_ms_mean * 1e-3) * 1e-9;
+  std::vector<double> subs, its;
+  double sub_ms = 0;
+  long long nsub = 0;
+  for (const auto& t : frames) {
+    subs.push_back(t.solves);
+    its.push_back(t.iterations);
+    sub_ms += t.solve_kernel_ms;
+    nsub += t.solves;
+    if (!t.converged) ++r.not_converged_frames;
+    r.max_residual = std::max(r.max_residual, t.residual);
+  }
+  r.substitutions_per_frame = percentiles(subs).median_ms;
+  r.iterations = percentiles(its);
+  if (nsub > 0) r.substitution_ms = sub_ms / nsub;
+  const double bytes = 2.0 * 8.0 * r.nnz_L;
+  if (r.substitution_ms > 0) r.solve_gbs = bytes / (r.substitution_ms * 1e-3) * 1e-9;
+  r.bandwidth_gbs = bandwidth_gbs;
+  r.bandwidth_limit_ms = bytes / (bandwidth_gbs * 1e9) * 1e3;
+  if (r.bandwidth_limit_ms > 0) r.frame_multiple = s.frame.median_ms / r.bandwidth_limit_ms;
+  return r;
+}
+
+std::string format_solver_report(const SolverReport& r) {
+  char buf[1024];
+  std::snprintf(buf, sizeof buf,
+                "solver: policy %s, %d assembly thread%s\n"
+                "factor: nnz(L) %.3g, %.3g Mflop, %d factorization%s, mean %.2f ms = %.2f GFLOP/s\n"
+                "solve: %.1f substitutions/frame (median), %.2f ms each = %.2f GB/s (L read twice)\n"
+                "frame: median = %.1fx the one-substitution bandwidth limit (%.2f ms at %.1f GB/s)\n",
+                r.policy.c_str(), r.threads, r.threads == 1 ? "" : "s", r.nnz_L, r.flops * 1e-6, r.factorizations,
+                r.factorizations == 1 ? "" : "s", r.factor_ms_mean, r.gflops, r.substitutions_per_frame,
+                r.substitution_ms, r.solve_gbs, r.frame_multiple, r.bandwidth_limit_ms, r.bandwidth_gbs);
+  std::string out = buf;
+  if (r.policy == "lagged" || r.policy == "warped_cg") {
+    std::snprintf(buf, sizeof buf, "CG: iterations/frame median %.0f, p99 %.0f, max %.0f; %d frame%s not converged (max residual %.2g)\n",
+                  r.iterations.median_ms, r.iterations.p99_ms, r.iterations.max_ms, r.not_converged_frames,
+                  r.not_converged_frames == 1 ? "" : "s", r.max_residual);
+    out += buf;
+  }
+  return out;
+}
+
+nlohmann::json solver_report_json(const SolverReport& r) {
+  return {{"policy", r.policy},
+          {"threads", r.threads},
+          {"iterations", {{"median", r.iterations.median_ms}, {"p99", r.iterations.p99_ms}, {"max", r.iterations.max_ms}}},
+          {"not_converged_frames", r.not_converged_frames},
+          {"max_residual", r.max_residual},
+          {"substitutions_per_frame", r.substitutions_per_frame},
+          {"substitution_ms", r.substitution_ms},
+          {"solve_gbs", r.solve_gbs},
+          {"factorizations", r.factorizations},
+          {"factor_ms_mean", r.factor_ms_mean},
+          {"gflops", r.gflops},
+          {"bandwidth_gbs", r.bandwidth_gbs},
+          {"bandwidth_limit_ms", r.bandwidth_limit_ms},
+          {"frame_bandwidth_multiple", r.frame_multiple}};
+}
+
+}  // namespace incise
+
+#include <CLI/CLI.hpp>
+
+#include "engine/error.h"
+#include "engine/step.h"
+
+namespace incise {
+
+void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
+  auto* cmd = static_cast<CLI::App*>(cli_app);
+  if (with_policy)
+    cmd->add_option("--policy", o.policy, "Solver policy (overrides solver.policy)")
+        ->check(CLI::IsMember({"exact", "lagged", "warped", "warped_cg"}));
+  cmd->add_option("--tolerance", o.tolerance, "CG relative tolerance (lagged, warped_cg)")->check(CLI::Range(1e-300, 0.999));
+  cmd->add_option("--max-iterations", o.max_iterations, "CG iterations per solve")->check(CLI::PositiveNumber);
+  cmd->add_option("--refresh-every", o.refresh_every, "lagged: refactor every K frames")->check(CLI::PositiveNumber);
+  cmd->add_flag("--background", o.background, "lagged: factorize on a second thread");
+  cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
+  cmd->add_option("--factorization", o.factorization, "CHOLMOD method")
+      ->check(CLI::IsMember({"auto", "supernodal", "simplicial"}));
+  cmd->add_option("--ordering", o.ordering, "Fill-reducing ordering")->check(CLI::IsMember({"auto", "amd", "metis"}));
+}
+
+void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
+  SolverSettings& s = sim.model.solver;
+  if (!o.policy.empty()) {
+    const char* names[] = {"exact", "lagged", "warped", "warped_cg"};
+    for (int k = 0; k < 4; ++k)
+      if (o.policy == names[k]) s.policy = static_cast<SolverPolicy>(k);
+  }
+  if (o.tolerance > 0) s.tolerance = o.tolerance;
+  if (o.max_iterations > 0) s.max_iterations = o.max_iterations;
+  if (o.refresh_every > 0) s.refresh_every = o.refresh_every;
+  if (o.background) s.background = true;
+  if (o.threads > 0) s.threads = o.threads;
+  if (!o.factorization.empty())
+    s.factor = o.factorization == "simplicial" ? FactorMethod::Simplicial
+               : o.factorization == "supernodal" ? FactorMethod::Supernodal
+                                                 : FactorMethod::Auto;
+  if (!o.ordering.empty())
+    s.ordering = o.ordering == "amd" ? OrderingMethod::Amd : o.ordering == "metis" ? OrderingMethod::Metis : OrderingMethod::Auto;
+  init_state(sim.model, sim.state);
+}
+
+}  // namespace incise
