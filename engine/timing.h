@@ -6,8 +6,11 @@
 
 namespace incise {
 
-enum Stage { kStageAssembly, kStageFactorization, kStageSolve, kStageOther, kNumStages };
-inline constexpr std::array<const char*, kNumStages> kStageNames = {"assembly", "factorization", "solve", "other"};
+// render: offscreen drawing and read-back of the frame, only when asked
+// (`run --render`, `bench --render`); step() itself never renders.
+enum Stage { kStageAssembly, kStageFactorization, kStageSolve, kStageRender, kStageOther, kNumStages };
+inline constexpr std::array<const char*, kNumStages> kStageNames = {"assembly", "factorization", "solve", "render",
+                                                                    "other"};
 
 struct FrameTiming {
   std::array<double, kNumStages> ms{};  // per stage

@@ -5,6 +5,7 @@
 #include "engine/step.h"
 #include "engine/timing_stats.h"
 #include "tools/commands.h"
+#include "tools/render_stage.h"
 #include "tools/timing_json.h"
 
 namespace incise {
@@ -13,15 +14,19 @@ namespace {
 struct BenchOptions {
   std::string scene, json;
   int frames = 100, warmup = 0;
+  bool render = false;  // the render stage is 0 unless asked for
+  std::string platform;
 };
 
 void bench(const BenchOptions& o) {
   auto sim = load_simulation(o.scene);
   print_model_summary(*sim);
+  std::unique_ptr<Renderer> renderer = o.render ? make_renderer(sim->scene.render, o.platform) : nullptr;
   std::vector<FrameTiming> timings;
   timings.reserve(o.frames);
   for (int k = 0; k < o.warmup + o.frames; ++k) {
     step(sim->model, sim->state);
+    if (renderer) render_stage(*renderer, *sim);
     if (k >= o.warmup) timings.push_back(sim->state.timing);
   }
   const TimingSummary s = summarize(timings);
@@ -43,6 +48,9 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--frames", opts->frames, "Frames to time")->check(CLI::PositiveNumber);
   cmd->add_option("--warmup", opts->warmup, "Frames stepped before timing starts")->check(CLI::NonNegativeNumber);
   cmd->add_option("--json", opts->json, "Write the summary as JSON");
+  cmd->add_flag("--render", opts->render, "Render each frame offscreen (scene's render settings) and time it as the render stage");
+  cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
+      ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
   cmd->callback([opts] { bench(*opts); });
 }
 
