@@ -1,13 +1,20 @@
 #include <png.h>
 
 #include <cstdio>
-#include <memory>
+#include <string>
 
 #include "engine/error.h"
 #include "render/image.h"
 
 namespace incise {
 namespace {
+
+// libpng reports through these instead of printing; the message ends up in the Error.
+void on_error(png_structp png, png_const_charp msg) {
+  *static_cast<std::string*>(png_get_error_ptr(png)) = msg;
+  png_longjmp(png, 1);
+}
+void on_warning(png_structp, png_const_charp) {}
 
 struct File {
   std::FILE* f;
@@ -25,7 +32,8 @@ void write_png(const Image& img, const std::string& path) {
   {
     File file{std::fopen(tmp.c_str(), "wb")};
     if (!file.f) throw Error(path + ": cannot open for writing");
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+    std::string why;
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &why, on_error, on_warning);
     png_infop info = png ? png_create_info_struct(png) : nullptr;
     if (!info) {
       png_destroy_write_struct(&png, nullptr);
@@ -36,7 +44,7 @@ void write_png(const Image& img, const std::string& path) {
       rows[y] = const_cast<png_bytep>(img.rgb.data() + 3 * static_cast<size_t>(y) * img.width);
     if (setjmp(png_jmpbuf(png))) {
       png_destroy_write_struct(&png, &info);
-      throw Error(path + ": libpng write failed");
+      throw Error(path + ": libpng write failed: " + why);
     }
     png_init_io(png, file.f);
     png_set_compression_level(png, 3);  // frames are many; speed over the last few percent of size
@@ -53,7 +61,8 @@ void write_png(const Image& img, const std::string& path) {
 Image read_png(const std::string& path) {
   File file{std::fopen(path.c_str(), "rb")};
   if (!file.f) throw Error(path + ": cannot open PNG");
-  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  std::string why;
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &why, on_error, on_warning);
   png_infop info = png ? png_create_info_struct(png) : nullptr;
   if (!info) {
     png_destroy_read_struct(&png, nullptr, nullptr);
@@ -61,7 +70,7 @@ Image read_png(const std::string& path) {
   }
   if (setjmp(png_jmpbuf(png))) {
     png_destroy_read_struct(&png, &info, nullptr);
-    throw Error(path + ": not a readable PNG");
+    throw Error(path + ": not a readable PNG (" + why + ")");
   }
   png_init_io(png, file.f);
   png_read_png(png, info, PNG_TRANSFORM_STRIP_16 | PNG_TRANSFORM_PACKING | PNG_TRANSFORM_EXPAND, nullptr);
