@@ -2,6 +2,7 @@
 // The render stage of a frame, shared by `run --render`, `bench --render` and
 // `render`: the display mesh of the current state drawn offscreen, its time
 // recorded as the frame's "render" stage (and added to the frame time).
+#include <cstdio>
 #include <memory>
 #include <string>
 

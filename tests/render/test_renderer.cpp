@@ -77,6 +77,19 @@ TEST(Renderer, InstrumentsAreDrawnFromShapeAndPose) {
   EXPECT_EQ(dominant(r->render(), img.width / 2 - 25, cy), 2) << "instruments removed";
 }
 
+TEST(Renderer, TwoRenderersShareTheDisplayAndOutliveEachOther) {
+  RenderSettings s = test_settings(32, 24);
+  auto a = make_test_renderer(s);
+  ASSERT_TRUE(a);
+  s.color_background = {0.9, 0.1, 0.1};
+  auto b = make_test_renderer(s);
+  ASSERT_TRUE(b);
+  EXPECT_EQ(dominant(a->render(), 5, 5), 2);
+  EXPECT_EQ(dominant(b->render(), 5, 5), 0);
+  a.reset();  // must not end b's display
+  EXPECT_EQ(dominant(b->render(), 5, 5), 0);
+}
+
 TEST(Camera, AutoFramingKeepsTheBoxInView) {
   for (auto [w, h] : {std::pair{640, 480}, std::pair{200, 600}, std::pair{1280, 400}}) {
     RenderSettings s;
