@@ -5,8 +5,6 @@
 
 #include <cstdlib>
 #include <cstring>
-#include <map>
-#include <mutex>
 #include <vector>
 
 #include "engine/error.h"
@@ -96,23 +94,6 @@ Candidate try_surfaceless(PFNEGLGETPLATFORMDISPLAYEXTPROC get_display, const cha
   return c;
 }
 
-// eglInitialize does not count: one eglTerminate ends a display for every
-// context on it. Contexts count their display here and the last one terminates it.
-std::mutex display_mutex;
-std::map<EGLDisplay, int> display_users;
-
-void acquire_display(EGLDisplay d) {
-  std::lock_guard<std::mutex> lock(display_mutex);
-  ++display_users[d];
-}
-void release_display(EGLDisplay d) {
-  std::lock_guard<std::mutex> lock(display_mutex);
-  if (--display_users[d] == 0) {
-    display_users.erase(d);
-    eglTerminate(d);
-  }
-}
-
 }  // namespace
 
 EglPlatform parse_egl_platform(const std::string& name, const std::string& where) {
@@ -158,10 +139,8 @@ EglContext::EglContext(EglPlatform want) {
     throw Error(std::string("EGL: no EGL display can be had (platform ") + egl_platform_name(want) + "): " + tried +
                 "Set INCISE_EGL_PLATFORM=auto|device|surfaceless to choose.");
   display_ = dpy;
-  acquire_display(dpy);
 
   if (!eglBindAPI(EGL_OPENGL_API)) {
-    release_display(dpy);
     throw Error("EGL: eglBindAPI(EGL_OPENGL_API) failed: the driver offers no desktop OpenGL");
   }
   // No config needed when rendering only into FBOs; otherwise any pbuffer-capable GL config.
@@ -171,8 +150,7 @@ EglContext::EglContext(EglPlatform want) {
     const EGLint want_cfg[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
     EGLint n = 0;
     if (!eglChooseConfig(dpy, want_cfg, &config, 1, &n) || n < 1) {
-      release_display(dpy);
-      throw Error("EGL: no OpenGL-renderable config on the " + std::string(egl_platform_name(platform_)) + " display");
+        throw Error("EGL: no OpenGL-renderable config on the " + std::string(egl_platform_name(platform_)) + " display");
     }
   }
   const EGLint ctx_attr[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 3,
@@ -180,7 +158,6 @@ EglContext::EglContext(EglPlatform want) {
   EGLContext ctx = eglCreateContext(dpy, config, EGL_NO_CONTEXT, ctx_attr);
   if (ctx == EGL_NO_CONTEXT) {
     const std::string e = egl_error_name(eglGetError());
-    release_display(dpy);
     throw Error("EGL: cannot create an OpenGL 3.3 core context on the " + std::string(egl_platform_name(platform_)) +
                 " display (" + e + ")");
   }
@@ -195,11 +172,15 @@ EglContext::EglContext(EglPlatform want) {
   version_ = str(GL_VERSION);
 }
 
+// Displays are never terminated: eglInitialize does not count, so one
+// eglTerminate would end the display under every other context on it, and
+// terminating unloads the driver (Mesa's, with its JIT code), after which
+// LeakSanitizer reports the driver's exit-time allocations as unnamed leaks.
+// A display is a per-process singleton anyway; a second renderer reuses it.
 EglContext::~EglContext() {
   if (display_) {
     eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     if (context_) eglDestroyContext(display_, context_);
-    release_display(display_);
     eglReleaseThread();
   }
 }
