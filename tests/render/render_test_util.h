@@ -171,7 +171,7 @@ inline void expect_matches_golden(const Image& img, const std::string& name, int
     ADD_FAILURE() << name << ": " << 100.0 * fraction << "% of pixels differ by more than " << threshold
                   << " (allowed " << 100.0 * max_fraction << "%, worst difference " << worst << ") from " << golden
                   << "\n  actual: " << actual << "\n  diff:   " << diff_path
-                  << "\n  if the change is intended: INCISE_UPDATE_GOLDEN=1 ctest -R Golden";
+                  << "\n  if the change is intended: INCISE_UPDATE_GOLDEN=1 ctest --test-dir build -R Golden";
   }
 }
 
