@@ -483,6 +483,78 @@ void parse_cuts(const Parser& p, const json& v, Scene& s) {
   }
 }
 
+void parse_render(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "render";
+  RenderSettings& r = s.render;
+  p.object(v, at);
+  p.allowed_keys(v, at, {"width", "height", "subdivision", "camera", "light", "colors"});
+  auto in_range = [&](const json& x, const std::string& where, int lo, int hi) {
+    const int n = p.integer(x, where);
+    if (n < lo || n > hi)
+      p.fail(where, " must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + show(x));
+    return n;
+  };
+  auto nonzero = [&](const json& x, const std::string& where, bool normalize) {
+    Vec3 d = p.vec3(x, where);
+    const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(len > 0.0) || !std::isfinite(len)) p.fail(where, " must be a nonzero vector, got " + show(x));
+    if (normalize)
+      for (double& c : d) c /= len;
+    return d;
+  };
+  if (auto it = v.find("width"); it != v.end()) r.width = in_range(*it, at + ".width", 16, 8192);
+  if (auto it = v.find("height"); it != v.end()) r.height = in_range(*it, at + ".height", 16, 8192);
+  if (auto it = v.find("subdivision"); it != v.end()) r.subdivision = in_range(*it, at + ".subdivision", 2, 16);
+  if (auto it = v.find("camera"); it != v.end()) {
+    const std::string cp = at + ".camera";
+    p.object(*it, cp);
+    p.allowed_keys(*it, cp, {"position", "target", "up", "fov_deg"});
+    if (auto c = it->find("position"); c != it->end()) r.camera_position = p.vec3(*c, cp + ".position");
+    if (auto c = it->find("target"); c != it->end()) r.camera_target = p.vec3(*c, cp + ".target");
+    if (auto c = it->find("up"); c != it->end()) r.camera_up = nonzero(*c, cp + ".up", true);
+    if (auto c = it->find("fov_deg"); c != it->end()) {
+      r.fov_deg = p.number(*c, cp + ".fov_deg");
+      if (!(r.fov_deg > 0.0 && r.fov_deg < 180.0)) p.fail(cp + ".fov_deg", " must be in (0, 180) degrees, got " + show(*c));
+    }
+    if (r.camera_position && r.camera_target) {
+      const Vec3 &a = *r.camera_position, &b = *r.camera_target;
+      const Vec3 d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+      const Vec3& u = r.camera_up;
+      const Vec3 x{d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]};
+      if (d == Vec3{0.0, 0.0, 0.0}) p.fail(cp + ".target", " must differ from camera.position, got " + show((*it)["target"]));
+      if (x == Vec3{0.0, 0.0, 0.0}) p.fail(cp + ".up", " must not be parallel to the viewing direction target - position");
+    }
+  }
+  if (auto it = v.find("light"); it != v.end()) {
+    const std::string lp = at + ".light";
+    p.object(*it, lp);
+    p.allowed_keys(*it, lp, {"direction", "ambient"});
+    if (auto c = it->find("direction"); c != it->end()) r.light_direction = nonzero(*c, lp + ".direction", true);
+    if (auto c = it->find("ambient"); c != it->end()) {
+      r.ambient = p.number(*c, lp + ".ambient");
+      if (!(r.ambient >= 0.0 && r.ambient <= 1.0)) p.fail(lp + ".ambient", " must be in [0, 1], got " + show(*c));
+    }
+  }
+  if (auto it = v.find("colors"); it != v.end()) {
+    const std::string cp = at + ".colors";
+    p.object(*it, cp);
+    p.allowed_keys(*it, cp, {"tissue", "interior", "background", "instrument"});
+    auto rgb = [&](const char* k, Vec3& out) {
+      auto c = it->find(k);
+      if (c == it->end()) return;
+      const std::string where = Parser::key(cp, k);
+      out = p.vec3(*c, where);
+      for (size_t i = 0; i < 3; ++i)
+        if (!(out[i] >= 0.0 && out[i] <= 1.0))
+          p.fail(Parser::index(where, i), " must be in [0, 1] (colours are [r, g, b] in [0, 1]), got " + show((*c)[i]));
+    };
+    rgb("tissue", r.color_tissue);
+    rgb("interior", r.color_interior);
+    rgb("background", r.color_background);
+    rgb("instrument", r.color_instrument);
+  }
+}
+
 // nlohmann messages start with "[json.exception.parse_error.101] "; drop that.
 std::string strip_id(const std::string& what) {
   if (what.rfind("[json.exception.", 0) == 0) {
@@ -543,7 +615,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path) {
   if (!root.is_object()) throw Error(path + ": the scene must be a JSON object, got " + describe(root));
   p.allowed_keys(root, "",
                  {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
-                  "solver", "static", "run", "output", "cuts"});
+                  "solver", "static", "run", "output", "cuts", "render"});
 
   Scene s;
   s.path = path;
@@ -562,6 +634,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path) {
   if (auto it = root.find("run"); it != root.end()) parse_run(p, *it, s);
   if (auto it = root.find("output"); it != root.end()) parse_output(p, *it, s);
   if (auto it = root.find("cuts"); it != root.end()) parse_cuts(p, *it, s);
+  if (auto it = root.find("render"); it != root.end()) parse_render(p, *it, s);
   return s;
 }
 

@@ -3,6 +3,7 @@
 // field; errors name the file, the JSON path and what is allowed. See
 // docs/scene-format.md for the keys and defaults.
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -83,6 +84,22 @@ struct SolverSettings {
   OrderingMethod ordering = OrderingMethod::Auto;
 };
 const char* policy_name(SolverPolicy p);
+// What `incise render` / `run --render` / `bench --render` draw and how
+// (scene key "render"; docs/scene-format.md). Colours are linear RGB in [0, 1].
+struct RenderSettings {
+  int width = 640, height = 480;        // pixels, each in [16, 8192]
+  int subdivision = 2;                  // segments per tet10 face edge: n^2 flat triangles per face, [2, 16]
+  std::optional<Vec3> camera_position;  // absent: framed from the mesh's bounding box
+  std::optional<Vec3> camera_target;    // absent: the bounding-box centre
+  Vec3 camera_up{0.0, 0.0, 1.0};        // nonzero
+  double fov_deg = 30.0;                // vertical field of view, (0, 180)
+  std::optional<Vec3> light_direction;  // direction the light travels (unit); absent: from above-left of the camera
+  double ambient = 0.25;                // share of light that ignores orientation, [0, 1]
+  Vec3 color_tissue{0.85, 0.55, 0.50};
+  Vec3 color_interior{0.70, 0.10, 0.15};  // faces on a cut surface
+  Vec3 color_background{0.12, 0.12, 0.14};
+  Vec3 color_instrument{0.75, 0.77, 0.80};
+};
 
 struct Scene {
   std::string path;       // the scene file as given
@@ -101,6 +118,7 @@ struct Scene {
   int frames = 60;                      // run.frames default for `incise run`
   OutputSettings output;
   std::vector<CutSpec> cuts;
+  RenderSettings render;
 };
 
 // Reads and validates a scene file. Throws incise::Error.

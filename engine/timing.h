@@ -6,8 +6,10 @@
 
 namespace incise {
 
-enum Stage { kStageCutting, kStageAssembly, kStageFactorization, kStageSolve, kStageOther, kNumStages };
-inline constexpr std::array<const char*, kNumStages> kStageNames = {"cutting", "assembly", "factorization", "solve",
+// render: offscreen drawing and read-back of the frame, only when asked
+// (`run --render`, `bench --render`); step() itself never renders.
+enum Stage { kStageCutting, kStageAssembly, kStageFactorization, kStageSolve, kStageRender, kStageOther, kNumStages };
+inline constexpr std::array<const char*, kNumStages> kStageNames = {"cutting", "assembly", "factorization", "solve", "render",
                                                                     "other"};
 
 struct FrameTiming {

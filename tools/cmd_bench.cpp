@@ -6,6 +6,7 @@
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
 #include "tools/solver_report.h"
+#include "tools/render_stage.h"
 #include "tools/timing_json.h"
 
 namespace incise {
@@ -16,16 +17,20 @@ struct BenchOptions {
   int frames = 100, warmup = 0;
   double bandwidth_gbs = 11.0;
   SolverOverrides solver;
+  bool render = false;  // the render stage is 0 unless asked for
+  std::string platform;
 };
 
 void bench(const BenchOptions& o) {
   auto sim = load_simulation(o.scene);
   apply_solver_overrides(*sim, o.solver);
   print_model_summary(*sim);
+  std::unique_ptr<Renderer> renderer = o.render ? make_renderer(sim->scene.render, o.platform) : nullptr;
   std::vector<FrameTiming> timings;
   timings.reserve(o.frames);
   for (int k = 0; k < o.warmup + o.frames; ++k) {
-    const FrameTiming t = advance_frame(*sim);
+    FrameTiming t = advance_frame(*sim);
+    if (renderer) render_stage(*renderer, *sim, t);
     if (k >= o.warmup) timings.push_back(t);
   }
   const TimingSummary s = summarize(timings);
@@ -49,6 +54,9 @@ void add_bench_command(CLI::App& app) {
                   "Memory bandwidth (GB/s) for the one-substitution limit the frame time is compared with")
       ->check(CLI::PositiveNumber);
   add_solver_options(cmd, opts->solver);
+  cmd->add_flag("--render", opts->render, "Render each frame offscreen (scene's render settings) and time it as the render stage");
+  cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
+      ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
   cmd->callback([opts] { bench(*opts); });
 }
 

@@ -375,7 +375,7 @@ TEST_F(SceneTest, SolverSettingsChecked) {
 TEST_F(SceneTest, UnknownTopLevelKey) {
   expect_error(minimal(R"("materal": {})"),
                "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
-               "prescribed, integrator, solver, static, run, output, cuts; did you mean "
+               "prescribed, integrator, solver, static, run, output, cuts, render; did you mean "
                "\"material\"?");
 }
 
@@ -523,4 +523,58 @@ TEST_F(SceneTest, CutErrorsNameThePathAndWhatIsAllowed) {
                         "cuts[0].edge_start must be two points");
   expect_error_contains(minimal(R"("cuts": [{"type": "plane", "point": [0,0,0], "normal": [1,0,0], "pointt": 1}])"),
                         "cuts[0].pointt: unknown key");
+}
+
+// --- render ---------------------------------------------------------------------
+
+TEST_F(SceneTest, RenderDefaultsWhenAbsent) {
+  Scene s = parse_scene(minimal(), scene_path_);
+  EXPECT_EQ(s.render.width, 640);
+  EXPECT_EQ(s.render.height, 480);
+  EXPECT_EQ(s.render.subdivision, 2);
+  EXPECT_FALSE(s.render.camera_position.has_value());
+  EXPECT_FALSE(s.render.camera_target.has_value());
+  EXPECT_FALSE(s.render.light_direction.has_value());
+  EXPECT_DOUBLE_EQ(s.render.fov_deg, 30.0);
+}
+
+TEST_F(SceneTest, RenderFullSection) {
+  Scene s = parse_scene(minimal(R"("render": {"width": 320, "height": 240, "subdivision": 4,
+      "camera": {"position": [1, -5, 2], "target": [1, 0, 0], "up": [0, 0, 2], "fov_deg": 40},
+      "light": {"direction": [0, 0, -3], "ambient": 0.1},
+      "colors": {"tissue": [1, 0.5, 0.5], "interior": [0.5, 0, 0], "background": [0, 0, 0], "instrument": [0.2, 0.2, 0.2]}})"),
+                        scene_path_);
+  EXPECT_EQ(s.render.width, 320);
+  EXPECT_EQ(s.render.height, 240);
+  EXPECT_EQ(s.render.subdivision, 4);
+  EXPECT_EQ(*s.render.camera_position, (incise::Vec3{1, -5, 2}));
+  EXPECT_EQ(*s.render.camera_target, (incise::Vec3{1, 0, 0}));
+  EXPECT_EQ(s.render.camera_up, (incise::Vec3{0, 0, 1}));  // normalised
+  EXPECT_EQ(*s.render.light_direction, (incise::Vec3{0, 0, -1}));
+  EXPECT_DOUBLE_EQ(s.render.ambient, 0.1);
+  EXPECT_DOUBLE_EQ(s.render.fov_deg, 40.0);
+  EXPECT_EQ(s.render.color_interior, (incise::Vec3{0.5, 0, 0}));
+  EXPECT_EQ(s.render.color_background, (incise::Vec3{0, 0, 0}));
+}
+
+TEST_F(SceneTest, RenderErrorsNamePathAndAllowed) {
+  expect_error(minimal(R"("render": {"width": 8})"), "render.width must be an integer in [16, 8192], got 8");
+  expect_error(minimal(R"("render": {"subdivision": 1})"), "render.subdivision must be an integer in [2, 16], got 1");
+  expect_error(minimal(R"("render": {"camera": {"fov_deg": 180}})"),
+               "render.camera.fov_deg must be in (0, 180) degrees, got 180");
+  expect_error(minimal(R"("render": {"camera": {"up": [0, 0, 0]}})"),
+               "render.camera.up must be a nonzero vector, got [0,0,0]");
+  expect_error(minimal(R"("render": {"camera": {"position": [0, 0, 5], "target": [0, 0, 0]}})"),
+               "render.camera.up must not be parallel to the viewing direction target - position");
+  expect_error(minimal(R"("render": {"camera": {"position": [1, 2, 3], "target": [1, 2, 3]}})"),
+               "render.camera.target must differ from camera.position, got [1,2,3]");
+  expect_error(minimal(R"("render": {"colors": {"tissue": [1, 2, 0]}})"),
+               "render.colors.tissue[1] must be in [0, 1] (colours are [r, g, b] in [0, 1]), got 2");
+  expect_error(minimal(R"("render": {"light": {"ambient": -0.5}})"), "render.light.ambient must be in [0, 1], got -0.5");
+  expect_error(minimal(R"("render": {"colors": {"tisue": [1, 1, 1]}})"),
+               "render.colors.tisue: unknown key; allowed: tissue, interior, background, instrument; did you mean "
+               "\"tissue\"?");
+  expect_error(minimal(R"("render": {"camera": {"position": "auto"}})"),
+               "render.camera.position must be an array of 3 numbers [x, y, z], got string \"auto\"");
+  expect_error(minimal(R"("render": [])"), "render must be an object, got array []");
 }

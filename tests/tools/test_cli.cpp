@@ -122,13 +122,55 @@ TEST_F(Cli, BenchJsonHasTheDocumentedFields) {
   std::ifstream js(path("b.json"));
   const auto j = nlohmann::json::parse(js);
   for (const char* k : {"median_ms", "p95_ms", "p99_ms", "max_ms", "over_budget"}) EXPECT_TRUE(j["frame"].contains(k)) << k;
-  for (const char* s : {"assembly", "factorization", "solve", "other"})
+  for (const char* s : {"assembly", "factorization", "solve", "render", "other"})
     for (const char* k : {"median_ms", "p95_ms", "p99_ms", "max_ms"}) EXPECT_TRUE(j["stages"][s].contains(k)) << s << k;
   EXPECT_EQ(j["dof"], 3 * 17 * 5 * 5);
   EXPECT_GT(j["factor"]["nnz_L"].get<double>(), 0.0);
   EXPECT_GT(j["factor"]["flops"].get<double>(), 0.0);
   // a linear scene never refactorizes: factorization is 0 ms after frame 1
   EXPECT_EQ(j["stages"]["factorization"]["median_ms"].get<double>(), 0.0);
+  EXPECT_EQ(j["stages"]["render"]["max_ms"].get<double>(), 0.0) << "no --render: nothing is drawn";
+}
+
+TEST_F(Cli, BenchRenderTimesTheRenderStage) {
+  cantilever_scene(R"(, "render": {"width": 64, "height": 48})");
+  const Result r = incise("bench " + path("scene.json") + " --frames 3 --render --json " + path("b.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("render: 64x48, EGL "), std::string::npos) << r.out;
+  std::ifstream js(path("b.json"));
+  const auto j = nlohmann::json::parse(js);
+  EXPECT_GT(j["stages"]["render"]["median_ms"].get<double>(), 0.0);
+}
+
+TEST_F(Cli, RenderWritesThePngOfFrameK) {
+  cantilever_scene();
+  const Result r = incise("render " + path("scene.json") + " --frame 2 --out " + path("f.png") +
+                          " --width 96 --height 64 --egl-platform surfaceless");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("EGL surfaceless"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("frame 2 (t = 0.0667 s)"), std::string::npos) << r.out;
+  std::ifstream png(path("f.png"), std::ios::binary);
+  char head[24] = {};
+  png.read(head, sizeof head);
+  EXPECT_EQ(std::string(head + 1, 3), "PNG");
+  auto be32 = [&](int at) {
+    return (unsigned char)head[at] << 24 | (unsigned char)head[at + 1] << 16 | (unsigned char)head[at + 2] << 8 |
+           (unsigned char)head[at + 3];
+  };
+  EXPECT_EQ(be32(16), 96);  // IHDR width, height
+  EXPECT_EQ(be32(20), 64);
+}
+
+TEST_F(Cli, RunRenderWritesOneFramePerStepAndABadPlatformIsAnError) {
+  cantilever_scene(R"(, "render": {"width": 48, "height": 32})");
+  const Result r = incise("run " + path("scene.json") + " --frames 3 --render " + path("frames"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* f : {"frame_00000.png", "frame_00001.png", "frame_00002.png", "frame_00003.png"})
+    EXPECT_TRUE(fs::exists(path("frames/") + f)) << f;
+  EXPECT_FALSE(fs::exists(path("frames/frame_00004.png")));
+  const Result bad = incise("render " + path("scene.json") + " --out " + path("x.png") + " --egl-platform gpu");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("--egl-platform"), std::string::npos) << bad.out;
 }
 
 TEST_F(Cli, BenchReportsTheSolverFields) {

@@ -5,6 +5,7 @@ packages=(
   build-essential cmake ninja-build pkg-config
   libeigen3-dev libsuitesparse-dev libopenblas0-serial
   nlohmann-json3-dev libcli11-dev libgtest-dev libbenchmark-dev
+  libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0 libpng-dev
 )
 missing=()
 for p in "${packages[@]}"; do
