@@ -29,6 +29,8 @@ struct Model {
   MassKind mass_kind = MassKind::Lumped;
   double dt = 1.0 / 30.0;
   int newton_iterations = 1;
+  int max_newton_iterations = 4;    // adaptive cap (scene integrator.max_newton_iterations)
+  double rotation_tolerance = 0.1;  // radians; 0 = fixed iteration count
   SolverSettings solver;        // solver.* of the scene: policy, CG tolerance, threads
 
   // DOF nodes

@@ -99,20 +99,25 @@ void build_elements(Model& m, const Scene& scene) {
           for (int d = 0; d < 3; ++d) gmask[3 * j + d] = g[3 * a + d];
         }
     };
-    double gc[30] = {0};  // corner-linear gradients (tet4 / tet10SR rotation source)
-    if (!per_point) {
+    // Rotation source. Whole elements: per cubature point (tet10 per_point) or
+    // the corner-linear gradient (tet4, tet10SR). Pieces of a split element:
+    // one rotation per piece from its volume-averaged gradient (preprint eq.
+    // 64-71: one rotation per side). A whole element that only carries
+    // enrichment keeps its per-point rotations, so a cut along element faces
+    // is exactly the node-duplicated mesh (tests/cutting).
+    const bool split = m.has_cuts() && m.cuts.elem_split[e];
+    const bool point_rot = per_point && !split;
+    double gc[30] = {0};  // corner-linear gradients
+    if (!per_point && !split) {
       double Xc[12];
       std::copy(Xe.begin(), Xe.begin() + 12, Xc);
       const double mid[3] = {0.25, 0.25, 0.25};
       shape_global_gradients(4, Xc, mid, gc);
     }
     for (const PieceView& P : pieces) {
-      if (!per_point) {
-        spread(P, gc);  // mid-edge entries of gc are 0
-        m.rot_elem.push_back(e);
-        m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
-        m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
-      }
+      const int q_first = static_cast<int>(m.qp_weight.size());
+      if (!point_rot) m.rot_elem.push_back(e);  // the piece's slot; gradients below
+      const int slot = static_cast<int>(m.rot_elem.size()) - 1;
       for (int sidx = 0; sidx < P.nsub; ++sidx) {
         const double* sub = P.rst ? P.rst + 12 * sidx : kRefTet;
         const double jac = 6.0 * subtet_ref_volume(sub);  // reference tet -> sub-tet
@@ -131,14 +136,29 @@ void build_elements(Model& m, const Scene& scene) {
           m.elem_volume[e] += cub.weight[q] * jac * detJ;
           m.qp_grad.insert(m.qp_grad.end(), gmask.begin(), gmask.end());
           m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
-          if (per_point) {
+          if (point_rot) {
             m.rot_elem.push_back(e);
             m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
             m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
           }
-          m.qp_rot.push_back(static_cast<int>(m.rot_elem.size()) - 1);
+          m.qp_rot.push_back(point_rot ? static_cast<int>(m.rot_elem.size()) - 1 : slot);
         }
       }
+      if (point_rot) continue;
+      if (split) {  // volume average of the piece's point gradients
+        std::vector<double> avg(3 * n, 0.0);
+        double vol = 0.0;
+        for (int q = q_first; q < static_cast<int>(m.qp_weight.size()); ++q) {
+          for (int k = 0; k < 3 * n; ++k) avg[k] += m.qp_weight[q] * m.qp_grad[m.qp_grad_ptr[q] + k];
+          vol += m.qp_weight[q];
+        }
+        for (double& v : avg) v /= vol;
+        m.rot_grad.insert(m.rot_grad.end(), avg.begin(), avg.end());
+      } else {
+        spread(P, gc);  // mid-edge entries of gc are 0
+        m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
+      }
+      m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
     }
     m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
   }
@@ -427,6 +447,8 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.mass_kind = scene.mass;
   m.dt = scene.dt;
   m.newton_iterations = scene.newton_iterations;
+  m.max_newton_iterations = std::max(scene.max_newton_iterations, scene.newton_iterations);
+  m.rotation_tolerance = scene.rotation_tolerance;
   m.solver = scene.solver;
   m.nnode = m.ndofnode = m.mesh.nnode();
   m.X = m.mesh.X;

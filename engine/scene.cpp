@@ -359,7 +359,7 @@ void parse_prescribed(const Parser& p, const json& v, Scene& s) {
 void parse_integrator(const Parser& p, const json& v, Scene& s) {
   const std::string at = "integrator";
   p.object(v, at);
-  p.allowed_keys(v, at, {"dt", "newton_iterations"});
+  p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance"});
   if (auto it = v.find("dt"); it != v.end()) {
     double dt = p.number(*it, at + ".dt");
     if (!(dt > 0.0 && dt <= 1.0))
@@ -368,6 +368,10 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
   }
   if (auto it = v.find("newton_iterations"); it != v.end())
     s.newton_iterations = p.at_least_one(*it, at + ".newton_iterations");
+  if (auto it = v.find("max_newton_iterations"); it != v.end())
+    s.max_newton_iterations = p.at_least_one(*it, at + ".max_newton_iterations");
+  if (auto it = v.find("rotation_tolerance"); it != v.end())
+    s.rotation_tolerance = p.nonnegative(*it, at + ".rotation_tolerance");
 }
 
 void parse_solver(const Parser& p, const json& v, Scene& s) {

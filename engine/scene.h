@@ -111,7 +111,12 @@ struct Scene {
   std::vector<Region> fixed;
   std::vector<Prescribed> prescribed;
   double dt = 1.0 / 30.0;        // integrator.dt, > 0
-  int newton_iterations = 1;     // integrator.newton_iterations, >= 1
+  int newton_iterations = 1;     // integrator.newton_iterations, >= 1: linearised solves every step
+  // Extra iterations (up to max_newton_iterations in all) while a rotation moved
+  // more than rotation_tolerance (radians) between the configuration it was
+  // frozen at and the step's result; 0 turns the check off. See docs/numerics.md.
+  int max_newton_iterations = 4;
+  double rotation_tolerance = 0.1;
   SolverSettings solver;                // solver.*
   double static_tolerance = 1e-8;       // static.tolerance: relative residual
   int static_max_iterations = 50;       // static.max_iterations

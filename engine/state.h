@@ -15,6 +15,7 @@ struct State {
   int frame = 0;
   std::vector<double> u, v, a;  // (ndof) displacement, velocity, acceleration
   std::vector<double> R;        // (nrot, 9) rotation of each slot, column-major
+  std::vector<double> R_check;  // (nrot, 9) rotations at a step's result (adaptive Newton check)
 
   // Work arrays (ndof or nnz), allocated by init_state, reused every frame.
   std::vector<double> f_int, K, A, rhs, delta, du, tmp, tmp2;
@@ -25,7 +26,8 @@ struct State {
   FrameTiming timing;           // last frame
   int refactorizations = 0;     // numeric factorizations so far
   int rotation_fallbacks = 0;   // SVD fallbacks in the last frame (inverted points)
-  double last_residual = 0.0;   // relative residual of the last Newton iteration
+  double last_residual = 0.0;
+  int newton_iterations_done = 0;  // linearised solves in the last step   // relative residual of the last Newton iteration
 };
 
 // Sizes the arrays, analyzes the pattern, sets u = v = 0 and (when

@@ -16,6 +16,7 @@ struct FrameTiming {
   std::array<double, kNumStages> ms{};  // per stage
   double frame_ms = 0.0;                // whole frame, wall clock
   bool cut_frame = false;               // the DOF set changed this frame (new symbolic analysis)
+  int newton = 0;                       // linearised solves (Newton iterations) this frame
   // Linear solver of the frame (all Newton iterations together).
   int iterations = 0;         // CG iterations (lagged, warped_cg); 0 for direct policies
   int solves = 0;             // forward+back substitutions with a Cholesky factor

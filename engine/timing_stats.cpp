@@ -34,6 +34,11 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
     over += t.frame_ms > budget_ms;
     for (int k = 0; k < kNumStages; ++k) st[k].push_back(t.ms[k]);
   }
+  for (const auto& t : frames) {
+    s.newton_mean += t.newton;
+    s.newton_max = std::max(s.newton_max, t.newton);
+  }
+  if (!frames.empty()) s.newton_mean /= frames.size();
   s.frame = percentiles(f);
   s.cut_frames = percentiles(cut);
   s.plain_frames = percentiles(plain);
@@ -58,6 +63,8 @@ std::string format_summary(const TimingSummary& s) {
     row("cut frame", s.cut_frames);
     row("other frames", s.plain_frames);
   }
+  std::snprintf(line, sizeof line, "Newton iterations per frame: mean %.2f, max %d\n", s.newton_mean, s.newton_max);
+  out += line;
   std::snprintf(line, sizeof line, "frames over the %.1f ms budget: %.1f%% of %d (%d cut frames)\n", s.budget_ms,
                 100.0 * s.over_budget, s.frame.count, s.cut_frames.count);
   out += line;

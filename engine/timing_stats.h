@@ -20,6 +20,8 @@ struct TimingSummary {
   double over_budget = 0.0;  // share of frames with frame_ms > budget_ms
   Percentiles cut_frames;    // frames whose DOF set changed (a cut), frame_ms
   Percentiles plain_frames;  // the other frames
+  double newton_mean = 0;    // linearised solves per frame
+  int newton_max = 0;
   double budget_ms = 1000.0 / 30.0;
 };
 TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms = 1000.0 / 30.0);

@@ -21,6 +21,7 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["frame"]["over_budget"] = s.over_budget;
   j["frame"]["budget_ms"] = s.budget_ms;
   for (int k = 0; k < kNumStages; ++k) j["stages"][kStageNames[k]] = pct(s.stages[k]);
+  j["newton"] = {{"mean", s.newton_mean}, {"max", s.newton_max}};
   j["cut_frames"] = pct(s.cut_frames);
   j["cut_frames"]["count"] = s.cut_frames.count;
   j["enriched_dof"] = 3 * (sim.model.ndofnode - sim.model.nnode);

@@ -5,7 +5,9 @@
 
 #include <cmath>
 
+#include "engine/display_mesh.h"
 #include "render/camera.h"
+#include "tools/frame_loop.h"
 #include "render_test_util.h"
 
 namespace incise::test {
@@ -97,23 +99,60 @@ TEST(Golden, Tet10SphereIsRound) {
   EXPECT_LT(spread10, 0.5 * spread4) << "curved faces must be rounder than flat ones";
 }
 
+// A real X-FEM cut: the block [0,2]x[0,1]x[0,1] is cut by the plane x = 1.1
+// (inside elements), the left end is held and a body force along +x pulls the
+// right piece 0.25 away in 10 frames. Before the cut no interior face shows.
 TEST(Golden, CutBlockGapIsVisible) {
-  // Hand-made cut (split_block): the lead switches this to a real X-FEM cut.
   RenderSettings s = test_settings();
-  const double cut_x = 1.0, gap = 0.25, mid = cut_x + 0.5 * gap;
+  const double cut_x = 1.1, gap = 0.25, mid = cut_x + 0.5 * gap;
   s.camera_position = Vec3{mid + 0.6, -2.5, 2.5};  // right of the gap: sees the left half's cut face
   s.camera_target = Vec3{mid, 0.5, 0.4};
   auto r = make_test_renderer(s);
   ASSERT_TRUE(r);
-  r->update(split_block(display_of(make_beam(2, 1, 1, 4, 2, 2, 2)), cut_x, gap));
+  Scene sc;
+  sc.path = "golden-cut";
+  sc.order = 2;
+  sc.material.young = 1e7;
+  sc.material.poisson = 0.3;
+  sc.material.density = 1.0;
+  const double frames = 10, t = frames / 30.0;
+  sc.gravity = {2.0 * gap / (t * t), 0, 0};  // 1/2 g t^2 = gap
+  Region held;
+  held.kind = Region::Kind::Box;
+  held.lo = {-1, -1, -1};
+  held.hi = {0, 2, 2};
+  held.json_path = "fixed[0]";
+  sc.fixed = {held};
+  CutSpec plane;
+  plane.type = CutSpec::Type::Plane;
+  plane.point = {cut_x, 0, 0};
+  plane.normal = {1, 0, 0};
+  plane.at_time = 1e-9;  // after the first frame has been rendered uncut
+  plane.json_path = "cuts[0]";
+  sc.cuts = {plane};
+  Simulation sim;
+  sim.scene = sc;
+  sim.mesh = make_beam(2, 1, 1, 4, 2, 2, 1);
+  sim.model = build_model(sim.mesh, sc);
+  sim.cut_progress.assign(1, -1.0);
+  init_state(sim.model, sim.state);
+  r->update(display_mesh(sim.model, sim.state));
+  const Image before = r->render();
+  EXPECT_EQ(r->stats().ncut, 0);
+  int interior_before = 0;
+  for (int y = 0; y < before.height; ++y)
+    for (int x = 0; x < before.width; ++x) interior_before += dominant(before, x, y) == 0;
+  EXPECT_EQ(interior_before, 0) << "no inner face before the cut";
+  for (int k = 0; k < frames; ++k) advance_frame(sim);
+  r->update(display_mesh(sim.model, sim.state));
   const Image img = r->render();
   ASSERT_GT(r->stats().ncut, 0);
   expect_matches_golden(img, "cut_block");
   // Along the middle of the gap, on the top (z = 1) and front (y = 0) sides,
   // no pixel shows tissue: only background or the interior colour.
   int checked = 0;
-  for (double t = 0.1; t <= 0.9; t += 0.05)
-    for (const Vec3& p : {Vec3{mid, t, 1.0}, Vec3{mid, 0.0, t}}) {
+  for (double t2 = 0.1; t2 <= 0.9; t2 += 0.05)
+    for (const Vec3& p : {Vec3{mid, t2, 1.0}, Vec3{mid, 0.0, t2}}) {
       const auto px = project(r->camera(), img, p);
       ASSERT_TRUE(px[0] >= 0 && px[0] < img.width && px[1] >= 0 && px[1] < img.height);
       EXPECT_NE(dominant(img, px[0], px[1]), 1) << "tissue colour in the gap at pixel " << px[0] << ", " << px[1];
