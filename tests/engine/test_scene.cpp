@@ -578,3 +578,14 @@ TEST_F(SceneTest, RenderErrorsNamePathAndAllowed) {
                "render.camera.position must be an array of 3 numbers [x, y, z], got string \"auto\"");
   expect_error(minimal(R"("render": [])"), "render must be an object, got array []");
 }
+
+TEST_F(SceneTest, AdaptiveNewtonKeys) {
+  const Scene s = parse_scene(minimal(R"("integrator": {"newton_iterations": 2, "max_newton_iterations": 6, "rotation_tolerance": 0.05})"),
+                              scene_path_);
+  EXPECT_EQ(s.newton_iterations, 2);
+  EXPECT_EQ(s.max_newton_iterations, 6);
+  EXPECT_DOUBLE_EQ(s.rotation_tolerance, 0.05);
+  expect_error(minimal(R"("integrator": {"rotation_tolerance": -1})"), "integrator.rotation_tolerance must be >= 0, got -1");
+  expect_error(minimal(R"("integrator": {"max_newton_iterations": 0})"),
+               "integrator.max_newton_iterations must be an integer >= 1, got 0");
+}
