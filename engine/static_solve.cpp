@@ -5,6 +5,7 @@
 
 #include "engine/assemble.h"
 #include "engine/error.h"
+#include "engine/step.h"
 
 namespace incise {
 
@@ -22,13 +23,7 @@ StaticResult solve_static(const Model& m, State& s, double tolerance, int max_it
   StaticResult res;
   double ref = 0.0;
   for (int it = 0; it <= max_iterations; ++it) {
-    const double* K = linear ? m.K0_csc.data() : s.K.data();
-    if (linear) {
-      sym_matvec(m, K, s.u.data(), s.f_int.data());
-    } else {
-      update_rotations(m, s.u.data(), s.R.data());
-      assemble_internal(m, s.u.data(), s.R.data(), s.f_int.data(), s.K.data());
-    }
+    const double* K = internal_forces(m, s, s.u.data(), true);
     double r2 = 0.0;
     for (int d = 0; d < n; ++d) {
       s.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d] - s.f_int[d];

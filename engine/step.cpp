@@ -103,13 +103,7 @@ void step(const Model& m, State& s) {
     // x = u + Delta; internal forces and tangent there.
     double* x = s.tmp.data();
     for (int d = 0; d < n; ++d) x[d] = s.u[d] + s.delta[d];
-    const double* K = linear ? m.K0_csc.data() : s.K.data();
-    if (linear) {
-      sym_matvec_parallel(m, s.work.plan, *s.work.pool, K, x, s.f_int.data());
-    } else {  // rotations, forces and (unless the policy needs none) the tangent, on solver.threads workers
-      s.rotation_fallbacks += assemble_corotated(m, s.work.plan, *s.work.pool, x, s.R.data(), s.f_int.data(),
-                                                 policy_needs_tangent(m) ? s.K.data() : nullptr);
-    }
+    const double* K = internal_forces(m, s, x, policy_needs_tangent(m));
     s.timing.ms[kStageAssembly] += clock.lap();
 
     // Newmark (eq. 3.58): a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v.
@@ -182,16 +176,20 @@ void step(const Model& m, State& s) {
   s.timing.newton = s.newton_iterations_done;
 }
 
+const double* internal_forces(const Model& m, State& s, const double* x, bool tangent) {
+  if (m.material.model == MaterialModel::Linear) {
+    sym_matvec_parallel(m, s.work.plan, *s.work.pool, m.K0_csc.data(), x, s.f_int.data());
+    return m.K0_csc.data();
+  }
+  // rotations, forces and (when asked) the tangent, on solver.threads workers
+  s.rotation_fallbacks += assemble_corotated(m, s.work.plan, *s.work.pool, x, s.R.data(), s.f_int.data(),
+                                             tangent ? s.K.data() : nullptr);
+  return s.K.data();
+}
+
 void consistent_acceleration(const Model& m, State& s) {
   const int n = m.ndof();
-  const bool linear = m.material.model == MaterialModel::Linear;
-  const double* K = linear ? m.K0_csc.data() : s.K.data();
-  if (linear) {
-    sym_matvec(m, K, s.u.data(), s.f_int.data());
-  } else {
-    update_rotations(m, s.u.data(), s.R.data());
-    assemble_internal(m, s.u.data(), s.R.data(), s.f_int.data(), s.K.data());
-  }
+  const double* K = internal_forces(m, s, s.u.data(), true);
   // r = f_ext - f_int - (a_ray M + b_ray K) v
   std::vector<double> r(n), Mv(n), Kv(n, 0.0), z(n), p(n), Ap(n), diag(n);
   mass_matvec(m, s.v.data(), Mv.data());
