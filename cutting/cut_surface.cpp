@@ -164,12 +164,18 @@ std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& c, double t) {
       cen /= static_cast<double>(np);
       if (!(n.norm() > 0)) throw Error(c.json_path + ": polygon has zero area");
       n.normalize();
+      double size = 0;
+      for (const auto& q : c.points) size = std::max(size, (vec(q) - cen).norm());
       for (size_t k = 0; k < np; ++k) {
-        const V a = vec(c.points[k]);
-        const double off = std::abs((a - cen).dot(n));
-        double size = 0;
-        for (const auto& q : c.points) size = std::max(size, (vec(q) - cen).norm());
-        if (off > 1e-6 * size) throw Error(c.json_path + ".points[" + std::to_string(k) + "]: polygon is not planar (off its plane by " + std::to_string(off) + ")");
+        const double off = std::abs((vec(c.points[k]) - cen).dot(n));
+        if (off > 1e-6 * size)
+          throw Error(c.json_path + ".points[" + std::to_string(k) + "]: polygon is not planar (off its plane by " +
+                      std::to_string(off) + ")");
+        // The fan from the centroid covers the polygon only when it is convex.
+        const V a = vec(c.points[k]), b = vec(c.points[(k + 1) % np]), d = vec(c.points[(k + 2) % np]);
+        if ((b - a).cross(d - b).dot(n) < -1e-12 * size * size)
+          throw Error(c.json_path + ".points: polygon must be convex; the turn at points[" +
+                      std::to_string((k + 1) % np) + "] goes the other way (split a concave cut into convex polygons)");
       }
       for (size_t k = 0; k < np; ++k) {
         Facet f;
@@ -188,13 +194,22 @@ std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& c, double t) {
       if (s <= 0.0) return nullptr;
       const V a0 = vec(c.edge_start[0]), b0 = vec(c.edge_start[1]);
       const V a1 = a0 + s * (vec(c.edge_end[0]) - a0), b1 = b0 + s * (vec(c.edge_end[1]) - b0);
-      // The swept quad (a0, b0, b1, a1) as two triangles sharing one plane
-      // when the blade translates in its plane (the usual incision).
+      // The swept quad (a0, b0, b1, a1) as two triangles. When the whole
+      // sweep is planar (the blade moves within its own plane, the usual
+      // incision) both share the plane of the full sweep, computed from
+      // vectors that do not depend on the progress s: the level sets, and so
+      // the layout, then stay bit-identical while the blade advances inside
+      // an element, and nothing is rebuilt.
       Facet f1 = triangle_facet(a0, b0, b1), f2 = triangle_facet(a0, b1, a1);
-      const V n1 = vec(f1.n), n2 = vec(f2.n);
-      if (n1.norm() > 0.5 && n2.norm() > 0.5 && n1.cross(n2).norm() < 1e-12) {
-        f2.p = f1.p;
-        f2.n = f1.n;
+      const V aE = vec(c.edge_end[0]), bE = vec(c.edge_end[1]);
+      const V nf = (b0 - a0).cross(bE - b0);
+      const double len = nf.norm(), scale = (b0 - a0).norm() * std::max((bE - b0).norm(), (aE - a0).norm());
+      const bool planar = len > 1e-9 * scale && std::abs((aE - a0).dot(nf)) <= 1e-9 * len * scale;
+      if (planar) {
+        for (Facet* f : {&f1, &f2}) {
+          f->p = arr(a0);
+          f->n = arr(nf / len);
+        }
       }
       facets = {f1, f2};
       break;

@@ -39,8 +39,11 @@ struct CutReport {
   int bodies = 1;          // connected pieces of tissue after the cuts
 };
 
-// cuts: the active surfaces (order = enrichment order). base: the uncut model
-// of the mesh (its mesh, volumes and boundary faces are used).
+// cuts: the active surfaces (order = enrichment order). base: a model of the
+// mesh, cut or not (only its element mesh and element volumes are read).
+// Known limit: node regions are found across shared faces, so a mesh pinched
+// at a single node or edge already counts as two regions there; once a cut
+// splits an element at such a node, the pinch is released.
 CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts, CutReport* report = nullptr);
 
 }  // namespace incise

@@ -22,7 +22,7 @@ struct BenchOptions {
 };
 
 void bench(const BenchOptions& o) {
-  auto sim = load_simulation(o.scene);
+  auto sim = load_checked_simulation(o.scene);
   apply_solver_overrides(*sim, o.solver);
   print_model_summary(*sim);
   std::unique_ptr<Renderer> renderer = o.render ? make_renderer(sim->scene.render, o.platform) : nullptr;

@@ -14,6 +14,7 @@
 #include "engine/step.h"
 #include "engine/timing_stats.h"
 #include "tools/commands.h"
+#include "tools/frame_loop.h"
 #include "tools/solver_report.h"
 
 namespace incise {
@@ -44,7 +45,7 @@ std::vector<int> parse_frames(const std::string& text) {
 void compare(const CompareOptions& o) {
   if (o.policies.empty()) throw Error("compare: --policy is required");
   const std::vector<int> checkpoints = parse_frames(o.frames);
-  auto ref = load_simulation(o.scene);
+  auto ref = load_checked_simulation(o.scene);
   SolverOverrides exact;
   exact.policy = "exact";
   exact.threads = o.solver.threads;
@@ -71,7 +72,7 @@ void compare(const CompareOptions& o) {
   for (const std::string& policy : o.policies) {
     SolverOverrides ov = o.solver;
     ov.policy = policy;
-    auto sim = load_simulation(o.scene);
+    auto sim = load_checked_simulation(o.scene);
     apply_solver_overrides(*sim, ov);
     std::printf("--- %s\n", policy.c_str());
     std::printf("%8s %14s %14s\n", "frame", "rel L2 error", "|u_exact|");

@@ -1,4 +1,6 @@
 #include "cutting/cut_apply.h"
+#include "cutting/cut_surface.h"
+#include "engine/error.h"
 #include "engine/step.h"
 #include "tools/frame_loop.h"
 
@@ -14,6 +16,18 @@ FrameTiming advance_frame(Simulation& sim) {
   t.cut_frame = cut.changed;
   t.frame_ms = clock.ms();
   return t;
+}
+
+std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path) {
+  auto sim = load_simulation(scene_path);
+  for (const CutSpec& c : sim->scene.cuts) {
+    try {
+      make_cut_surface(c, c.at_time + c.duration);
+    } catch (const Error& e) {
+      throw Error(scene_path + ": " + e.what());
+    }
+  }
+  return sim;
 }
 
 }  // namespace incise

@@ -15,7 +15,7 @@ struct RenderOptions {
 };
 
 void render_command(const RenderOptions& o) {
-  auto sim = load_simulation(o.scene);
+  auto sim = load_checked_simulation(o.scene);
   RenderSettings settings = sim->scene.render;
   if (o.width > 0) settings.width = o.width;
   if (o.height > 0) settings.height = o.height;

@@ -30,7 +30,7 @@ std::string frame_png(const std::string& dir, int frame) {
 }
 
 void run(const RunOptions& o) {
-  auto sim = load_simulation(o.scene);
+  auto sim = load_checked_simulation(o.scene);
   State& s = sim->state;
   print_model_summary(*sim);
   const int frames = o.frames > 0 ? o.frames : sim->scene.frames;

@@ -13,6 +13,7 @@
 #include "engine/simulation.h"
 #include "engine/static_solve.h"
 #include "tools/commands.h"
+#include "tools/frame_loop.h"
 
 namespace incise {
 
@@ -47,7 +48,7 @@ std::vector<std::array<double, 3>> read_probe_points(const std::string& path) {
 }
 
 void run_static(const StaticOptions& o) {
-  auto sim = load_simulation(o.scene);
+  auto sim = load_checked_simulation(o.scene);
   if (!sim->scene.cuts.empty()) {
     const CutUpdate cut = apply_all_cuts(*sim);  // static: every cut at once
     std::printf("cuts: %d elements split into %d pieces, %d separated faces, %d enriched DOF nodes, %d bodies (%.1f ms)\n",

@@ -299,3 +299,43 @@ TEST(Xfem, CutAlongAnEdgeAndAFlapCutTwice) {
 
 }  // namespace
 }  // namespace incise
+
+namespace incise {
+namespace {
+
+TEST(Xfem, NonConvexPolygonIsRefusedWithItsPath) {
+  CutSpec L;
+  L.type = CutSpec::Type::Polygon;
+  L.points = {{0, 0, 0.5}, {1, 0, 0.5}, {1, 0.1, 0.5}, {0.1, 0.1, 0.5}, {0.1, 1, 0.5}, {0, 1, 0.5}};
+  L.json_path = "cuts[2]";
+  try {
+    make_cut_surface(L, 0.0);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cuts[2].points: polygon must be convex"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Xfem, ObliqueBladeRebuildsOnlyWhenItCrossesAnElement) {
+  // An oblique, planar sweep: the layout must stay bit-identical while the
+  // blade advances inside elements, so most frames rebuild nothing.
+  CutSpec blade;
+  blade.type = CutSpec::Type::Swept;
+  blade.edge_start = {Vec3{2.1, -0.5, 1.3}, Vec3{2.4, 1.5, 1.3}};
+  blade.edge_end = {Vec3{2.3, -0.5, -0.3}, Vec3{2.6, 1.5, -0.3}};
+  blade.duration = 1.0;
+  blade.json_path = "cuts[0]";
+  auto sim = cantilever(1, {blade});
+  int frames = 0, rebuilds = 0, bodies = 0;
+  for (int k = 0; k <= 60; ++k, ++frames) {
+    const CutUpdate up = update_cuts(*sim, k / 60.0, k / 60.0);
+    rebuilds += up.changed;
+    if (up.changed) bodies = up.report.bodies;
+  }
+  EXPECT_GT(rebuilds, 0);
+  EXPECT_LT(rebuilds, frames / 2) << rebuilds << " rebuilds in " << frames << " frames";
+  EXPECT_EQ(bodies, 2);  // the finished sweep cuts the end off
+}
+
+}  // namespace
+}  // namespace incise
