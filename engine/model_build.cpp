@@ -31,8 +31,10 @@ std::vector<PieceView> pieces_of(const Model& m, int e) {
   for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
     PieceView v;
     v.enr = &L.piece_enr[static_cast<size_t>(P) * npe];
-    v.rst = &L.subtet_rst[static_cast<size_t>(L.piece_subtet_ptr[P]) * 12];
-    v.nsub = L.piece_subtet_ptr[P + 1] - L.piece_subtet_ptr[P];
+    if (L.elem_split[e]) {  // a whole element keeps rst = null: integrated (and its mass reused) as one
+      v.rst = &L.subtet_rst[static_cast<size_t>(L.piece_subtet_ptr[P]) * 12];
+      v.nsub = L.piece_subtet_ptr[P + 1] - L.piece_subtet_ptr[P];
+    }
     out.push_back(v);
   }
   return out;
