@@ -118,7 +118,11 @@ void step(const Model& m, State& s) {
     }
     // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
     for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
-    mass_matvec(m, a1, s.rhs.data());
+    if (m.mass_csc.empty()) {
+      mass_matvec(m, a1, s.rhs.data());
+    } else {  // consistent, or lumped with X-FEM couplings: a sparse product, on the workers
+      sym_matvec_parallel(m, s.work.plan, *s.work.pool, m.mass_csc.data(), a1, s.rhs.data());
+    }
     for (int d = 0; d < n; ++d) s.rhs[d] = m.f_gravity[d] - s.f_int[d] - s.rhs[d];
     if (b_ray > 0.0) {
       if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, s.work.plan, *s.work.pool, K, v1, a1);
