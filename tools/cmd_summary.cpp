@@ -17,8 +17,12 @@ void print_model_summary(const Simulation& sim) {
   if (m.ndofnode > m.nnode)
     std::printf("  X-FEM: %d enriched DOF nodes (%d DOF) appended after the %d standard DOF\n", m.ndofnode - m.nnode,
                 3 * (m.ndofnode - m.nnode), 3 * m.nnode);
-  std::printf("  constraints: %zu fixed DOF, %zu prescribed DOF; dt %.6g s, %d Newton iteration(s) per step\n",
-              m.fixed_dofs.size(), m.prescribed.size(), m.dt, m.newton_iterations);
+  std::printf("  constraints: %zu fixed DOF, %zu prescribed DOF; dt %.6g s, %d Newton iteration(s) per step%s\n",
+              m.fixed_dofs.size(), m.prescribed.size(), m.dt, m.newton_iterations,
+              m.material.model == MaterialModel::Corotated && m.rotation_tolerance > 0 &&
+                      m.max_newton_iterations > m.newton_iterations
+                  ? " (more, up to integrator.max_newton_iterations, while rotations move > rotation_tolerance)"
+                  : "");
   if (m.material.model == MaterialModel::Corotated && m.material.rayleigh_stiffness == 0.0 &&
       m.newton_iterations == 1 && m.material.poisson > 0.49)
     std::printf("  warning: undamped corotated tissue with nu > 0.49 and one linearised solve per step can gain\n"
