@@ -34,13 +34,15 @@ Mat3 corotated_stress(const Model& m, const Mat3& R, const Mat3& F) {
 }
 }  // namespace
 
-int update_rotations(const Model& m, const double* u, double* R) {
+int update_rotations(const Model& m, const double* u, double* R) { return update_rotations(m, u, R, 0, m.nrot); }
+
+int update_rotations(const Model& m, const double* u, double* R, int r_begin, int r_end) {
   if (m.material.model == MaterialModel::Linear) {
-    for (int r = 0; r < m.nrot; ++r) Eigen::Map<Mat3>(R + 9 * r).setIdentity();
+    for (int r = r_begin; r < r_end; ++r) Eigen::Map<Mat3>(R + 9 * r).setIdentity();
     return 0;
   }
   int fallbacks = 0;
-  for (int r = 0; r < m.nrot; ++r) {
+  for (int r = r_begin; r < r_end; ++r) {
     const Mat3 F = deformation_gradient(m, m.rot_elem[r], u, &m.rot_grad[m.rot_grad_ptr[r]]);
     Mat3 Rr = Eigen::Map<const Mat3>(R + 9 * r);
     if (extract_rotation(F, Rr) < 0) ++fallbacks;

@@ -20,6 +20,8 @@ namespace incise {
 // Linear material: identity. Returns the number of SVD fallbacks (inversions
 // or extreme deformations) so callers can report them.
 int update_rotations(const Model& model, const double* u /* (ndof) */, double* R);
+// The same for slots [r_begin, r_end) only (one worker's share).
+int update_rotations(const Model& model, const double* u, double* R, int r_begin, int r_end);
 
 // f_int (ndof) = internal elastic force at u with rotations R; K (nnz) = the
 // corotated tangent in the pattern (skipped when K is null). Both are

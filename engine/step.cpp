@@ -154,7 +154,11 @@ void step(const Model& m, State& s) {
     // before one-iteration stepping diverges; on smooth frames it stays below.
     std::copy(s.R.begin(), s.R.end(), s.R_check.begin());
     for (int d = 0; d < n; ++d) x[d] = s.u[d] + s.delta[d];
-    update_rotations(m, x, s.R_check.data());
+    s.work.pool->run([&](int tid) {  // the slots split over the assembly workers
+      int b, e;
+      ThreadPool::split(m.nrot, s.work.pool->size(), tid, b, e);
+      update_rotations(m, x, s.R_check.data(), b, e);
+    });
     const double cos_tol = std::cos(m.rotation_tolerance);
     bool moved = false;
     for (int r = 0; r < m.nrot && !moved; ++r) {
