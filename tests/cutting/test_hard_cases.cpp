@@ -15,14 +15,7 @@
 namespace incise {
 namespace {
 
-Region box(Vec3 lo, Vec3 hi) {
-  Region r;
-  r.kind = Region::Kind::Box;
-  r.lo = lo;
-  r.hi = hi;
-  r.json_path = "fixed[0]";
-  return r;
-}
+using test::box;
 
 // Condition number of the Jacobi-scaled system matrix D^-1/2 A D^-1/2 (dense).
 double scaled_condition(const Model& m, const std::vector<double>& A) {
@@ -91,13 +84,7 @@ TEST(HardCases, ProgressiveCutWithTheBladeTipInsideAnElement) {
   // A blade edge along y sweeping down (-z) through x = 2.3 of the beam.
   Scene s = test::block_scene(2);
   s.fixed.push_back(box({-1, -1, -1}, {0, 2, 2}));
-  CutSpec blade;
-  blade.type = CutSpec::Type::Swept;
-  blade.edge_start = {Vec3{2.3, -0.5, 1.2}, Vec3{2.3, 1.5, 1.2}};
-  blade.edge_end = {Vec3{2.3, -0.5, -0.2}, Vec3{2.3, 1.5, -0.2}};
-  blade.duration = 1.0;
-  blade.json_path = "cuts[0]";
-  s.cuts = {blade};
+  s.cuts = {test::swept_blade({Vec3{2.3, -0.5, 1.2}, Vec3{2.3, 1.5, 1.2}}, {Vec3{2.3, -0.5, -0.2}, Vec3{2.3, 1.5, -0.2}})};
   auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
   // At 0.5 s the tip is at z = 0.5, exactly on a node layer; at 0.6 s at
   // z = 0.36, inside the lower element layer: those elements are the front.

@@ -1,5 +1,6 @@
 #pragma once
 // Helpers for the cutting tests: a block scene, a cut model, steps.
+#include <array>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -31,6 +32,26 @@ inline CutSpec plane_cut(Vec3 p, Vec3 n, const std::string& name = "cuts[0]") {
   const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
   c.normal = {n[0] / l, n[1] / l, n[2] / l};
   c.json_path = name;
+  return c;
+}
+
+inline Region box(Vec3 lo, Vec3 hi, const std::string& name = "fixed[0]") {
+  Region r;
+  r.kind = Region::Kind::Box;
+  r.lo = lo;
+  r.hi = hi;
+  r.json_path = name;
+  return r;
+}
+
+// A blade edge moving from `start` to `end` (two points each) over `duration` s.
+inline CutSpec swept_blade(std::array<Vec3, 2> start, std::array<Vec3, 2> end, double duration = 1.0) {
+  CutSpec c;
+  c.type = CutSpec::Type::Swept;
+  c.edge_start = start;
+  c.edge_end = end;
+  c.duration = duration;
+  c.json_path = "cuts[0]";
   return c;
 }
 

@@ -16,12 +16,7 @@ namespace {
 std::unique_ptr<Simulation> cantilever(int order, std::vector<CutSpec> cuts, MassKind mass = MassKind::Lumped) {
   Scene s = test::block_scene(order);
   s.mass = mass;
-  Region r;
-  r.kind = Region::Kind::Box;
-  r.lo = {-1, -1, -1};
-  r.hi = {0, 2, 2};
-  r.json_path = "fixed[0]";
-  s.fixed.push_back(r);
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
   s.cuts = std::move(cuts);
   return test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
 }
@@ -188,12 +183,7 @@ TEST(Xfem, FaceAlignedSlitEqualsANodeDuplicatedMesh) {
       Scene s = test::block_scene(order);
       s.material.model = mm;
       s.mass = MassKind::Consistent;
-      Region r;
-      r.kind = Region::Kind::Box;
-      r.lo = {-1, -1, -1};
-      r.hi = {0, 2, 2};
-      r.json_path = "fixed[0]";
-      s.fixed.push_back(r);
+      s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
       const Mesh beam = make_beam(4, 1, 1, 8, 2, 2, 1);
       // X-FEM: slit polygon x = 2, z >= 0.5
       CutSpec slit;
@@ -319,13 +309,8 @@ TEST(Xfem, NonConvexPolygonIsRefusedWithItsPath) {
 TEST(Xfem, ObliqueBladeRebuildsOnlyWhenItCrossesAnElement) {
   // An oblique, planar sweep: the layout must stay bit-identical while the
   // blade advances inside elements, so most frames rebuild nothing.
-  CutSpec blade;
-  blade.type = CutSpec::Type::Swept;
-  blade.edge_start = {Vec3{2.1, -0.5, 1.3}, Vec3{2.4, 1.5, 1.3}};
-  blade.edge_end = {Vec3{2.3, -0.5, -0.3}, Vec3{2.6, 1.5, -0.3}};
-  blade.duration = 1.0;
-  blade.json_path = "cuts[0]";
-  auto sim = cantilever(1, {blade});
+  auto sim = cantilever(1, {test::swept_blade({Vec3{2.1, -0.5, 1.3}, Vec3{2.4, 1.5, 1.3}},
+                                              {Vec3{2.3, -0.5, -0.3}, Vec3{2.6, 1.5, -0.3}})});
   int frames = 0, rebuilds = 0, bodies = 0;
   for (int k = 0; k <= 60; ++k, ++frames) {
     const CutUpdate up = update_cuts(*sim, k / 60.0, k / 60.0);
