@@ -47,7 +47,7 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
     up.ms = clock.ms();
     return up;
   }
-  Model next = build_model(sim.mesh, sim.scene, &layout);
+  Model next = build_model(sim.mesh, sim.scene, &layout, &sim.model);
   Kinematics k = transfer_kinematics(sim.model, {sim.state.u, sim.state.v, sim.state.a}, next);
   const double time = sim.state.time;
   const int frame = sim.state.frame, refactorizations = sim.state.refactorizations;

@@ -72,11 +72,15 @@ struct Model {
   bool has_cuts() const { return !cuts.elem_piece_ptr.empty(); }
 
   // Mass and loads
+  std::vector<double> elem_mass;   // (nelem, npe, npe) rho int N_a N_b of each whole element: kept so a
+                                   // cut rebuild integrates only the split elements
   std::vector<double> mass_lumped; // (ndof) lumped nodal masses (HRZ for tet10); the mass when mass_csc is empty
   std::vector<double> mass_csc;    // (nnz) the mass matrix in the pattern when not diagonal
                                    // (consistent, or lumped with enrichment)
   std::vector<double> f_gravity;   // (ndof) M g: exact free fall for either mass
-  std::vector<double> K0_csc;      // (nnz) rest stiffness (linear model, and R = I)
+  std::vector<double> K0_csc;      // (nnz) rest stiffness (R = I): filled for the linear model, the warped
+                                   // policies and every model built without a base; a cut rebuild of
+                                   // another corotated model leaves it empty (rest_stiffness() makes it)
 
   // Constraints (book Algorithm 1: projection keeps the pattern and SPD)
   std::vector<int> fixed_dofs;     // sorted, unique; constrained to 0
@@ -98,7 +102,15 @@ struct Model {
 // material, mass, constraints and loads. order 2 raises a tet4 mesh. With a
 // cut layout (from cutting/, computed on the uncut model of the same mesh and
 // scene) cut elements are integrated per piece with enriched DOF nodes.
-Model build_model(const Mesh& mesh, const Scene& scene, const CutLayout* cuts = nullptr);
+// With `base` (a model of the same mesh and scene, e.g. the one before a cut)
+// the tet10 mesh, boundary faces and per-element masses are copied from it, so
+// a cut rebuild integrates only what the cut changed (docs/numerics.md).
+Model build_model(const Mesh& mesh, const Scene& scene, const CutLayout* cuts = nullptr, const Model* base = nullptr);
+
+// The rest stiffness K0 (R = I) in the model's pattern, (nnz).
+std::vector<double> rest_stiffness(const Model& model);
+// Whether stepping uses K0: the linear model and the warped policies.
+bool model_needs_rest_stiffness(const Model& model);
 
 // Nodes selected by a region (tolerance 1e-9 of the mesh's bounding-box
 // diagonal). Throws naming the region's JSON path when it selects no node or a

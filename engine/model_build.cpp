@@ -193,53 +193,81 @@ void build_boundary_faces(Model& m) {
 }
 
 void build_pattern(Model& m) {
-  // Upper triangle at DOF-node level: rows(c) = DOF nodes r <= c sharing an element.
-  std::vector<std::vector<int>> rows(m.ndofnode);
+  // Upper triangle at DOF-node level: rows(c) = DOF nodes r <= c sharing an
+  // element, as a node-level CSR built by counting (a cut rebuild redoes this,
+  // so it avoids per-node allocations).
+  // Every DOF node keeps its diagonal block, also a node no element uses
+  // (build_constraints fixes those).
+  std::vector<int> cnt(m.ndofnode + 1, 1);
+  cnt[0] = 0;
+  for (int e = 0; e < m.nelem; ++e) {
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    for (int a = 0; a < n; ++a)
+      for (int c = 0; c < n; ++c)
+        if (m.elem_dof_node[b + a] <= m.elem_dof_node[b + c]) ++cnt[m.elem_dof_node[b + c] + 1];
+  }
+  for (int c = 0; c < m.ndofnode; ++c) cnt[c + 1] += cnt[c];
+  std::vector<int> rows(cnt.back()), fill(cnt.begin(), cnt.end() - 1);
+  for (int c = 0; c < m.ndofnode; ++c) rows[fill[c]++] = c;
   for (int e = 0; e < m.nelem; ++e) {
     const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
     for (int a = 0; a < n; ++a)
       for (int c = 0; c < n; ++c) {
         const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
-        if (na <= nc) rows[nc].push_back(na);
+        if (na <= nc) rows[fill[nc]++] = na;
       }
   }
-  m.Ap.assign(1, 0);
-  m.Ai.clear();
+  std::vector<int> rp(m.ndofnode + 1, 0);  // unique sorted rows of node c: rows[rp[c] .. rp[c+1])
+  int w = 0;
   for (int c = 0; c < m.ndofnode; ++c) {
-    auto& r = rows[c];
-    std::sort(r.begin(), r.end());
-    r.erase(std::unique(r.begin(), r.end()), r.end());
-    for (int j = 0; j < 3; ++j) {
-      for (int rn : r) {
-        const int last = rn < c ? 2 : j;
-        for (int i = 0; i <= last; ++i) m.Ai.push_back(3 * rn + i);
-      }
-      m.Ap.push_back(static_cast<int>(m.Ai.size()));
-    }
+    const auto first = rows.begin() + cnt[c], last = rows.begin() + cnt[c + 1];
+    std::sort(first, last);
+    const int k = static_cast<int>(std::unique(first, last) - first);
+    std::copy(first, first + k, rows.begin() + w);  // w <= cnt[c]: moves left only
+    rp[c] = w;
+    w += k;
+    rp[c + 1] = w;
   }
-  auto find = [&](int r, int c) {
-    const auto first = m.Ai.begin() + m.Ap[c], last = m.Ai.begin() + m.Ap[c + 1];
-    const auto it = std::lower_bound(first, last, r);
-    return static_cast<int>(it - m.Ai.begin());
-  };
+  // Column 3c + j holds, for each row node r of c in order, rows 3r..3r+2
+  // (r < c) or 3c..3c+j (r = c, the last one).
+  m.Ap.assign(m.ndof() + 1, 0);
+  for (int c = 0; c < m.ndofnode; ++c) {
+    const int nr = rp[c + 1] - rp[c];
+    for (int j = 0; j < 3; ++j) m.Ap[3 * c + j + 1] = m.Ap[3 * c + j] + 3 * (nr - 1) + j + 1;
+  }
+  m.Ai.resize(m.Ap.back());
+  for (int c = 0; c < m.ndofnode; ++c)
+    for (int j = 0; j < 3; ++j) {
+      int k = m.Ap[3 * c + j];
+      for (int t = rp[c]; t < rp[c + 1]; ++t) {
+        const int last = rows[t] < c ? 2 : j;
+        for (int i = 0; i <= last; ++i) m.Ai[k++] = 3 * rows[t] + i;
+      }
+    }
   m.diag.resize(m.ndof());
-  for (int d = 0; d < m.ndof(); ++d) m.diag[d] = find(d, d);
+  for (int d = 0; d < m.ndof(); ++d) m.diag[d] = m.Ap[d + 1] - 1;  // the diagonal ends its column
+  // Scatter: entry (3r + i, 3c + j), r <= c, sits at Ap[3c + j] + 3 t + i with
+  // t the index of r among c's row nodes: one search per node pair.
   m.elem_scatter_ptr.assign(1, 0);
   m.elem_scatter.clear();
   for (int e = 0; e < m.nelem; ++e) {
     const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
     for (int a = 0; a < n; ++a)
       for (int c = a; c < n; ++c) {
-        const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+        int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+        const bool swapped = na > nc;
+        if (swapped) std::swap(na, nc);
+        const int t = static_cast<int>(std::lower_bound(rows.begin() + rp[nc], rows.begin() + rp[nc + 1], na) -
+                                       (rows.begin() + rp[nc]));
         for (int i = 0; i < 3; ++i)
           for (int j = 0; j < 3; ++j) {
-            int R = 3 * na + i, C = 3 * nc + j;
             if (a == c && i > j) {
               m.elem_scatter.push_back(-1);  // the symmetric twin is added once
               continue;
             }
-            if (R > C) std::swap(R, C);
-            m.elem_scatter.push_back(find(R, C));
+            // the local block (a, c) entry (i, j) is the global (3 na + i, 3 nc + j), transposed when swapped
+            const int R = swapped ? j : i, C = swapped ? i : j;
+            m.elem_scatter.push_back(m.Ap[3 * nc + C] + 3 * t + R);
           }
       }
     m.elem_scatter_ptr.push_back(static_cast<int>(m.elem_scatter.size()));
@@ -254,7 +282,7 @@ void build_pattern(Model& m) {
 // M(u_a, q) = M(q, q) = m_a^P: the diagonal is the preprint's X-FEM lumping
 // (eq. 81-82 with Psi = chi_region), the coupling makes a separated piece fall
 // freely at exactly g. Without enrichment the lumped mass is diagonal.
-void build_mass(Model& m, const Scene& scene) {
+void build_mass(Model& m, const Scene& scene, const Model* base) {
   const Mesh& mesh = m.mesh;
   const int npe = mesh.npe();
   const double rho = scene.material.density;
@@ -265,6 +293,9 @@ void build_mass(Model& m, const Scene& scene) {
   m.mass_lumped.assign(m.ndof(), 0.0);
   if (sparse) m.mass_csc.assign(m.nnz(), 0.0);
   std::vector<double> Xe(3 * npe), N(npe), grad(3 * npe), Me(npe * npe), Mp(npe * npe), hrz(npe);
+  const bool reuse = base && base->elem_mass.size() == static_cast<size_t>(m.nelem) * npe * npe;
+  if (reuse) m.elem_mass = base->elem_mass;
+  else m.elem_mass.assign(static_cast<size_t>(m.nelem) * npe * npe, 0.0);
   for (int e = 0; e < m.nelem; ++e) {
     const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
     for (int a = 0; a < npe; ++a)
@@ -288,7 +319,16 @@ void build_mass(Model& m, const Scene& scene) {
       }
       return vol;
     };
-    const double vol = integrate(nullptr, 1, Me);
+    double* Mcache = &m.elem_mass[static_cast<size_t>(e) * npe * npe];
+    if (!reuse) {
+      integrate(nullptr, 1, Me);
+      std::copy(Me.begin(), Me.end(), Mcache);
+    } else {
+      std::copy(Mcache, Mcache + npe * npe, Me.begin());
+    }
+    double vol = 0.0;  // rho V = sum of the entries (partition of unity)
+    for (double v : Me) vol += v;
+    vol /= rho;
     double trace = 0.0;
     for (int a = 0; a < npe; ++a) trace += Me[a * npe + a];
     for (int a = 0; a < npe; ++a) hrz[a] = rho * vol * Me[a * npe + a] / trace;
@@ -384,6 +424,14 @@ void build_constraints(Model& m, const Scene& scene) {
     if (is_prescribed[d]) m.prescribed.push_back({d, value[d], ramp[d]});
     else if (m.constrained[d]) m.fixed_dofs.push_back(d);
   }
+  // A node no element uses has no mass or stiffness: it is held fixed.
+  std::vector<char> used(m.ndofnode, 0);
+  for (int node : m.elem_dof_node) used[node] = 1;
+  for (int node = 0; node < m.ndofnode; ++node)
+    if (!used[node])
+      for (int i = 0; i < 3; ++i)
+        if (!m.constrained[3 * node + i]) m.constrained[3 * node + i] = 1, m.fixed_dofs.push_back(3 * node + i);
+  std::sort(m.fixed_dofs.begin(), m.fixed_dofs.end());
   m.constrained_entries.clear();
   for (int c = 0; c < m.ndof(); ++c)
     for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
@@ -435,13 +483,17 @@ std::vector<int> select_nodes(const Mesh& mesh, const Region& region, const std:
   return out;
 }
 
-Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts) {
-  check_mesh(mesh_in);
-  if (scene.order == 1 && mesh_in.order == 2)
-    throw Error(scene.path + ": mesh.order is 1 but " + mesh_in.source +
-                " holds tet10 elements; use order 2 or a tet4 mesh");
+Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts, const Model* base) {
   Model m;
-  m.mesh = scene.order == 2 ? raise_to_tet10(mesh_in) : mesh_in;
+  if (base) {
+    m.mesh = base->mesh;  // checked and raised already
+  } else {
+    check_mesh(mesh_in);
+    if (scene.order == 1 && mesh_in.order == 2)
+      throw Error(scene.path + ": mesh.order is 1 but " + mesh_in.source +
+                  " holds tet10 elements; use order 2 or a tet4 mesh");
+    m.mesh = scene.order == 2 ? raise_to_tet10(mesh_in) : mesh_in;
+  }
   m.material = scene.material;
   const double E = scene.material.young, nu = scene.material.poisson;
   m.mu = E / (2.0 * (1.0 + nu));
@@ -460,18 +512,25 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
     m.X.resize(3 * static_cast<size_t>(m.ndofnode), 0.0);  // enriched DOF nodes: X = 0 (preprint eq. 64)
   }
   build_elements(m, scene);
-  build_boundary_faces(m);
+  if (base) m.tet_face_boundary = base->tet_face_boundary;
+  else build_boundary_faces(m);
   build_pattern(m);
-  build_mass(m, scene);
-  m.K0_csc.assign(m.nnz(), 0.0);
-  {
-    std::vector<double> u(m.ndof(), 0.0), f(m.ndof()), R(9 * m.nrot);
-    for (int r = 0; r < m.nrot; ++r)
-      for (int k = 0; k < 9; ++k) R[9 * r + k] = (k % 4 == 0) ? 1.0 : 0.0;
-    assemble_internal(m, u.data(), R.data(), f.data(), m.K0_csc.data());
-  }
+  build_mass(m, scene, base);
+  if (!base || model_needs_rest_stiffness(m)) m.K0_csc = rest_stiffness(m);
   build_constraints(m, scene);
   return m;
+}
+
+std::vector<double> rest_stiffness(const Model& m) {
+  std::vector<double> K0(m.nnz(), 0.0), u(m.ndof(), 0.0), f(m.ndof()), R(9 * static_cast<size_t>(m.nrot), 0.0);
+  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  assemble_internal(m, u.data(), R.data(), f.data(), K0.data());
+  return K0;
+}
+
+bool model_needs_rest_stiffness(const Model& m) {
+  return m.material.model == MaterialModel::Linear || m.solver.policy == SolverPolicy::Warped ||
+         m.solver.policy == SolverPolicy::WarpedCG;
 }
 
 }  // namespace incise

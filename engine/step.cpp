@@ -213,6 +213,29 @@ void consistent_acceleration(const Model& m, State& s) {
     for (int d = 0; d < n; ++d) s.a[d] = r[d] / diag[d];
     return;
   }
+  if (m.mass_kind == MassKind::Lumped) {
+    // Lumped with enrichment: each enriched DOF q couples only to its own node's
+    // standard DOF u with M_uq = M_qq = m_q (model_build.cpp, build_mass), so
+    //   m_u a_u + sum_q m_q a_q = r_u,  m_q (a_u + a_q) = r_q
+    // gives a_u = (r_u - sum_q r_q) / (m_u - sum_q m_q) (the home piece's mass)
+    // and a_q = r_q / m_q - a_u: a direct solve.
+    const int nstd = 3 * m.nnode;
+    std::vector<double> rsum(r.begin(), r.begin() + nstd), msum(diag.begin(), diag.begin() + nstd);
+    for (int c = nstd; c < n; ++c)
+      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+        if (m.Ai[k] < nstd && m.mass_csc[k] != 0.0) {
+          rsum[m.Ai[k]] -= r[c];
+          msum[m.Ai[k]] -= m.mass_csc[k];
+        }
+    for (int d = 0; d < nstd; ++d) s.a[d] = m.constrained[d] ? 0.0 : rsum[d] / msum[d];
+    for (int c = nstd; c < n; ++c) {
+      s.a[c] = 0.0;
+      if (m.constrained[c]) continue;
+      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+        if (m.Ai[k] < nstd && m.mass_csc[k] != 0.0) s.a[c] = r[c] / diag[c] - s.a[m.Ai[k]];
+    }
+    return;
+  }
   // PCG on the free DOFs (constrained rows of r and of every iterate stay 0).
   double rz = 0, r0 = 0;
   for (int d = 0; d < n; ++d) {
