@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "engine/linear_solve.h"
 #include "engine/probe.h"
 #include "engine/step.h"
 #include "engine/timing.h"
@@ -51,8 +52,15 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   Kinematics k = transfer_kinematics(sim.model, {sim.state.u, sim.state.v, sim.state.a}, next);
   const double time = sim.state.time;
   const int frame = sim.state.frame, refactorizations = sim.state.refactorizations;
+  const bool carry = solver_carries_over_cuts(next, sim.state);
+  const std::vector<int> map = carry ? dofnode_map(sim.model, next) : std::vector<int>{};
   sim.model = std::move(next);
-  init_state(sim.model, sim.state, /*consistent_a0=*/false);  // new pattern: symbolic analysis
+  if (carry) {  // the lagged factors stay; the new pattern is analyzed off this frame
+    size_state(sim.model, sim.state);
+    prepare_solver(sim.model, sim.state, &map);
+  } else {
+    init_state(sim.model, sim.state, /*consistent_a0=*/false);  // new pattern: symbolic analysis
+  }
   sim.state.u.swap(k.u);
   sim.state.v.swap(k.v);
   sim.state.a.swap(k.a);
@@ -66,6 +74,28 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
 }
 
 }  // namespace
+
+std::vector<int> dofnode_map(const Model& from, const Model& to) {
+  std::vector<int> map(to.ndofnode, -1);
+  for (int i = 0; i < to.nnode; ++i) map[i] = i;
+  if (!to.has_cuts()) return map;
+  const CutLayout& L = to.cuts;
+  const int npe = to.mesh.npe();
+  for (int e = 0; e < to.nelem; ++e)
+    for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
+      const double* v = &L.subtet_rst[12 * static_cast<size_t>(L.piece_subtet_ptr[P])];
+      const double rst[3] = {0.25 * (v[0] + v[3] + v[6] + v[9]), 0.25 * (v[1] + v[4] + v[7] + v[10]),
+                             0.25 * (v[2] + v[5] + v[8] + v[11])};
+      const int Q = from.has_cuts() ? piece_containing(from, e, rst) : -1;
+      for (int a = 0; a < npe; ++a) {
+        const int q = L.piece_enr[static_cast<size_t>(P) * npe + a];
+        if (q < 0 || map[q] >= 0) continue;
+        const int oq = Q >= 0 ? from.cuts.piece_enr[static_cast<size_t>(Q) * npe + a] : -1;
+        if (oq >= 0) map[q] = oq;
+      }
+    }
+  return map;
+}
 
 Kinematics transfer_kinematics(const Model& from, const Kinematics& os, const Model& to) {
   Kinematics ns;

@@ -30,4 +30,10 @@ struct Kinematics {
 // it lies in, so the field is unchanged by the cut itself. Returns (to.ndof) arrays.
 Kinematics transfer_kinematics(const Model& from, const Kinematics& old, const Model& to);
 
+// For each DOF node of `to` (a model with more cuts, same mesh) the DOF node
+// of `from` carrying the same field: mesh nodes map to themselves, an
+// enriched DOF node to the enriched DOF node of the old piece its piece lies
+// in (-1 where that old piece was the node's home, i.e. the DOF is new).
+std::vector<int> dofnode_map(const Model& from, const Model& to);
+
 }  // namespace incise

@@ -105,7 +105,67 @@ void pcg(const Model& m, State& s, const double* A, const double* b, double* x, 
   s.timing.converged = s.timing.converged && rel <= tol;
 }
 
-CholmodSolver& lag_factor(State& s, int which) { return which == 0 ? s.solver : s.work.back; }
+CholmodSolver& slot_factor(State& s, int k) { return k == 0 ? s.solver : s.work.back; }
+
+// Synchronous factorization of the current A into slot k (analysis first when
+// the slot holds another pattern).
+void factor_now(const Model& m, State& s, int k) {
+  auto& w = s.work;
+  CholmodSolver& f = slot_factor(s, k);
+  if (w.slot_pattern[k] != w.pattern) {
+    f.analyze(m.ndof(), m.Ap, m.Ai);
+    w.slot_pattern[k] = w.pattern;
+  }
+  f.factorize(s.A.data());
+  w.slot_map[k].clear();
+  if (m.solver.warp) w.slot_Rn[k] = w.Rn;
+  ++s.refactorizations;
+}
+
+void take_job(State& s) {
+  auto& w = s.work;
+  w.wait_job();
+  w.job_running = false;
+  if (w.job_error) {
+    auto e = w.job_error;
+    w.job_error = nullptr;
+    std::rethrow_exception(e);
+  }
+  w.front = w.job_slot;
+  w.front_frame = w.job_frame;
+  w.job_slot = -1;
+  ++s.refactorizations;
+}
+
+// Starts the background factorization of the current A (and the analysis of
+// its pattern when the chosen slot has not seen it) in a slot other than the front.
+void launch_job(const Model& m, State& s) {
+  auto& w = s.work;
+  const int k = w.front == 0 ? 1 : 0;  // any slot but the front (none is running)
+  w.A_back.assign(s.A.begin(), s.A.end());
+  w.job_analyze = w.slot_pattern[k] != w.pattern;
+  if (w.job_analyze) {
+    w.job_Ap = m.Ap;
+    w.job_Ai = m.Ai;
+    w.slot_pattern[k] = w.pattern;
+  }
+  w.slot_map[k].clear();
+  if (m.solver.warp) w.slot_Rn[k] = w.Rn;
+  CholmodSolver* f = &slot_factor(s, k);
+  SolverWork* wp = &w;
+  const int n = m.ndof();
+  w.job = std::thread([f, wp, n] {
+    try {
+      if (wp->job_analyze) f->analyze(n, wp->job_Ap, wp->job_Ai);
+      f->factorize(wp->A_back.data());
+    } catch (...) {
+      wp->job_error = std::current_exception();
+    }
+  });
+  w.job_running = true;
+  w.job_slot = k;
+  w.job_frame = w.last_launch = s.frame;
+}
 
 // Lagged: make the front factor current for this frame (refresh policy).
 void lagged_refresh(const Model& m, State& s, Stopwatch& clock) {
@@ -114,47 +174,141 @@ void lagged_refresh(const Model& m, State& s, Stopwatch& clock) {
   if (!s.factor_current) {  // first frame, or the factor was invalidated
     w.wait_job();
     w.job_running = false;
+    w.job_error = nullptr;
     w.front = 0;
-    s.solver.factorize(s.A.data());
-    ++s.refactorizations;
+    factor_now(m, s, 0);
     s.factor_current = true;
     w.front_frame = w.last_launch = f;
   } else if (!m.solver.background) {
     if (f - w.front_frame >= k) {
-      lag_factor(s, w.front).factorize(s.A.data());
-      ++s.refactorizations;
-      w.front_frame = f;
+      factor_now(m, s, w.front);
+      w.front_frame = w.last_launch = f;
     }
   } else {
-    if (w.job_running && f - w.job_frame >= k) {
-      w.wait_job();  // deterministic: the factor started k frames ago is taken now
-      w.job_running = false;
-      if (w.job_error) {
-        auto e = w.job_error;
-        w.job_error = nullptr;
-        std::rethrow_exception(e);
-      }
-      w.front ^= 1;
-      w.front_frame = w.job_frame;
-      ++s.refactorizations;
-    }
-    if (!w.job_running && f - w.last_launch >= k) {
-      std::copy(s.A.begin(), s.A.end(), w.A_back.begin());
-      CholmodSolver* back = &lag_factor(s, w.front ^ 1);
-      const double* values = w.A_back.data();
-      std::exception_ptr* err = &w.job_error;
-      w.job = std::thread([back, values, err] {
-        try {
-          back->factorize(values);
-        } catch (...) {
-          *err = std::current_exception();
-        }
-      });
-      w.job_running = true;
-      w.job_frame = w.last_launch = f;
-    }
+    // deterministic: a job started k frames ago is taken now (waiting if it
+    // is late), so replays give the same states
+    if (w.job_running && f - w.job_frame >= k) take_job(s);
+    if (!w.job_running && f - w.last_launch >= k) launch_job(m, s);
   }
   s.timing.ms[kStageFactorization] += clock.lap();
+}
+
+// warp: Q_n = Rn_n * (the front slot's Rn of the same node)^T for every DOF
+// node whose three DOFs the slot knows as one node; identity elsewhere.
+void lagged_warp_rotations(const Model& m, State& s) {
+  auto& w = s.work;
+  const int k = w.front;
+  const std::vector<int>& map = w.slot_map[k];
+  const std::vector<double>& Rl = w.slot_Rn[k];
+  w.Q.assign(9 * static_cast<size_t>(m.ndofnode), 0.0);
+  for (int n = 0; n < m.ndofnode; ++n) {
+    Eigen::Map<Mat3> Q(&w.Q[9 * n]);
+    int fn = n;
+    if (!map.empty()) {
+      const int d = map[3 * n];
+      fn = (d >= 0 && d % 3 == 0 && map[3 * n + 1] == d + 1 && map[3 * n + 2] == d + 2) ? d / 3 : -1;
+    }
+    if (fn < 0 || 9 * static_cast<size_t>(fn) >= Rl.size()) {
+      Q.setIdentity();
+      continue;
+    }
+    Q = Eigen::Map<const Mat3>(&w.Rn[9 * n]) * Eigen::Map<const Mat3>(&Rl[9 * fn]).transpose();
+  }
+}
+
+// z = P r with the lagged front factor; through its DOF map after cuts, Jacobi
+// (the diagonal of the current A) on the DOFs it does not know. With warp,
+// P = Q F^-1 Q^T: if the body turned rigidly by Q since the factor's frame,
+// A = Q A_lag Q^T (lumped, isotropic mass) and P is exact.
+void lagged_apply(const Model& m, State& s, const double* A, const double* r, double* z) {
+  auto& w = s.work;
+  const int k = w.front;
+  CholmodSolver& f = slot_factor(s, k);
+  const std::vector<int>& map = w.slot_map[k];
+  const bool warp = m.solver.warp;
+  const double* rin = r;
+  if (warp) {  // r <- Q^T r (into the factor's frame), in z as scratch
+    for (int n = 0; n < m.ndofnode; ++n)
+      Eigen::Map<Eigen::Vector3d>(z + 3 * n) =
+          Eigen::Map<const Mat3>(&w.Q[9 * n]).transpose() * Eigen::Map<const Eigen::Vector3d>(r + 3 * n);
+    rin = z;
+  }
+  if (map.empty()) {
+    substitute(s, f, rin, z);
+  } else {
+    w.t_slot.assign(f.size(), 0.0);  // capacity kept: no allocation after the first use
+    for (int d = 0; d < m.ndof(); ++d)
+      if (map[d] >= 0) w.t_slot[map[d]] = rin[d];
+    substitute(s, f, w.t_slot.data(), w.t_slot.data());
+    for (int d = 0; d < m.ndof(); ++d) z[d] = map[d] >= 0 ? w.t_slot[map[d]] : 0.0;
+  }
+  if (warp)
+    for (int n = 0; n < m.ndofnode; ++n) {
+      const Eigen::Vector3d t = Eigen::Map<const Eigen::Vector3d>(z + 3 * n);
+      Eigen::Map<Eigen::Vector3d>(z + 3 * n) = Eigen::Map<const Mat3>(&w.Q[9 * n]) * t;
+    }
+  if (!map.empty() && !w.patch_dof.empty()) {  // + R_p^T A_p^-1 R_p r
+    const int np = static_cast<int>(w.patch_dof.size());
+    for (int j = 0; j < np; ++j) w.patch_r[j] = r[w.patch_dof[j]];
+    Stopwatch clock;
+    w.patch.solve(w.patch_r.data(), w.patch_r.data());
+    s.timing.solve_kernel_ms += clock.ms();
+    for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += w.patch_r[j];
+  } else if (!map.empty()) {
+    for (int d = 0; d < m.ndof(); ++d)
+      if (map[d] < 0) z[d] = r[d] / A[m.diag[d]];
+  }
+}
+
+// The patch of the mapped front factor (see SolverWork::patch): built when
+// the front slot or the pattern changed, refactored with the current A.
+void lagged_patch(const Model& m, State& s, const double* A) {
+  auto& w = s.work;
+  const std::vector<int>& map = w.slot_map[w.front];
+  if (map.empty()) {
+    w.patch_dof.clear();
+    w.patch_key = -1;
+    return;
+  }
+  const long long key = (static_cast<long long>(w.pattern) * 2 + w.front) * 1000003LL + w.front_frame;
+  if (key != w.patch_key) {
+    w.patch_key = key;
+    std::vector<char> node_in(m.ndofnode, 0), unknown(m.ndofnode, 0);
+    for (int d = 0; d < m.ndof(); ++d)
+      if (map[d] < 0) unknown[d / 3] = 1;
+    for (int e = 0; e < m.nelem; ++e) {
+      bool touch = false;
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = unknown[m.elem_dof_node[k]];
+      if (touch)
+        for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) node_in[m.elem_dof_node[k]] = 1;
+    }
+    w.patch_dof.clear();
+    std::vector<int> g2l(m.ndof(), -1);
+    for (int n = 0; n < m.ndofnode; ++n)
+      if (node_in[n] || unknown[n])
+        for (int c = 0; c < 3; ++c) {
+          g2l[3 * n + c] = static_cast<int>(w.patch_dof.size());
+          w.patch_dof.push_back(3 * n + c);
+        }
+    const int np = static_cast<int>(w.patch_dof.size());
+    std::vector<int> Pp(1, 0), Pi;
+    w.patch_src.clear();
+    for (int j = 0; j < np; ++j) {
+      const int C = w.patch_dof[j];
+      for (int k = m.Ap[C]; k < m.Ap[C + 1]; ++k)
+        if (g2l[m.Ai[k]] >= 0) {
+          Pi.push_back(g2l[m.Ai[k]]);
+          w.patch_src.push_back(k);
+        }
+      Pp.push_back(static_cast<int>(Pi.size()));
+    }
+    w.patch.configure(FactorMethod::Simplicial, OrderingMethod::Amd);  // no BLAS: the background job owns it
+    w.patch.analyze(np, Pp, Pi);
+    w.patch_A.assign(Pi.size(), 0.0);
+    w.patch_r.assign(np, 0.0);
+  }
+  for (size_t t = 0; t < w.patch_src.size(); ++t) w.patch_A[t] = A[w.patch_src[t]];
+  w.patch.factorize(w.patch_A.data());
 }
 
 void rest_factor(const Model& m, State& s, Stopwatch& clock) {
@@ -170,24 +324,61 @@ void rest_factor(const Model& m, State& s, Stopwatch& clock) {
 
 bool policy_needs_tangent(const Model& m) { return m.solver.policy != SolverPolicy::Warped; }
 
-void prepare_solver(const Model& m, State& s) {
+bool solver_carries_over_cuts(const Model& m, const State& s) {
+  return m.solver.policy == SolverPolicy::Lagged && s.factor_current;
+}
+
+void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_map) {
   auto& w = s.work;
-  w.wait_job();
-  w.job_running = false;
-  w.job_error = nullptr;
   const int threads = std::max(1, m.solver.threads);
   if (!w.pool || w.pool->size() != threads) w.pool = std::make_unique<ThreadPool>(threads);
   w.plan = make_assembly_plan(m, threads);
   const int n = m.ndof();
-  s.solver.configure(m.solver.factor, m.solver.ordering);
-  s.solver.analyze(n, m.Ap, m.Ai);
-  if (m.solver.policy == SolverPolicy::Lagged && m.solver.background) {
+  if (dofnode_map && solver_carries_over_cuts(m, s)) {
+    // A cut: keep the factors; each maps the new DOFs onto its own (composed
+    // over successive cuts). A DOF node the old model did not have (-1), or a
+    // second new one on the same old one, is left to Jacobi.
+    for (int k = 0; k < 2; ++k) {
+      if (k != w.front && k != w.job_slot) {
+        w.slot_map[k].clear();
+        w.slot_pattern[k] = -1;  // free: holds nothing usable
+        continue;
+      }
+      const std::vector<int> old = std::move(w.slot_map[k]);
+      std::vector<int>& nm = w.slot_map[k];
+      nm.assign(n, -1);
+      std::vector<char> taken(slot_factor(s, k).size(), 0);
+      for (int node = 0; node < m.ndofnode; ++node) {
+        const int o = (*dofnode_map)[node];
+        if (o < 0) continue;
+        for (int c = 0; c < 3; ++c) {
+          const int od = 3 * o + c;
+          const int fd = old.empty() ? od : (od < static_cast<int>(old.size()) ? old[od] : -1);
+          if (fd < 0 || fd >= static_cast<int>(taken.size()) || taken[fd]) continue;
+          taken[fd] = 1;
+          nm[3 * node + c] = fd;
+        }
+      }
+    }
+    ++w.pattern;
+    w.last_launch = std::min(w.last_launch, s.frame - 1000000);  // the next frame starts a job on the new pattern
+  } else {
+    w.wait_job();
+    w.job_running = false;
+    w.job_error = nullptr;
+    w.job_slot = -1;
+    s.solver.configure(m.solver.factor, m.solver.ordering);
     w.back.configure(m.solver.factor, m.solver.ordering);
-    w.back.analyze(n, m.Ap, m.Ai);
-    w.A_back.assign(m.nnz(), 0.0);
+    ++w.pattern;
+    s.solver.analyze(n, m.Ap, m.Ai);
+    for (int k = 0; k < 2; ++k) {
+      w.slot_pattern[k] = k == 0 ? w.pattern : -1;
+      w.slot_map[k].clear();
+    }
+    w.front = 0;
+    w.front_frame = w.last_launch = w.job_frame = -1;
+    s.factor_current = false;
   }
-  w.front = 0;
-  w.front_frame = w.last_launch = w.job_frame = -1;
   for (auto* v : {&w.r, &w.z, &w.p, &w.q, &w.t}) v->assign(n, 0.0);
   // Node -> rotation slot adjacency for the warped policies.
   w.node_rot_ptr.assign(m.ndofnode + 1, 0);
@@ -203,7 +394,8 @@ void prepare_solver(const Model& m, State& s) {
     const int c = m.constrained[3 * node] + m.constrained[3 * node + 1] + m.constrained[3 * node + 2];
     w.node_identity[node] = c > 0 && c < 3;
   }
-  if (m.solver.policy == SolverPolicy::Warped || m.solver.policy == SolverPolicy::WarpedCG) {
+  if (m.solver.policy == SolverPolicy::Warped || m.solver.policy == SolverPolicy::WarpedCG ||
+      (m.solver.policy == SolverPolicy::Lagged && m.solver.warp)) {
     const auto& ep = w.plan.elem_rot_ptr;
     std::vector<int> count(m.ndofnode + 1, 0);
     for (int e = 0; e < m.nelem; ++e)
@@ -224,7 +416,6 @@ void prepare_solver(const Model& m, State& s) {
       }
     }
   }
-  s.factor_current = false;
 }
 
 void update_node_rotations(const Model& m, State& s) {
@@ -265,11 +456,13 @@ void solve_system(const Model& m, State& s, const double* K, int iteration, Stop
       break;
     case SolverPolicy::Lagged:
       form_matrix(m, K, s.A.data());
+      if (m.solver.warp) update_node_rotations(m, s);
       s.timing.ms[kStageAssembly] += clock.lap();
       if (iteration == 0 || !s.factor_current) lagged_refresh(m, s, clock);
-      pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) {
-        substitute(s, lag_factor(s, s.work.front), r, z);
-      });
+      if (m.solver.warp) lagged_warp_rotations(m, s);
+      if (iteration == 0 || s.work.patch_key < 0) lagged_patch(m, s, s.A.data());
+      s.timing.ms[kStageFactorization] += clock.lap();
+      pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); });
       break;
     case SolverPolicy::Warped:
       rest_factor(m, s, clock);

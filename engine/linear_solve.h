@@ -7,7 +7,9 @@
 //              frame's A: refreshed every solver.refresh_every frames, either
 //              in the step (synchronously) or, with solver.background, on a
 //              second thread whose factor is taken refresh_every frames after
-//              it was started (deterministic: replays give the same states)
+//              it was started (deterministic: replays give the same states);
+//              a cut keeps the factors (mapped onto the grown DOF set) and
+//              moves the new symbolic analysis into the next refresh
 //   warped     the factor of the REST matrix A0 = 4/dt^2 M + 2/dt D0 + K0
 //              with per-node rotations around the solve: du = Rn A0^-1 Rn^T rhs
 //              (exact when the mass is lumped and every element has the same
@@ -16,6 +18,8 @@
 //
 // Iterations, substitutions, the final CG residual and convergence go into
 // State::timing, so no policy is silent about what it did.
+#include <vector>
+
 #include "engine/model.h"
 #include "engine/state.h"
 #include "engine/timing.h"
@@ -24,8 +28,16 @@ namespace incise {
 
 // Worker pool, assembly plan, factor configuration and symbolic analysis, node
 // rotation adjacency. Called by init_state; call again after the Model changes
-// (a cut) before the next step. Invalidates the factor.
-void prepare_solver(const Model& model, State& state);
+// (a cut) before the next step. Invalidates the factor, except where
+// solver_carries_over_cuts() and the cut passes `dofnode_map` (new DOF node ->
+// old DOF node, -1 for a new one): then no analysis or factorization runs in
+// the cut frame; the lagged factors keep preconditioning through the map (Jacobi
+// on DOFs they do not know) and the next background job (or synchronous
+// refresh) analyzes and factorizes the new pattern.
+void prepare_solver(const Model& model, State& state, const std::vector<int>* dofnode_map = nullptr);
+
+// The lagged policy with a valid factor: a cut keeps it (see prepare_solver).
+bool solver_carries_over_cuts(const Model& model, const State& state);
 
 // Whether the policy needs the assembled corotated tangent K (warped does not).
 bool policy_needs_tangent(const Model& model);

@@ -18,18 +18,40 @@ struct SolverWork {
   std::unique_ptr<ThreadPool> pool;
   AssemblyPlan plan;
 
-  // lagged: the factor in State::solver ("front") holds the matrix of frame
-  // front_frame; the background job factorizes A_back of frame job_frame into
-  // `back`, swapped in when joined.
-  int front = 0;          // 0: State::solver is the front factor, 1: `back` is
-  int front_frame = -1;
-  int last_launch = -1;   // frame the last background job started (or the first factorization)
+  // lagged: two factor slots (0 = State::solver, 1 = `back`). The
+  // front slot preconditions CG; the background job factorizes a copy of an
+  // earlier frame's matrix into another slot, which becomes the front when
+  // taken. A cut does not discard them: each slot keeps a map from the
+  // current DOFs to its own (slot_map, empty = identity), DOFs it does not
+  // know get Jacobi, and the next job analyzes the new pattern off the main
+  // thread (engine/linear_solve.h).
   CholmodSolver back;
-  std::vector<double> A_back;  // (nnz)
+  int front = 0;              // slot preconditioning now
+  int front_frame = -1;       // frame whose matrix the front slot holds
+  int last_launch = -1;       // frame the last job started (or the last synchronous refresh)
+  int pattern = 0;            // epoch of the model's sparsity pattern (a carried-over cut bumps it)
+  int slot_pattern[2] = {-1, -1};      // epoch each slot was analyzed for
+  std::vector<int> slot_map[2];        // (ndof) slot DOF of each current DOF, -1 none; empty = identity
+  std::vector<double> A_back;          // (nnz of the job's pattern) the job's matrix
+  std::vector<int> job_Ap, job_Ai;     // the job's pattern when it must analyze it
+  bool job_analyze = false;
+  int job_slot = -1;
   std::thread job;
   bool job_running = false;
   int job_frame = -1;
   std::exception_ptr job_error;
+  std::vector<double> t_slot;          // gather buffer of a mapped slot
+  std::vector<double> slot_Rn[2];      // (slot's DOF nodes, 9) node rotations when its matrix was taken (warp)
+  std::vector<double> Q;               // (ndofnode, 9) warp: Rn * slot_Rn^T of the front slot, this solve
+  // lagged after a cut, until a factor of the new pattern is taken: the DOFs
+  // the front factor does not know, with every DOF node of the elements that
+  // touch them, form a patch solved exactly (additive Schwarz, BLAS-free
+  // simplicial CHOLMOD, refactored each frame).
+  CholmodSolver patch;
+  std::vector<int> patch_dof;          // (np) global DOFs of the patch, sorted
+  std::vector<int> patch_src;          // (patch nnz) position in the global A of each patch entry
+  std::vector<double> patch_A, patch_r;
+  long long patch_key = -1;            // (pattern, front slot, front frame) it was built for
 
   // warped: DOF node -> rotation slots (weights: the slot's share of element volume).
   std::vector<int> node_rot_ptr, node_rot;  // (ndofnode + 1), slots

@@ -35,4 +35,9 @@ struct State {
 // free DOFs; otherwise a = 0 (the caller sets the kinematics, e.g. after a cut).
 void init_state(const Model& model, State& state, bool consistent_a0 = true);
 
+// Sizes the kinematics, rotations and work arrays for the model (all zero,
+// rotations identity); no solver set-up. Used by init_state and by a cut
+// that carries the solver over (engine/linear_solve.h).
+void size_state(const Model& model, State& state);
+
 }  // namespace incise

@@ -41,10 +41,8 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
 
 }  // namespace
 
-void init_state(const Model& m, State& s, bool consistent_a0) {
+void size_state(const Model& m, State& s) {
   const int n = m.ndof();
-  s.time = 0.0;
-  s.frame = 0;
   s.u.assign(n, 0.0);
   s.v.assign(n, 0.0);
   s.a.assign(n, 0.0);
@@ -54,6 +52,13 @@ void init_state(const Model& m, State& s, bool consistent_a0) {
   s.K.assign(m.nnz(), 0.0);
   s.A.assign(m.nnz(), 0.0);
   s.R_check.assign(s.R.size(), 0.0);
+}
+
+void init_state(const Model& m, State& s, bool consistent_a0) {
+  const int n = m.ndof();
+  s.time = 0.0;
+  s.frame = 0;
+  size_state(m, s);
   prepare_solver(m, s);  // worker pool, assembly plan, symbolic analysis
   s.refactorizations = 0;
   if (!consistent_a0) return;

@@ -57,8 +57,7 @@ void compare(const CompareOptions& o) {
   std::vector<FrameTiming> t_ref;
   std::vector<std::vector<double>> u_ref;
   for (int k = 1; k <= checkpoints.back(); ++k) {
-    step(ref->model, ref->state);
-    t_ref.push_back(ref->state.timing);
+    t_ref.push_back(advance_frame(*ref));  // cutting stage, then the step
     if (std::find(checkpoints.begin(), checkpoints.end(), k) != checkpoints.end()) u_ref.push_back(ref->state.u);
   }
   const TimingSummary sr = summarize(t_ref);
@@ -80,10 +79,13 @@ void compare(const CompareOptions& o) {
     nlohmann::json rows = nlohmann::json::array();
     try {
       for (int k = 1, c = 0; k <= checkpoints.back(); ++k) {
-        step(sim->model, sim->state);
-        t_pol.push_back(sim->state.timing);
+        t_pol.push_back(advance_frame(*sim));
         if (checkpoints[c] != k) continue;
         const std::vector<double>& ue = u_ref[c++];
+        if (ue.size() != sim->state.u.size())
+          throw Error("compare: at frame " + std::to_string(k) + " the policy's model has " +
+                      std::to_string(sim->state.u.size()) + " DOFs and the reference " + std::to_string(ue.size()) +
+                      ": the cuts did not produce the same pieces");
         double d2 = 0, u2 = 0;
         for (size_t i = 0; i < ue.size(); ++i) {
           const double d = sim->state.u[i] - ue[i];

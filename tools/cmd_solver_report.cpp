@@ -12,11 +12,13 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
   const State& st = sim.state;
   r.policy = policy_name(m.solver.policy);
   r.threads = m.solver.threads;
-  const FactorStats& f = st.solver.stats();
+  // the slot preconditioning at the end (lagged may have moved to `back`)
+  const FactorStats& f = (st.work.front == 0 ? st.solver : st.work.back).stats();
+  const FactorStats& f0 = st.solver.stats();
   r.nnz_L = f.nnz_L;
   r.flops = f.flops;
-  r.factorizations = f.factorizations + st.work.back.stats().factorizations;
-  const double total_ms = f.factor_ms_total + st.work.back.stats().factor_ms_total;
+  r.factorizations = f0.factorizations + st.work.back.stats().factorizations;
+  const double total_ms = f0.factor_ms_total + st.work.back.stats().factor_ms_total;
   if (r.factorizations > 0) r.factor_ms_mean = total_ms / r.factorizations;
   if (r.factor_ms_mean > 0) r.gflops = r.flops / (r.factor_ms_mean * 1e-3) * 1e-9;
   std::vector<double> subs, its;
@@ -96,6 +98,7 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
   cmd->add_option("--max-iterations", o.max_iterations, "CG iterations per solve")->check(CLI::PositiveNumber);
   cmd->add_option("--refresh-every", o.refresh_every, "lagged: refactor every K frames")->check(CLI::PositiveNumber);
   cmd->add_flag("--background", o.background, "lagged: factorize on a second thread");
+  cmd->add_flag("--warp", o.warp, "lagged: rotate the lagged factor by the node rotations since its frame");
   cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
   cmd->add_option("--factorization", o.factorization, "CHOLMOD method")
       ->check(CLI::IsMember({"auto", "supernodal", "simplicial"}));
@@ -103,7 +106,8 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
 }
 
 void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
-  SolverSettings& s = sim.model.solver;
+  // The scene's settings too: a cut rebuilds the model from the scene.
+  SolverSettings& s = sim.scene.solver;
   if (!o.policy.empty()) {
     const char* names[] = {"exact", "lagged", "warped", "warped_cg"};
     for (int k = 0; k < 4; ++k)
@@ -113,6 +117,7 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (o.max_iterations > 0) s.max_iterations = o.max_iterations;
   if (o.refresh_every > 0) s.refresh_every = o.refresh_every;
   if (o.background) s.background = true;
+  if (o.warp) s.warp = true;
   if (o.threads > 0) s.threads = o.threads;
   if (!o.factorization.empty())
     s.factor = o.factorization == "simplicial" ? FactorMethod::Simplicial
@@ -120,6 +125,8 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
                                                  : FactorMethod::Auto;
   if (!o.ordering.empty())
     s.ordering = o.ordering == "amd" ? OrderingMethod::Amd : o.ordering == "metis" ? OrderingMethod::Metis : OrderingMethod::Auto;
+  sim.model.solver = s;
+  if (model_needs_rest_stiffness(sim.model) && sim.model.K0_csc.empty()) sim.model.K0_csc = rest_stiffness(sim.model);
   init_state(sim.model, sim.state);
 }
 

@@ -47,6 +47,7 @@ struct SolverOverrides {
   double tolerance = 0;  // 0: the scene's
   int max_iterations = 0, refresh_every = 0, threads = 0;
   bool background = false;
+  bool warp = false;
   std::string factorization, ordering;  // empty: the scene's
 };
 // Registers --policy, --tolerance, ... on a sub-command.
