@@ -115,6 +115,7 @@ void factor_now(const Model& m, State& s, int k) {
   if (w.slot_pattern[k] != w.pattern) {
     f.analyze(m.ndof(), m.Ap, m.Ai);
     w.slot_pattern[k] = w.pattern;
+    w.slot_n[k] = m.ndof();
   }
   f.factorize(s.A.data());
   w.slot_map[k].clear();
@@ -148,6 +149,7 @@ void launch_job(const Model& m, State& s) {
     w.job_Ap = m.Ap;
     w.job_Ai = m.Ai;
     w.slot_pattern[k] = w.pattern;
+    w.slot_n[k] = m.ndof();
   }
   w.slot_map[k].clear();
   if (m.solver.warp) w.slot_Rn[k] = w.Rn;
@@ -347,7 +349,7 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
       const std::vector<int> old = std::move(w.slot_map[k]);
       std::vector<int>& nm = w.slot_map[k];
       nm.assign(n, -1);
-      std::vector<char> taken(slot_factor(s, k).size(), 0);
+      std::vector<char> taken(w.slot_n[k], 0);
       for (int node = 0; node < m.ndofnode; ++node) {
         const int o = (*dofnode_map)[node];
         if (o < 0) continue;
@@ -373,6 +375,7 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
     s.solver.analyze(n, m.Ap, m.Ai);
     for (int k = 0; k < 2; ++k) {
       w.slot_pattern[k] = k == 0 ? w.pattern : -1;
+      w.slot_n[k] = k == 0 ? n : 0;
       w.slot_map[k].clear();
     }
     w.front = 0;

@@ -31,6 +31,7 @@ struct SolverWork {
   int last_launch = -1;       // frame the last job started (or the last synchronous refresh)
   int pattern = 0;            // epoch of the model's sparsity pattern (a carried-over cut bumps it)
   int slot_pattern[2] = {-1, -1};      // epoch each slot was analyzed for
+  int slot_n[2] = {0, 0};              // size of that pattern (read here, never from a slot a job may be analyzing)
   std::vector<int> slot_map[2];        // (ndof) slot DOF of each current DOF, -1 none; empty = identity
   std::vector<double> A_back;          // (nnz of the job's pattern) the job's matrix
   std::vector<int> job_Ap, job_Ai;     // the job's pattern when it must analyze it

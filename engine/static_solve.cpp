@@ -1,5 +1,7 @@
 #include "engine/static_solve.h"
 
+#include "engine/linear_solve.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -22,6 +24,9 @@ StaticResult solve_static(const Model& m, State& s, double tolerance, int max_it
   fext = std::sqrt(fext);
   StaticResult res;
   double ref = 0.0;
+  // State::solver must hold this pattern, and no background factorization may
+  // run beside ours (serial OpenBLAS): a lagged dynamics state is reset.
+  if (s.work.job_running || s.work.slot_pattern[0] != s.work.pattern) prepare_solver(m, s);
   for (int it = 0; it <= max_iterations; ++it) {
     const double* K = internal_forces(m, s, s.u.data(), true);
     double r2 = 0.0;
