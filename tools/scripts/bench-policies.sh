@@ -2,7 +2,10 @@
 # Solver-policy study (issue 4): the swinging-beam scene (assets/scenes/swing_beam.json:
 # clamped at x = 0, free end prescribed through a large arc over 1 s, gravity,
 # soft corotated tet10) at about 3k, 10k, 20k and 30k DOF, and a compact cube
-# (clamped base, top face dragged sideways) at about 4k, 10k and 20k DOF.
+# (clamped base, top face dragged sideways) at about 4k, 10k and 20k DOF, and
+# the organ-like gmsh meshes assets/meshes/organ_{3k,10k,20k,30k}.msh with the
+# boundary conditions of assets/scenes/organ_drag.json (flat bottom clamped, a
+# 2 x 2 cm cap of the top pushed down 1 cm and dragged 1.5 cm over 1 s, E = 3e4).
 # Each size runs `incise compare` (exact reference, then lagged refreshed every
 # 5 frames in the step, warped, warped_cg) and `incise bench` of lagged with a
 # background factor (k = 1), and writes BUILD/policies/*.json; the table
@@ -17,7 +20,7 @@ incise="$build/tools/incise"
 out="$build/policies"
 mkdir -p "$out"
 # name kind nx ny nz frames policies (warped_cg needs ~100 iterations on this
-# scene, so it runs on the small cases only)
+# scene, so it runs on the small cases only); organ cases: nx = mesh suffix
 cases=(
   "beam-3k beam 10 3 3 $frames_small lagged,warped,warped_cg"
   "beam-10k beam 20 4 4 $frames_small lagged,warped"
@@ -26,12 +29,23 @@ cases=(
   "cube-4k cube 5 5 5 $frames_large lagged,warped,warped_cg"
   "cube-10k cube 7 7 7 $frames_large lagged,warped"
   "cube-20k cube 9 9 9 $frames_large lagged,warped"
+  "organ-3k organ 3k - - $frames_small lagged,warped,warped_cg"
+  "organ-10k organ 10k - - $frames_small lagged,warped"
+  "organ-20k organ 20k - - $frames_large lagged,warped"
+  "organ-30k organ 30k - - $frames_large lagged,warped"
 )
 only="${BENCH_ONLY:-}"  # e.g. BENCH_ONLY="beam-20k cube-4k" to run some cases
 for c in "${cases[@]}"; do
   read -r name kind nx ny nz frames policies <<<"$c"
   if [ -n "$only" ] && [[ " $only " != *" $name "* ]]; then continue; fi
-  if [ "$kind" = beam ]; then
+  young=1e5
+  if [ "$kind" = organ ]; then
+    mesh="assets/meshes/organ_$nx.msh"  # committed; see assets/meshes/organ.geo
+    young=3e4
+    bc='"fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}],
+ "prescribed": [{"box": [[-0.025, -0.01, 0.041], [-0.005, 0.01, 0.06]],
+                 "displacement": {"x": 0.015, "y": 0, "z": -0.01}, "ramp": 1.0}]'
+  elif [ "$kind" = beam ]; then
     mesh="$out/beam_${nx}x${ny}x${nz}.vtu"
     [ -f "$mesh" ] || "$incise" mesh beam --size 0.2 0.05 0.05 --cells "$nx" "$ny" "$nz" --out "$mesh" >/dev/null
     bc='"fixed": [{"box": [[-1, -1, -1], [0, 1, 1]]}],
@@ -45,8 +59,8 @@ for c in "${cases[@]}"; do
                  "displacement": {"x": 0.05, "y": 0.03, "z": -0.03}, "ramp": 1.0}]'
   fi
   cat >"$out/$name.json" <<JSON
-{"mesh": {"file": "$(basename "$mesh")", "order": 2},
- "material": {"model": "corotated", "young": 1e5, "poisson": 0.45, "density": 1000,
+{"mesh": {"file": "$(realpath --relative-to="$out" "$mesh")", "order": 2},
+ "material": {"model": "corotated", "young": $young, "poisson": 0.45, "density": 1000,
               "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
  "mass": "lumped", "gravity": [0, 0, -9.81],
  $bc}
