@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# Issue 4 "real-time" configuration against `exact`: the organ-like meshes
+# (assets/meshes/organ_*.msh, organ_drag boundary conditions) at 3k, 10k, 20k
+# and 30k DOF, the swinging beam at 10k and 20k, and the progressive incision
+# of assets/scenes/organ_incision.json (10k DOF). Each case runs
+#   incise compare  (exact reference, then the policy; error after 1, 30, FRAMES frames)
+#   incise bench    (frame, cut-frame and stage timings of the policy alone)
+# The policy: lagged CG, background factorization taken K frames after it
+# starts (K grows with the factor time), warp, CG tolerance TOL.
+# Usage: bench-realtime.sh [BUILD_DIR] [FRAMES] [TOL]   (BENCH_ONLY="organ-10k ..." to pick cases)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+build="${1:-build}"
+frames="${2:-300}"
+tol="${3:-1e-3}"
+incise="$build/tools/incise"
+out="$build/realtime"
+mkdir -p "$out"
+extra="${REALTIME_OPTIONS:-}"  # e.g. "--single-precision"
+# name mesh-or-scene K
+cases=(
+  "organ-3k organ_3k 3"
+  "organ-10k organ_10k 5"
+  "organ-20k organ_20k 10"
+  "organ-30k organ_30k 15"
+  "beam-10k beam_20x4x4 5"
+  "beam-20k beam_28x5x5 10"
+  "incision-10k organ_incision 5"
+)
+only="${BENCH_ONLY:-}"
+for c in "${cases[@]}"; do
+  read -r name mesh k <<<"$c"
+  if [ -n "$only" ] && [[ " $only " != *" $name "* ]]; then continue; fi
+  scene="$out/$name.json"
+  case "$name" in
+    organ-*)
+      cat >"$scene" <<JSON
+{"mesh": {"file": "$(realpath --relative-to="$out" "assets/meshes/$mesh.msh")", "order": 2},
+ "material": {"model": "corotated", "young": 3e4, "poisson": 0.45, "density": 1000,
+              "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
+ "mass": "lumped", "gravity": [0, 0, -9.81],
+ "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}],
+ "prescribed": [{"box": [[-0.025, -0.01, 0.041], [-0.005, 0.01, 0.06]],
+                 "displacement": {"x": 0.015, "y": 0, "z": -0.01}, "ramp": 1.0}]}
+JSON
+      ;;
+    beam-*)
+      read -r nx ny nz <<<"$(echo "${mesh#beam_}" | tr x ' ')"
+      [ -f "$out/$mesh.vtu" ] || "$incise" mesh beam --size 0.2 0.05 0.05 --cells "$nx" "$ny" "$nz" --out "$out/$mesh.vtu" >/dev/null
+      cat >"$scene" <<JSON
+{"mesh": {"file": "$mesh.vtu", "order": 2},
+ "material": {"model": "corotated", "young": 1e5, "poisson": 0.45, "density": 1000,
+              "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
+ "mass": "lumped", "gravity": [0, 0, -9.81],
+ "fixed": [{"box": [[-1, -1, -1], [0, 1, 1]]}],
+ "prescribed": [{"plane": {"point": [0.2, 0, 0], "normal": [-1, 0, 0]},
+                 "displacement": {"x": -0.12, "y": 0.1, "z": 0.08}, "ramp": 1.0}]}
+JSON
+      ;;
+    incision-*)
+      python3 - "assets/scenes/$mesh.json" "$scene" <<'PY'
+import json, os, sys
+src, dst = sys.argv[1], sys.argv[2]
+d = json.load(open(src))
+d["mesh"]["file"] = os.path.relpath(os.path.join(os.path.dirname(src), d["mesh"]["file"]), os.path.dirname(dst))
+for k in ("output", "render", "run", "solver"):
+    d.pop(k, None)
+json.dump(d, open(dst, "w"), indent=1)
+PY
+      ;;
+  esac
+  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 $extra"
+  echo "compare $name ($frames frames; $opts) ..." >&2
+  # shellcheck disable=SC2086
+  "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
+    echo "  failed: see $out/$name.compare.log" >&2
+  # shellcheck disable=SC2086
+  "$incise" bench "$scene" $opts --frames 100 --warmup 5 --json "$out/$name.bench.json" >"$out/$name.bench.log" 2>&1 ||
+    echo "  failed: see $out/$name.bench.log" >&2
+done
+python3 - "$out" "$tol" "${cases[@]}" <<'PY'
+import json, sys
+out, tol = sys.argv[1], sys.argv[2]
+print(f"| case | DOF | nnz(L) | exact median ms | policy (CG tol {tol}) | median ms | p99 ms | max ms | cut frames: count, median / p99 / max ms | CG its median (max) | Newton/frame | err @1 | err @30 | err @last |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+for c in sys.argv[3:]:
+    name, _, k = c.split()
+    try:
+        j = json.load(open(f"{out}/{name}.compare.json")); b = json.load(open(f"{out}/{name}.bench.json"))
+    except Exception:
+        continue
+    p = j["policies"][0]
+    e = {r["frame"]: r.get("rel_l2_error", float("nan")) for r in p["errors"]}
+    last = max(e) if e else 0
+    cf = b["cut_frames"]
+    cut = f"{cf['count']}, {cf['median_ms']:.1f} / {cf['p99_ms']:.1f} / {cf['max_ms']:.1f}" if cf["count"] else "-"
+    it = b["solver"]["iterations"]
+    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp | "
+          f"{b['frame']['median_ms']:.1f} | {b['frame']['p99_ms']:.1f} | {b['frame']['max_ms']:.1f} | {cut} | {it['median']:.0f} ({it['max']:.0f}) | "
+          f"{b['newton']['mean']:.2f} | {e.get(1, float('nan')):.1e} | {e.get(30, float('nan')):.1e} | {e.get(last, float('nan')):.1e} ({last}) |")
+PY
