@@ -22,6 +22,51 @@ const char* ordering_name(int o) {
     default: return "unknown";
   }
 }
+
+// x = (P^T L L^T P)^-1 b with L supernodal: a dense column-major block of
+// nsrow x nscol per supernode (rows Ls[pi[s]..pi[s+1]), the first nscol being
+// the supernode's own columns), its values at Lx + px[s]. T is the stored
+// precision of L (double, or float for the single-precision copy); y, w and
+// every accumulation are double. y: n, w: the largest nsrow.
+template <class T>
+void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const double* b, double* x, double* y,
+                           double* w) {
+  const int* Perm = static_cast<const int*>(L->Perm);
+  const int* super = static_cast<const int*>(L->super);
+  const int* pi = static_cast<const int*>(L->pi);
+  const int* px = static_cast<const int*>(L->px);
+  const int* Ls = static_cast<const int*>(L->s);
+  const int nsuper = static_cast<int>(L->nsuper);
+  for (int k = 0; k < n; ++k) y[k] = b[Perm[k]];
+  // Forward: L z = y.
+  for (int sn = 0; sn < nsuper; ++sn) {
+    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
+    const T* B = Lx + px[sn];
+    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+    for (int j = 0; j < nscol; ++j) {
+      const T* col = B + static_cast<size_t>(j) * nsrow;
+      const double wj = w[j] / static_cast<double>(col[j]);
+      w[j] = wj;
+      for (int i = j + 1; i < nsrow; ++i) w[i] -= static_cast<double>(col[i]) * wj;
+    }
+    for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
+  }
+  // Backward: L^T z = y.
+  for (int sn = nsuper - 1; sn >= 0; --sn) {
+    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
+    const T* B = Lx + px[sn];
+    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+    for (int j = nscol - 1; j >= 0; --j) {
+      const T* col = B + static_cast<size_t>(j) * nsrow;
+      double t = w[j];
+      for (int i = j + 1; i < nsrow; ++i) t -= static_cast<double>(col[i]) * w[i];
+      w[j] = t / static_cast<double>(col[j]);
+    }
+    for (int j = 0; j < nscol; ++j) y[k1 + j] = w[j];
+  }
+  for (int k = 0; k < n; ++k) x[Perm[k]] = y[k];
+}
+
 }  // namespace
 
 CholmodSolver::CholmodSolver() {
@@ -59,8 +104,17 @@ void CholmodSolver::release() {
   if (Y_) cholmod_free_dense(&Y_, &c_);
   if (E_) cholmod_free_dense(&E_, &c_);
   factorized_ = false;
+  single_valid_ = false;
   work_y_.clear();
   work_w_.clear();
+}
+
+void CholmodSolver::set_single_precision(bool on) {
+  single_ = on;
+  if (!on) {
+    single_valid_ = false;
+    std::vector<float>().swap(Lx_single_);
+  }
 }
 
 void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai) {
@@ -81,6 +135,8 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   stats_.supernodal = L_->is_super;
   stats_.factorizations = 0;
   stats_.factor_ms_total = 0;
+  stats_.single_conversions = 0;
+  stats_.single_ms_total = 0;
   B_ = cholmod_zeros(n, 1, CHOLMOD_REAL, &c_);
 }
 
@@ -92,6 +148,7 @@ void CholmodSolver::factorize(const double* values) {
   stats_.factor_ms_total += clock.ms();
   ++stats_.factorizations;
   factorized_ = false;
+  single_valid_ = false;
   if (c_.status == CHOLMOD_NOT_POSDEF || L_->minor < static_cast<size_t>(n_)) {
     std::ostringstream os;
     os << "CHOLMOD: the system matrix is not positive definite (pivot " << L_->minor << " of " << n_
@@ -102,6 +159,30 @@ void CholmodSolver::factorize(const double* values) {
   }
   if (c_.status < CHOLMOD_OK) throw Error("CHOLMOD: numeric factorization failed (status " + std::to_string(c_.status) + ")");
   factorized_ = true;
+  stats_.stored_L = static_cast<double>(L_->is_super ? L_->xsize : L_->nzmax);
+  if (single_ && L_->is_super) convert_to_single();
+}
+
+void CholmodSolver::convert_to_single() {
+  Stopwatch clock;
+  const size_t nx = L_->xsize;
+  Lx_single_.resize(nx);  // same analysis: same xsize, no reallocation after the first
+  const double* src = static_cast<const double*>(L_->x);
+  float* dst = Lx_single_.data();
+  for (size_t k = 0; k < nx; ++k) dst[k] = static_cast<float>(src[k]);
+  single_valid_ = true;
+  stats_.single_ms_total += clock.ms();
+  ++stats_.single_conversions;
+}
+
+void CholmodSolver::prepare_workspace() {
+  if (work_y_.size() != static_cast<size_t>(n_)) work_y_.assign(n_, 0.0);
+  if (work_w_.empty()) {
+    const int* pi = static_cast<const int*>(L_->pi);
+    size_t mx = 0;
+    for (size_t sn = 0; sn < L_->nsuper; ++sn) mx = std::max(mx, static_cast<size_t>(pi[sn + 1] - pi[sn]));
+    work_w_.assign(mx + 1, 0.0);
+  }
 }
 
 void CholmodSolver::solve_cholmod(const double* b, double* x) {
@@ -118,52 +199,18 @@ void CholmodSolver::solve(const double* b, double* x) {
     solve_cholmod(b, x);
     return;
   }
-  // P A P^T = L L^T, L stored as supernodes: a dense column-major block of
-  // nsrow x nscol per supernode (rows Ls[pi[s]..pi[s+1]), the first nscol
-  // being the supernode's own columns).
-  const int* Perm = static_cast<const int*>(L_->Perm);
-  const int* super = static_cast<const int*>(L_->super);
-  const int* pi = static_cast<const int*>(L_->pi);
-  const int* px = static_cast<const int*>(L_->px);
-  const int* Ls = static_cast<const int*>(L_->s);
-  const double* Lx = static_cast<const double*>(L_->x);
-  const int nsuper = static_cast<int>(L_->nsuper);
-  if (work_y_.size() != static_cast<size_t>(n_)) work_y_.assign(n_, 0.0);
-  if (work_w_.empty()) {
-    size_t mx = 0;
-    for (int sn = 0; sn < nsuper; ++sn) mx = std::max(mx, static_cast<size_t>(pi[sn + 1] - pi[sn]));
-    work_w_.assign(mx + 1, 0.0);
+  prepare_workspace();
+  supernodal_substitute(L_, static_cast<const double*>(L_->x), n_, b, x, work_y_.data(), work_w_.data());
+}
+
+void CholmodSolver::solve_single(const double* b, double* x) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (!single_valid_) {  // single precision off, or a simplicial factor
+    solve(b, x);
+    return;
   }
-  double* y = work_y_.data();
-  double* w = work_w_.data();
-  for (int k = 0; k < n_; ++k) y[k] = b[Perm[k]];
-  // Forward: L z = y.
-  for (int sn = 0; sn < nsuper; ++sn) {
-    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
-    const double* B = Lx + px[sn];
-    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
-    for (int j = 0; j < nscol; ++j) {
-      const double* col = B + static_cast<size_t>(j) * nsrow;
-      const double wj = w[j] / col[j];
-      w[j] = wj;
-      for (int i = j + 1; i < nsrow; ++i) w[i] -= col[i] * wj;
-    }
-    for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
-  }
-  // Backward: L^T z = y.
-  for (int sn = nsuper - 1; sn >= 0; --sn) {
-    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
-    const double* B = Lx + px[sn];
-    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
-    for (int j = nscol - 1; j >= 0; --j) {
-      const double* col = B + static_cast<size_t>(j) * nsrow;
-      double t = w[j];
-      for (int i = j + 1; i < nsrow; ++i) t -= col[i] * w[i];
-      w[j] = t / col[j];
-    }
-    for (int j = 0; j < nscol; ++j) y[k1 + j] = w[j];
-  }
-  for (int k = 0; k < n_; ++k) x[Perm[k]] = y[k];
+  prepare_workspace();
+  supernodal_substitute(L_, Lx_single_.data(), n_, b, x, work_y_.data(), work_w_.data());
 }
 
 }  // namespace incise
