@@ -54,25 +54,27 @@ class CholmodSolver {
   void solve_cholmod(const double* b, double* x);
 
   // Single-precision copy of the factor, for use as a preconditioner (the
-  // lagged policy's CG): the substitution is memory-bandwidth bound (L is read
-  // twice per solve), and a float copy of L halves those bytes. Configure-time
-  // (default off; takes effect at the next factorize()). When on, factorize()
-  // also rounds a supernodal factor's values (L->x) into a float array right
-  // after the numeric factorization, on the thread that runs factorize(), with
-  // no BLAS; its time is FactorStats::single_ms_total. A simplicial factor gets
-  // no copy. Turning it off frees the copy.
+  // lagged policy's CG): a substitution reads L twice, and a float copy halves
+  // those bytes (measured 1.2-1.4x faster per substitution at 10-20k DOF, see
+  // docs/benchmarks.md, Issue 4). Configure-time (default off; takes effect at
+  // the next factorize()). When on, factorize() also rounds a supernodal
+  // factor's values (L->x) into a float array right after the numeric
+  // factorization, on the thread that runs factorize(), with no BLAS; its time
+  // is FactorStats::single_ms_total (1.7-3% of a factorization). A simplicial
+  // factor gets no copy. Turning it off frees the copy.
   void set_single_precision(bool on);
   bool single_precision() const { return single_; }
   // x ~= A^-1 b by the same substitution as solve(), reading the float factor
   // (x and b may alias). Vectors and accumulations stay double; only L's
-  // entries are rounded (relative 2^-24 = 6e-8 each), so the result is the
-  // exact solution of a perturbed system (A + E) x = b with |E| <~ eps_float |L||L^T|,
-  // a relative error of at most about eps_float * cond(A) (worst case). Measured
-  // on tet10 beams of 3-7k DOF (cond 4e4-5e5, tests/engine/test_single_factor.cpp):
-  // 8e-9 to 8e-8 relative to solve(), i.e. about eps_float. Meant as a
-  // preconditioner (CG still converges to any tolerance, in a few more
-  // iterations at worst), not as a direct solver for ill-conditioned systems. Without a float copy (single precision off, or a
-  // simplicial factor) it is solve(). Allocates nothing after the first call.
+  // entries are rounded (relative 2^-24 = 6e-8 each), so the result solves a
+  // perturbed system (A + E) x = b with |E| <~ eps_float |L| |L^T|: a relative
+  // error of at most about eps_float * cond(A). Measured on tet10 beams of 3-7k
+  // DOF (cond 4e4-5e5, tests/engine/test_single_factor.cpp): 8e-9 to 8e-8
+  // relative to solve(), i.e. about eps_float. Meant as a preconditioner (CG
+  // still converges to any tolerance, at worst in a few more iterations), not
+  // as a direct solver for ill-conditioned systems. Without a float copy
+  // (single precision off, or a simplicial factor) it is solve(). Allocates
+  // nothing after the first call.
   void solve_single(const double* b, double* x);
   // A float copy of the current factor exists (solve_single reads it).
   bool has_single_factor() const { return factorized_ && single_valid_; }
