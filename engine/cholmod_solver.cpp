@@ -3,6 +3,11 @@
 #include <algorithm>
 #include <cstring>
 #include <sstream>
+#include <type_traits>
+
+#if defined(__AVX__)
+#include <immintrin.h>
+#endif
 
 #include "engine/error.h"
 #include "engine/timing.h"
@@ -22,6 +27,149 @@ const char* ordering_name(int o) {
     default: return "unknown";
   }
 }
+
+// 4-wide double vectors (GCC/Clang vector extension; AVX with -march=native,
+// pairs of SSE2 registers otherwise). Only used inside function bodies, never
+// passed by value, so no ABI question arises.
+typedef double D4 __attribute__((vector_size(32)));
+typedef float F4 __attribute__((vector_size(16)));
+#if defined(__AVX__)
+// One vcvtps2pd from memory (GCC's generic conversion splits it in halves).
+#define INCISE_LOAD_F4(dst, p) (dst) = _mm256_cvtps_pd(_mm_loadu_ps(p))
+#else
+#define INCISE_LOAD_F4(dst, p)                  \
+  do {                                          \
+    F4 f_;                                      \
+    std::memcpy(&f_, (p), sizeof(F4));          \
+    (dst) = __builtin_convertvector(f_, D4);    \
+  } while (0)
+#endif
+#define INCISE_LOAD4(dst, p)                                             \
+  do {                                                                   \
+    if constexpr (std::is_same_v<T, double>) {                           \
+      std::memcpy(&(dst), (p), sizeof(D4));                              \
+    } else {                                                             \
+      INCISE_LOAD_F4(dst, p);                                            \
+    }                                                                    \
+  } while (0)
+
+// x = (P^T L L^T P)^-1 b with L supernodal: a dense column-major block of
+// nsrow x nscol per supernode (rows Ls[pi[s]..pi[s+1]), the first nscol being
+// the supernode's own columns), its values at Lx + px[s]. T is the stored
+// precision of L (double, or float for the single-precision copy); y, w and
+// every accumulation are double. y: n, w: the largest nsrow.
+// Columns are taken four at a time: the forward pass updates each row of the
+// gathered vector once per four columns, the backward pass runs four dot
+// products (independent dependency chains) over the shared rows, so the loop
+// is limited by reading L rather than by add latency.
+template <class T>
+void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const double* b, double* x, double* y,
+                           double* w) {
+  const int* Perm = static_cast<const int*>(L->Perm);
+  const int* super = static_cast<const int*>(L->super);
+  const int* pi = static_cast<const int*>(L->pi);
+  const int* px = static_cast<const int*>(L->px);
+  const int* Ls = static_cast<const int*>(L->s);
+  const int nsuper = static_cast<int>(L->nsuper);
+  auto d = [](T v) { return static_cast<double>(v); };
+  for (int k = 0; k < n; ++k) y[k] = b[Perm[k]];
+  // Forward: L z = y.
+  for (int sn = 0; sn < nsuper; ++sn) {
+    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
+    const T* B = Lx + px[sn];
+    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+    int j = 0;
+    for (; j + 4 <= nscol; j += 4) {
+      const T* c0 = B + static_cast<size_t>(j) * nsrow;
+      const T* c1 = c0 + nsrow;
+      const T* c2 = c1 + nsrow;
+      const T* c3 = c2 + nsrow;
+      const double w0 = w[j] / d(c0[j]);
+      const double w1 = (w[j + 1] - d(c0[j + 1]) * w0) / d(c1[j + 1]);
+      const double w2 = (w[j + 2] - d(c0[j + 2]) * w0 - d(c1[j + 2]) * w1) / d(c2[j + 2]);
+      const double w3 = (w[j + 3] - d(c0[j + 3]) * w0 - d(c1[j + 3]) * w1 - d(c2[j + 3]) * w2) / d(c3[j + 3]);
+      w[j] = w0;
+      w[j + 1] = w1;
+      w[j + 2] = w2;
+      w[j + 3] = w3;
+      const D4 W0 = {w0, w0, w0, w0}, W1 = {w1, w1, w1, w1}, W2 = {w2, w2, w2, w2}, W3 = {w3, w3, w3, w3};
+      int i = j + 4;
+      for (; i + 4 <= nsrow; i += 4) {
+        D4 v, a0, a1, a2, a3;
+        std::memcpy(&v, w + i, sizeof(D4));
+        INCISE_LOAD4(a0, c0 + i);
+        INCISE_LOAD4(a1, c1 + i);
+        INCISE_LOAD4(a2, c2 + i);
+        INCISE_LOAD4(a3, c3 + i);
+        v -= a0 * W0 + a1 * W1 + a2 * W2 + a3 * W3;
+        std::memcpy(w + i, &v, sizeof(D4));
+      }
+      for (; i < nsrow; ++i) w[i] -= d(c0[i]) * w0 + d(c1[i]) * w1 + d(c2[i]) * w2 + d(c3[i]) * w3;
+    }
+    for (; j < nscol; ++j) {
+      const T* col = B + static_cast<size_t>(j) * nsrow;
+      const double wj = w[j] / d(col[j]);
+      w[j] = wj;
+      for (int i = j + 1; i < nsrow; ++i) w[i] -= d(col[i]) * wj;
+    }
+    for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
+  }
+  // Backward: L^T z = y.
+  for (int sn = nsuper - 1; sn >= 0; --sn) {
+    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
+    const T* B = Lx + px[sn];
+    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+    int j = nscol - 1;
+    for (const int top = nscol - nscol % 4; j >= top; --j) {  // the last nscol % 4 columns one by one
+      const T* col = B + static_cast<size_t>(j) * nsrow;
+      double t = w[j];
+      for (int i = j + 1; i < nsrow; ++i) t -= d(col[i]) * w[i];
+      w[j] = t / d(col[j]);
+    }
+    for (; j >= 3; j -= 4) {  // columns j0..j0+3 = j-3..j
+      const int j0 = j - 3;
+      const T* c0 = B + static_cast<size_t>(j0) * nsrow;
+      const T* c1 = c0 + nsrow;
+      const T* c2 = c1 + nsrow;
+      const T* c3 = c2 + nsrow;
+      D4 A0 = {0, 0, 0, 0}, A1 = A0, A2 = A0, A3 = A0;
+      int i = j + 1;
+      for (; i + 4 <= nsrow; i += 4) {
+        D4 v, a0, a1, a2, a3;
+        std::memcpy(&v, w + i, sizeof(D4));
+        INCISE_LOAD4(a0, c0 + i);
+        INCISE_LOAD4(a1, c1 + i);
+        INCISE_LOAD4(a2, c2 + i);
+        INCISE_LOAD4(a3, c3 + i);
+        A0 += a0 * v;
+        A1 += a1 * v;
+        A2 += a2 * v;
+        A3 += a3 * v;
+      }
+      double t0 = (A0[0] + A0[1]) + (A0[2] + A0[3]), t1 = (A1[0] + A1[1]) + (A1[2] + A1[3]);
+      double t2 = (A2[0] + A2[1]) + (A2[2] + A2[3]), t3 = (A3[0] + A3[1]) + (A3[2] + A3[3]);
+      for (; i < nsrow; ++i) {
+        t0 += d(c0[i]) * w[i];
+        t1 += d(c1[i]) * w[i];
+        t2 += d(c2[i]) * w[i];
+        t3 += d(c3[i]) * w[i];
+      }
+      const double x3 = (w[j0 + 3] - t3) / d(c3[j0 + 3]);
+      const double x2 = (w[j0 + 2] - t2 - d(c2[j0 + 3]) * x3) / d(c2[j0 + 2]);
+      const double x1 = (w[j0 + 1] - t1 - d(c1[j0 + 2]) * x2 - d(c1[j0 + 3]) * x3) / d(c1[j0 + 1]);
+      const double x0 = (w[j0] - t0 - d(c0[j0 + 1]) * x1 - d(c0[j0 + 2]) * x2 - d(c0[j0 + 3]) * x3) / d(c0[j0]);
+      w[j0] = x0;
+      w[j0 + 1] = x1;
+      w[j0 + 2] = x2;
+      w[j0 + 3] = x3;
+    }
+    for (int jj = 0; jj < nscol; ++jj) y[k1 + jj] = w[jj];
+  }
+  for (int k = 0; k < n; ++k) x[Perm[k]] = y[k];
+}
+#undef INCISE_LOAD4
+#undef INCISE_LOAD_F4
+
 }  // namespace
 
 CholmodSolver::CholmodSolver() {
@@ -59,8 +207,17 @@ void CholmodSolver::release() {
   if (Y_) cholmod_free_dense(&Y_, &c_);
   if (E_) cholmod_free_dense(&E_, &c_);
   factorized_ = false;
+  single_valid_ = false;
   work_y_.clear();
   work_w_.clear();
+}
+
+void CholmodSolver::set_single_precision(bool on) {
+  single_ = on;
+  if (!on) {
+    single_valid_ = false;
+    std::vector<float>().swap(Lx_single_);
+  }
 }
 
 void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai) {
@@ -81,6 +238,8 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   stats_.supernodal = L_->is_super;
   stats_.factorizations = 0;
   stats_.factor_ms_total = 0;
+  stats_.single_conversions = 0;
+  stats_.single_ms_total = 0;
   B_ = cholmod_zeros(n, 1, CHOLMOD_REAL, &c_);
 }
 
@@ -92,6 +251,7 @@ void CholmodSolver::factorize(const double* values) {
   stats_.factor_ms_total += clock.ms();
   ++stats_.factorizations;
   factorized_ = false;
+  single_valid_ = false;
   if (c_.status == CHOLMOD_NOT_POSDEF || L_->minor < static_cast<size_t>(n_)) {
     std::ostringstream os;
     os << "CHOLMOD: the system matrix is not positive definite (pivot " << L_->minor << " of " << n_
@@ -102,6 +262,30 @@ void CholmodSolver::factorize(const double* values) {
   }
   if (c_.status < CHOLMOD_OK) throw Error("CHOLMOD: numeric factorization failed (status " + std::to_string(c_.status) + ")");
   factorized_ = true;
+  stats_.stored_L = static_cast<double>(L_->is_super ? L_->xsize : L_->nzmax);
+  if (single_ && L_->is_super) convert_to_single();
+}
+
+void CholmodSolver::convert_to_single() {
+  Stopwatch clock;
+  const size_t nx = L_->xsize;
+  Lx_single_.resize(nx);  // same analysis: same xsize, no reallocation after the first
+  const double* src = static_cast<const double*>(L_->x);
+  float* dst = Lx_single_.data();
+  for (size_t k = 0; k < nx; ++k) dst[k] = static_cast<float>(src[k]);
+  single_valid_ = true;
+  stats_.single_ms_total += clock.ms();
+  ++stats_.single_conversions;
+}
+
+void CholmodSolver::prepare_workspace() {
+  if (work_y_.size() != static_cast<size_t>(n_)) work_y_.assign(n_, 0.0);
+  if (work_w_.empty()) {
+    const int* pi = static_cast<const int*>(L_->pi);
+    size_t mx = 0;
+    for (size_t sn = 0; sn < L_->nsuper; ++sn) mx = std::max(mx, static_cast<size_t>(pi[sn + 1] - pi[sn]));
+    work_w_.assign(mx + 1, 0.0);
+  }
 }
 
 void CholmodSolver::solve_cholmod(const double* b, double* x) {
@@ -118,52 +302,18 @@ void CholmodSolver::solve(const double* b, double* x) {
     solve_cholmod(b, x);
     return;
   }
-  // P A P^T = L L^T, L stored as supernodes: a dense column-major block of
-  // nsrow x nscol per supernode (rows Ls[pi[s]..pi[s+1]), the first nscol
-  // being the supernode's own columns).
-  const int* Perm = static_cast<const int*>(L_->Perm);
-  const int* super = static_cast<const int*>(L_->super);
-  const int* pi = static_cast<const int*>(L_->pi);
-  const int* px = static_cast<const int*>(L_->px);
-  const int* Ls = static_cast<const int*>(L_->s);
-  const double* Lx = static_cast<const double*>(L_->x);
-  const int nsuper = static_cast<int>(L_->nsuper);
-  if (work_y_.size() != static_cast<size_t>(n_)) work_y_.assign(n_, 0.0);
-  if (work_w_.empty()) {
-    size_t mx = 0;
-    for (int sn = 0; sn < nsuper; ++sn) mx = std::max(mx, static_cast<size_t>(pi[sn + 1] - pi[sn]));
-    work_w_.assign(mx + 1, 0.0);
+  prepare_workspace();
+  supernodal_substitute(L_, static_cast<const double*>(L_->x), n_, b, x, work_y_.data(), work_w_.data());
+}
+
+void CholmodSolver::solve_single(const double* b, double* x) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (!single_valid_) {  // single precision off, or a simplicial factor
+    solve(b, x);
+    return;
   }
-  double* y = work_y_.data();
-  double* w = work_w_.data();
-  for (int k = 0; k < n_; ++k) y[k] = b[Perm[k]];
-  // Forward: L z = y.
-  for (int sn = 0; sn < nsuper; ++sn) {
-    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
-    const double* B = Lx + px[sn];
-    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
-    for (int j = 0; j < nscol; ++j) {
-      const double* col = B + static_cast<size_t>(j) * nsrow;
-      const double wj = w[j] / col[j];
-      w[j] = wj;
-      for (int i = j + 1; i < nsrow; ++i) w[i] -= col[i] * wj;
-    }
-    for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
-  }
-  // Backward: L^T z = y.
-  for (int sn = nsuper - 1; sn >= 0; --sn) {
-    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
-    const double* B = Lx + px[sn];
-    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
-    for (int j = nscol - 1; j >= 0; --j) {
-      const double* col = B + static_cast<size_t>(j) * nsrow;
-      double t = w[j];
-      for (int i = j + 1; i < nsrow; ++i) t -= col[i] * w[i];
-      w[j] = t / col[j];
-    }
-    for (int j = 0; j < nscol; ++j) y[k1 + j] = w[j];
-  }
-  for (int k = 0; k < n_; ++k) x[Perm[k]] = y[k];
+  prepare_workspace();
+  supernodal_substitute(L_, Lx_single_.data(), n_, b, x, work_y_.data(), work_w_.data());
 }
 
 }  // namespace incise

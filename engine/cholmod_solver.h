@@ -15,11 +15,17 @@ namespace incise {
 
 struct FactorStats {
   double nnz_L = 0;        // entries in L (CHOLMOD's lnz)
+  double stored_L = 0;     // values stored for L after a factorization (supernodal: L->xsize, >= nnz_L)
   double flops = 0;        // flop count of one numeric factorization
   std::string ordering;    // the ordering CHOLMOD chose
   bool supernodal = true;
   int factorizations = 0;       // numeric factorizations done with this object
   double factor_ms_total = 0;   // their wall time (on whichever thread ran them)
+  // Conversions of the factor to single precision (set_single_precision) and
+  // their total wall time, done inside factorize() on the same thread, after
+  // factor_ms_total's clock stopped (so not included in it).
+  int single_conversions = 0;
+  double single_ms_total = 0;
 };
 
 class CholmodSolver {
@@ -47,6 +53,32 @@ class CholmodSolver {
   // The same through cholmod_solve2 (reference for tests and timing).
   void solve_cholmod(const double* b, double* x);
 
+  // Single-precision copy of the factor, for use as a preconditioner (the
+  // lagged policy's CG): a substitution reads L twice, and a float copy halves
+  // those bytes (measured 1.2-1.4x faster per substitution at 10-20k DOF, see
+  // docs/benchmarks.md, Issue 4). Configure-time (default off; takes effect at
+  // the next factorize()). When on, factorize() also rounds a supernodal
+  // factor's values (L->x) into a float array right after the numeric
+  // factorization, on the thread that runs factorize(), with no BLAS; its time
+  // is FactorStats::single_ms_total (1.7-3% of a factorization). A simplicial
+  // factor gets no copy. Turning it off frees the copy.
+  void set_single_precision(bool on);
+  bool single_precision() const { return single_; }
+  // x ~= A^-1 b by the same substitution as solve(), reading the float factor
+  // (x and b may alias). Vectors and accumulations stay double; only L's
+  // entries are rounded (relative 2^-24 = 6e-8 each), so the result solves a
+  // perturbed system (A + E) x = b with |E| <~ eps_float |L| |L^T|: a relative
+  // error of at most about eps_float * cond(A). Measured on tet10 beams of 3-7k
+  // DOF (cond 4e4-5e5, tests/engine/test_single_factor.cpp): 8e-9 to 8e-8
+  // relative to solve(), i.e. about eps_float. Meant as a preconditioner (CG
+  // still converges to any tolerance, at worst in a few more iterations), not
+  // as a direct solver for ill-conditioned systems. Without a float copy
+  // (single precision off, or a simplicial factor) it is solve(). Allocates
+  // nothing after the first call.
+  void solve_single(const double* b, double* x);
+  // A float copy of the current factor exists (solve_single reads it).
+  bool has_single_factor() const { return factorized_ && single_valid_; }
+
   bool analyzed() const { return L_ != nullptr; }
   bool factorized() const { return factorized_; }
   int size() const { return n_; }
@@ -63,6 +95,11 @@ class CholmodSolver {
   int n_ = 0;
   bool factorized_ = false;
   std::vector<double> work_y_, work_w_;  // own substitution: permuted vector, supernode gather
+  bool single_ = false;          // set_single_precision
+  bool single_valid_ = false;    // Lx_single_ holds the current factor's values
+  std::vector<float> Lx_single_; // (L->xsize) float copy of a supernodal L->x
+  void prepare_workspace();
+  void convert_to_single();
   FactorStats stats_;
   void release();
 };

@@ -1,7 +1,9 @@
 // incise_microbench: Google Benchmark micro-benchmarks of the corotated
 // assembly (not part of ctest). Per element: rotation extraction (warm-started
 // polar), internal force, stiffness blocks and the scatter into the global
-// pattern. Run: build/tools/incise_microbench [--benchmark_filter=...]
+// pattern. Also the supernodal forward+back substitution with the double
+// factor and with its single-precision copy (BM_Substitution).
+// Run: build/tools/incise_microbench [--benchmark_filter=...]
 #include <cmath>
 #include <vector>
 
@@ -9,6 +11,7 @@
 
 #include "engine/assemble.h"
 #include "engine/assemble_parallel.h"
+#include "engine/cholmod_solver.h"
 #include "engine/mesh_tools.h"
 #include "engine/model.h"
 
@@ -76,6 +79,62 @@ void BM_Reference(benchmark::State& state, int order, RotationMode rot) {
   state.counters["elements"] = s.m.nelem;
 }
 
+// One forward+back substitution (CholmodSolver::solve, or solve_single with
+// the float copy of L) on the dynamic system matrix K0 + 4/dt^2 M of a tet10
+// beam of nx x nyz x nyz cells (0.2 x 0.05 x 0.05 m, swing-beam material,
+// clamped at x = 0), as the preconditioner of CG applies it (z = L^-T L^-1 r).
+// GBps counts L's bytes read twice, 2 * nnz(L) * sizeof(value), as `incise
+// bench` does (with sizeof = 8 for double and 4 for float); GBps_stored counts
+// the supernodal blocks as stored (xsize >= nnz(L)).
+void BM_Substitution(benchmark::State& state, int nx, int nyz, bool single) {
+  Scene sc;
+  sc.path = "microbench";
+  sc.order = 2;
+  sc.material.young = 1e5;
+  sc.material.poisson = 0.45;
+  sc.material.density = 1000;
+  Region clamp;
+  clamp.kind = Region::Kind::Box;
+  clamp.lo = {-1e-9, -1, -1};
+  clamp.hi = {1e-9, 1, 1};
+  clamp.json_path = "fixed[0]";
+  sc.fixed.push_back(clamp);
+  const Model m = build_model(make_beam(0.2, 0.05, 0.05, nx, nyz, nyz, 1), sc);
+  const int n = m.ndof();
+  std::vector<double> A = m.K0_csc;
+  for (int d = 0; d < n; ++d) A[m.diag[d]] += 4.0 / (m.dt * m.dt) * m.mass_lumped[d];
+  for (int k : m.constrained_entries) A[k] = 0.0;
+  for (int d = 0; d < n; ++d)
+    if (m.constrained[d]) A[m.diag[d]] = 1.0;
+  CholmodSolver f;
+  f.set_single_precision(single);
+  f.analyze(n, m.Ap, m.Ai);
+  f.factorize(A.data());  // the first conversion also allocates (page faults): not counted below
+  const double first_factor_ms = f.stats().factor_ms_total, first_convert_ms = f.stats().single_ms_total;
+  for (int k = 0; k < 2; ++k) f.factorize(A.data());
+  std::vector<double> b(n), x(n);
+  for (int i = 0; i < n; ++i) b[i] = std::sin(0.37 * i);
+  for (auto _ : state) {
+    if (single)
+      f.solve_single(b.data(), x.data());
+    else
+      f.solve(b.data(), x.data());
+    benchmark::DoNotOptimize(x.data());
+    benchmark::ClobberMemory();
+  }
+  const double value_bytes = single ? 4.0 : 8.0;
+  const FactorStats& st = f.stats();
+  state.counters["dofs"] = n;
+  state.counters["nnz_L"] = st.nnz_L;
+  state.counters["GBps"] = benchmark::Counter(2.0 * value_bytes * st.nnz_L, benchmark::Counter::kIsIterationInvariantRate,
+                                              benchmark::Counter::OneK::kIs1000);
+  state.counters["GBps_stored"] = benchmark::Counter(2.0 * value_bytes * st.stored_L,
+                                                     benchmark::Counter::kIsIterationInvariantRate,
+                                                     benchmark::Counter::OneK::kIs1000);
+  state.counters["factor_ms"] = (st.factor_ms_total - first_factor_ms) / 2;
+  if (single) state.counters["convert_ms"] = (st.single_ms_total - first_convert_ms) / 2;
+}
+
 }  // namespace
 
 BENCHMARK_CAPTURE(BM_Reference, tet4, 1, RotationMode::PerPoint)->Unit(benchmark::kMillisecond);
@@ -87,5 +146,10 @@ BENCHMARK_CAPTURE(BM_Fused, tet10_1thread, 2, RotationMode::PerPoint, 1, true)->
 BENCHMARK_CAPTURE(BM_Fused, tet10_2threads, 2, RotationMode::PerPoint, 2, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10SR_1thread, 2, RotationMode::Single, 1, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10_force_only_1thread, 2, RotationMode::PerPoint, 1, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+BENCHMARK_CAPTURE(BM_Substitution, beam10k_double, 20, 4, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam10k_single, 20, 4, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam20k_double, 28, 5, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam20k_single, 28, 5, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_MAIN();
