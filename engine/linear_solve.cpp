@@ -37,10 +37,12 @@ double dot(const std::vector<double>& a, const std::vector<double>& b) {
   return s;
 }
 
-// One forward + back substitution, counted and timed.
+// One forward + back substitution, counted and timed (from the float copy
+// when the factor has one: lagged with single_precision).
 void substitute(State& s, CholmodSolver& f, const double* b, double* x) {
   Stopwatch w;
-  f.solve(b, x);
+  if (f.has_single_factor()) f.solve_single(b, x);
+  else f.solve(b, x);
   s.timing.solves += 1;
   s.timing.solve_kernel_ms += w.ms();
 }
@@ -371,6 +373,9 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
     w.job_slot = -1;
     s.solver.configure(m.solver.factor, m.solver.ordering);
     w.back.configure(m.solver.factor, m.solver.ordering);
+    const bool single = m.solver.policy == SolverPolicy::Lagged && m.solver.single_precision;
+    s.solver.set_single_precision(single);
+    w.back.set_single_precision(single);
     ++w.pattern;
     s.solver.analyze(n, m.Ap, m.Ai);
     for (int k = 0; k < 2; ++k) {

@@ -377,7 +377,7 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
 void parse_solver(const Parser& p, const json& v, Scene& s) {
   const std::string at = "solver";
   p.object(v, at);
-  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "tolerance", "max_iterations", "threads",
+  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "tolerance", "max_iterations", "threads",
                          "factorization", "ordering"});
   SolverSettings& o = s.solver;
   if (auto it = v.find("policy"); it != v.end())
@@ -386,6 +386,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     o.refresh_every = p.at_least_one(*it, at + ".refresh_every");
   if (auto it = v.find("background"); it != v.end()) o.background = p.boolean(*it, at + ".background");
   if (auto it = v.find("warp"); it != v.end()) o.warp = p.boolean(*it, at + ".warp");
+  if (auto it = v.find("single_precision"); it != v.end()) o.single_precision = p.boolean(*it, at + ".single_precision");
   if (auto it = v.find("tolerance"); it != v.end()) {
     o.tolerance = p.positive(*it, at + ".tolerance");
     if (!(o.tolerance < 1.0)) p.fail(at + ".tolerance", " must be in (0, 1), got " + show(*it));
@@ -405,7 +406,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     if (v.contains(k) && !iterative)
       p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");
-  for (const char* k : {"refresh_every", "background", "warp"})
+  for (const char* k : {"refresh_every", "background", "warp", "single_precision"})
     if (v.contains(k) && o.policy != SolverPolicy::Lagged)
       p.fail(Parser::key(at, k), ": only used by solver.policy \"lagged\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");

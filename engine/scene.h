@@ -78,6 +78,7 @@ struct SolverSettings {
   int refresh_every = 1;       // lagged: refactor every k frames (>= 1)
   bool background = false;     // lagged: factorize on a second thread, used from the next refresh on
   bool warp = false;           // lagged: rotate the lagged factor by the node rotations since its frame
+  bool single_precision = true;  // lagged: substitute with a float copy of the factor (a preconditioner)
   double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
   int max_iterations = 50;     // CG iterations per solve (>= 1)
   int threads = 2;             // assembly workers incl. the calling thread (>= 1)

@@ -99,6 +99,8 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
   cmd->add_option("--refresh-every", o.refresh_every, "lagged: refactor every K frames")->check(CLI::PositiveNumber);
   cmd->add_flag("--background", o.background, "lagged: factorize on a second thread");
   cmd->add_flag("--warp", o.warp, "lagged: rotate the lagged factor by the node rotations since its frame");
+  cmd->add_option("--single-precision", o.single_precision, "lagged: float copy of the factor for the substitutions")
+      ->check(CLI::IsMember({"true", "false"}));
   cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
   cmd->add_option("--factorization", o.factorization, "CHOLMOD method")
       ->check(CLI::IsMember({"auto", "supernodal", "simplicial"}));
@@ -118,6 +120,8 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (o.refresh_every > 0) s.refresh_every = o.refresh_every;
   if (o.background) s.background = true;
   if (o.warp) s.warp = true;
+  if (o.single_precision == "true") s.single_precision = true;
+  if (o.single_precision == "false") s.single_precision = false;
   if (o.threads > 0) s.threads = o.threads;
   if (!o.factorization.empty())
     s.factor = o.factorization == "simplicial" ? FactorMethod::Simplicial

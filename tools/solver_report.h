@@ -48,6 +48,7 @@ struct SolverOverrides {
   int max_iterations = 0, refresh_every = 0, threads = 0;
   bool background = false;
   bool warp = false;
+  std::string single_precision;  // "", "true" or "false"
   std::string factorization, ordering;  // empty: the scene's
 };
 // Registers --policy, --tolerance, ... on a sub-command.
