@@ -22,6 +22,10 @@ namespace incise {
 int update_rotations(const Model& model, const double* u /* (ndof) */, double* R);
 // The same for slots [r_begin, r_end) only (one worker's share).
 int update_rotations(const Model& model, const double* u, double* R, int r_begin, int r_end);
+// Largest angle between the slot rotations R and the rotations of the
+// configuration u over slots [r_begin, r_end) (rotation_angle_to: one Newton
+// step, not a full extraction); R is not changed.
+double max_rotation_change(const Model& model, const double* u, const double* R, int r_begin, int r_end);
 
 // f_int (ndof) = internal elastic force at u with rotations R; K (nnz) = the
 // corotated tangent in the pattern (skipped when K is null). Both are

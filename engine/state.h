@@ -15,7 +15,6 @@ struct State {
   int frame = 0;
   std::vector<double> u, v, a;  // (ndof) displacement, velocity, acceleration
   std::vector<double> R;        // (nrot, 9) rotation of each slot, column-major
-  std::vector<double> R_check;  // (nrot, 9) rotations at a step's result (adaptive Newton check)
 
   // Work arrays (ndof or nnz), allocated by init_state, reused every frame.
   std::vector<double> f_int, K, A, rhs, delta, du, tmp, tmp2;
