@@ -6,7 +6,8 @@
 #   incise compare  (exact reference, then the policy; error after 1, 30, FRAMES frames)
 #   incise bench    (frame, cut-frame and stage timings of the policy alone)
 # The policy: lagged CG, background factorization taken K frames after it
-# starts (K grows with the factor time), warp, CG tolerance TOL.
+# starts (K grows with the factor time), warp, CG tolerance TOL, float factor
+# copy, one assembly thread (the second core runs the factorization).
 # Usage: bench-realtime.sh [BUILD_DIR] [FRAMES] [TOL]   (BENCH_ONLY="organ-10k ..." to pick cases)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -20,12 +21,12 @@ extra="${REALTIME_OPTIONS:-}"  # e.g. "--single-precision"
 # name mesh-or-scene K
 cases=(
   "organ-3k organ_3k 3"
-  "organ-10k organ_10k 5"
-  "organ-20k organ_20k 10"
-  "organ-30k organ_30k 15"
-  "beam-10k beam_20x4x4 5"
-  "beam-20k beam_28x5x5 10"
-  "incision-10k organ_incision 5"
+  "organ-10k organ_10k 6"
+  "organ-20k organ_20k 12"
+  "organ-30k organ_30k 18"
+  "beam-10k beam_20x4x4 6"
+  "beam-20k beam_28x5x5 12"
+  "incision-10k organ_incision 6"
 )
 only="${BENCH_ONLY:-}"
 for c in "${cases[@]}"; do
@@ -69,7 +70,7 @@ json.dump(d, open(dst, "w"), indent=1)
 PY
       ;;
   esac
-  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 $extra"
+  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 $extra"
   echo "compare $name ($frames frames; $opts) ..." >&2
   # shellcheck disable=SC2086
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
