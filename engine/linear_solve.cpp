@@ -220,8 +220,9 @@ void lagged_warp_rotations(const Model& m, State& s) {
   }
 }
 
-// z = P r with the lagged front factor; through its DOF map after cuts, Jacobi
-// (the diagonal of the current A) on the DOFs it does not know. With warp,
+// z = P r with the lagged front factor; after cuts through its DOF map, plus
+// the patch solve (additive Schwarz; Jacobi on the DOFs it does not know if
+// there is no patch). With warp,
 // P = Q F^-1 Q^T: if the body turned rigidly by Q since the factor's frame,
 // A = Q A_lag Q^T (lumped, isotropic mass) and P is exact.
 void lagged_apply(const Model& m, State& s, const double* A, const double* r, double* z) {
@@ -341,7 +342,7 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   if (dofnode_map && solver_carries_over_cuts(m, s)) {
     // A cut: keep the factors; each maps the new DOFs onto its own (composed
     // over successive cuts). A DOF node the old model did not have (-1), or a
-    // second new one on the same old one, is left to Jacobi.
+    // second new one on the same old one, is left to the patch (lagged_patch).
     for (int k = 0; k < 2; ++k) {
       if (k != w.front && k != w.job_slot) {
         w.slot_map[k].clear();

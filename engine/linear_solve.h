@@ -31,9 +31,9 @@ namespace incise {
 // (a cut) before the next step. Invalidates the factor, except where
 // solver_carries_over_cuts() and the cut passes `dofnode_map` (new DOF node ->
 // old DOF node, -1 for a new one): then no analysis or factorization runs in
-// the cut frame; the lagged factors keep preconditioning through the map (Jacobi
-// on DOFs they do not know) and the next background job (or synchronous
-// refresh) analyzes and factorizes the new pattern.
+// the cut frame; the lagged factors keep preconditioning through the map (an
+// exact solve on a patch around the DOFs they do not know) and the next
+// background job (or synchronous refresh) analyzes and factorizes the new pattern.
 void prepare_solver(const Model& model, State& state, const std::vector<int>* dofnode_map = nullptr);
 
 // The lagged policy with a valid factor: a cut keeps it (see prepare_solver).

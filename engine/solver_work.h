@@ -23,8 +23,8 @@ struct SolverWork {
   // earlier frame's matrix into another slot, which becomes the front when
   // taken. A cut does not discard them: each slot keeps a map from the
   // current DOFs to its own (slot_map, empty = identity), DOFs it does not
-  // know get Jacobi, and the next job analyzes the new pattern off the main
-  // thread (engine/linear_solve.h).
+  // know are solved by the patch below, and the next job analyzes the new
+  // pattern off the main thread (engine/linear_solve.h).
   CholmodSolver back;
   int front = 0;              // slot preconditioning now
   int front_frame = -1;       // frame whose matrix the front slot holds
