@@ -42,15 +42,6 @@ IncisionRun incision(const SolverSettings& solver) {
   return r;
 }
 
-double rel_diff(const std::vector<double>& a, const std::vector<double>& b) {
-  double d = 0, n = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    d += (a[i] - b[i]) * (a[i] - b[i]);
-    n += b[i] * b[i];
-  }
-  return std::sqrt(d / n);
-}
-
 TEST(CutPolicies, ProgressiveCutUnderEveryPolicyMatchesExact) {
   const IncisionRun exact = incision(SolverSettings{});
   ASSERT_GE(exact.cut_frames, 2) << "the blade must grow the DOF set more than once";
@@ -82,7 +73,7 @@ TEST(CutPolicies, ProgressiveCutUnderEveryPolicyMatchesExact) {
       EXPECT_EQ(r.ndof, exact.ndof) << c.name << ": the same pieces (DOF set) frame by frame";
       EXPECT_EQ(r.cut_frames, exact.cut_frames) << c.name;
       if (r.ndof != exact.ndof) continue;
-      const double err = rel_diff(r.u, exact.u);
+      const double err = test::rel_diff(r.u, exact.u);
       if (tol == 1e-10) {
         EXPECT_LT(err, 1e-7) << c.name;
       } else {

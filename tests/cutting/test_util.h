@@ -11,6 +11,7 @@
 #include "engine/mesh_tools.h"
 #include "engine/model.h"
 #include "engine/scene.h"
+#include "tests/engine/test_util.h"
 
 namespace incise::test {
 
@@ -35,14 +36,7 @@ inline CutSpec plane_cut(Vec3 p, Vec3 n, const std::string& name = "cuts[0]") {
   return c;
 }
 
-inline Region box(Vec3 lo, Vec3 hi, const std::string& name = "fixed[0]") {
-  Region r;
-  r.kind = Region::Kind::Box;
-  r.lo = lo;
-  r.hi = hi;
-  r.json_path = name;
-  return r;
-}
+inline Region box(Vec3 lo, Vec3 hi, const std::string& name = "fixed[0]") { return box_region(lo, hi, name); }
 
 // A blade edge moving from `start` to `end` (two points each) over `duration` s.
 inline CutSpec swept_blade(std::array<Vec3, 2> start, std::array<Vec3, 2> end, double duration = 1.0) {

@@ -47,12 +47,6 @@ double norm(const std::vector<double>& v) {
   return std::sqrt(s);
 }
 
-double rel_diff(const std::vector<double>& a, const std::vector<double>& b) {
-  double d = 0;
-  for (size_t i = 0; i < a.size(); ++i) d += (a[i] - b[i]) * (a[i] - b[i]);
-  return std::sqrt(d) / norm(b);
-}
-
 std::vector<double> random_vector(int n, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> U(-1, 1);
@@ -109,7 +103,7 @@ TEST(SingleFactor, SolveIsWithinTheFloatBoundOfTheDoubleSolveAndNotIdentical) {
       f.solve_single(b.data(), xs.data());
       f.solve_single(xa.data(), xa.data());  // aliased in place
       EXPECT_EQ(xa, xs);
-      const double e = rel_diff(xs, xd);
+      const double e = test::rel_diff(xs, xd);
       worst = std::max(worst, e);
       // Not the double result: far above double roundoff (the double
       // substitution agrees with cholmod_solve2 to ~1e-15).
@@ -141,7 +135,7 @@ TEST(SingleFactor, DoubleSubstitutionMatchesCholmodSolve) {
   std::vector<double> x(n), ref(n);
   f.solve(b.data(), x.data());
   f.solve_cholmod(b.data(), ref.data());
-  EXPECT_LT(rel_diff(x, ref), 1e-13);
+  EXPECT_LT(test::rel_diff(x, ref), 1e-13);
 }
 
 TEST(SingleFactor, PreconditionedCGConvergesToDoublePrecision) {

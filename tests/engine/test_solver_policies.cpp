@@ -15,15 +15,6 @@
 namespace incise {
 namespace {
 
-double rel_diff(const std::vector<double>& a, const std::vector<double>& b) {
-  double d = 0, n = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    d += (a[i] - b[i]) * (a[i] - b[i]);
-    n += b[i] * b[i];
-  }
-  return std::sqrt(d / n);
-}
-
 // A free body (no constraints), rigidly rotated by Q, released under gravity:
 // every slot has rotation Q, so A = cM M + Q K0 Q^T = Q A0 Q^T with lumped mass.
 std::vector<double> rigid_step(SolverPolicy policy, int order, RotationMode rot) {
@@ -55,7 +46,7 @@ TEST(SolverPolicies, WarpedIsExactForARigidRotationWithLumpedMass) {
       if (order == 1 && rot == RotationMode::Single) continue;
       const auto exact = rigid_step(SolverPolicy::Exact, order, rot);
       const auto warped = rigid_step(SolverPolicy::Warped, order, rot);
-      EXPECT_LT(rel_diff(warped, exact), 1e-12) << "order " << order;
+      EXPECT_LT(test::rel_diff(warped, exact), 1e-12) << "order " << order;
     }
 }
 
@@ -83,7 +74,7 @@ TEST(SolverPolicies, OwnSupernodalSubstitutionMatchesCholmod) {
     for (int d = 0; d < m.ndof(); ++d) b[d] = std::sin(0.37 * d) + 0.1;
     solver.solve(b.data(), x1.data());
     solver.solve_cholmod(b.data(), x2.data());
-    EXPECT_LT(rel_diff(x1, x2), 1e-12);
+    EXPECT_LT(test::rel_diff(x1, x2), 1e-12);
   }
 }
 
@@ -157,7 +148,7 @@ TEST(SolverPolicies, IterativePoliciesConvergeToExactAsToleranceTightens) {
     for (double tol : {1e-2, 1e-4, 1e-6, 1e-8, 1e-10}) {
       c.s.tolerance = tol;
       std::vector<int> its;
-      const double err = rel_diff(run_swing(c.s, frames, &its), exact);
+      const double err = test::rel_diff(run_swing(c.s, frames, &its), exact);
       if (tol == 1e-2) {
         EXPECT_GT(err, 1e-8) << c.name << ": the loosest tolerance should show an error";
       }
@@ -185,7 +176,7 @@ TEST(SolverPolicies, WarpedIsExactForTheLinearMaterial) {
     step(me, a);
     step(mw, b);
   }
-  EXPECT_LT(rel_diff(b.u, a.u), 1e-13);
+  EXPECT_LT(test::rel_diff(b.u, a.u), 1e-13);
 }
 
 TEST(SolverPolicies, WarpedAloneIsReportedAsOneSubstitutionAndNoIterations) {
@@ -264,8 +255,8 @@ TEST(SolverPolicies, ParallelAssemblyMatchesSerial) {
         sym_matvec(m, K0.data(), v.data(), y1.data());
         stiffness_matvec(m, plan, pool, R.data(), v.data(), y2.data());
         sym_matvec_parallel(m, plan, pool, K0.data(), v.data(), y3.data());
-        EXPECT_LT(rel_diff(y2, y1), 1e-13);
-        EXPECT_LT(rel_diff(y3, y1), 1e-14);
+        EXPECT_LT(test::rel_diff(y2, y1), 1e-13);
+        EXPECT_LT(test::rel_diff(y3, y1), 1e-14);
       }
     }
 }

@@ -1,5 +1,6 @@
 #pragma once
 // Shared helpers for the engine tests: scenes built in code, dense views.
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,16 @@ inline Region box_region(Vec3 lo, Vec3 hi, const std::string& name = "fixed[0]")
 }
 
 // The full symmetric matrix from the pattern's upper triangle.
+// |a - b| / |b| (relative L2 difference of two fields of the same size).
+inline double rel_diff(const std::vector<double>& a, const std::vector<double>& b) {
+  double d = 0, n = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    d += (a[i] - b[i]) * (a[i] - b[i]);
+    n += b[i] * b[i];
+  }
+  return std::sqrt(d / n);
+}
+
 inline Eigen::MatrixXd dense(const Model& m, const std::vector<double>& v) {
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m.ndof(), m.ndof());
   for (int c = 0; c < m.ndof(); ++c)
