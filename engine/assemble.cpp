@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include "engine/polar.h"
+#include "engine/rotation_stiffness.h"
 
 namespace incise {
 
@@ -33,6 +34,15 @@ Mat3 corotated_stress(const Model& m, const Mat3& R, const Mat3& F) {
   return 2.0 * m.mu * eps + m.lambda * eps.trace() * Mat3::Identity();
 }
 }  // namespace
+
+std::vector<char> point_rotation_flags(const Model& m) {
+  std::vector<char> own(m.qp_rot.size(), 0);
+  if (m.material.model == MaterialModel::Linear || !m.consistent_tangent) return own;
+  std::vector<int> users(m.nrot, 0);
+  for (int r : m.qp_rot) ++users[r];
+  for (size_t q = 0; q < own.size(); ++q) own[q] = users[m.qp_rot[q]] == 1;
+  return own;
+}
 
 int update_rotations(const Model& m, const double* u, double* R) { return update_rotations(m, u, R, 0, m.nrot); }
 
@@ -67,11 +77,14 @@ void assemble_internal(const Model& m, const double* u, const double* R, double*
   // Per-thread scratch kept across calls: no allocation per frame.
   thread_local std::vector<double> Kloc;  // blocks a <= b, 9 each (row-major within a block)
   thread_local std::vector<double> h;     // (n, 3) rotated gradients
+  thread_local std::vector<double> t;     // (n, 3, 3) rotation-mode vectors
+  const std::vector<char> own_rot = K ? point_rotation_flags(m) : std::vector<char>();
   for (int e = 0; e < m.nelem; ++e) {
     const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
     const int nblk = n * (n + 1) / 2;
     if (K) Kloc.assign(9 * nblk, 0.0);
     h.resize(3 * n);
+    t.resize(9 * n);
     for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
       const double w = m.qp_weight[q];
       const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
@@ -100,6 +113,9 @@ void assemble_internal(const Model& m, const double* u, const double* R, double*
               blk[3 * i + j] += w * (m.lambda * ha[i] * hb[j] + m.mu * hb[i] * ha[j] + (i == j ? gg : 0.0));
         }
       }
+      double uk[9], coef[3];
+      if (own_rot[q] && rotation_stiffness_modes(Rq.data(), F.data(), m.mu, m.lambda, w, uk, coef))
+        add_rotation_stiffness(n, h.data(), uk, coef, Kloc.data(), t.data());
     }
     if (!K) continue;
     const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];

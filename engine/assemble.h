@@ -9,6 +9,8 @@
 //   K_ab += w (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I),  h = R g
 // The last line is R K0_ab R^T of the isotropic linear stiffness (eq. 3.42)
 // written with rotated gradients, which is cheaper than rotating K0 blocks.
+// Where R is the point's own polar factor, the tangent also gets the rotation
+// (dR/dF) term, projected to be positive semi-definite (rotation_stiffness.h).
 // The linear model is the same with R = I.
 #include <vector>
 
@@ -26,6 +28,13 @@ int update_rotations(const Model& model, const double* u, double* R, int r_begin
 // configuration u over slots [r_begin, r_end) (rotation_angle_to: one Newton
 // step, not a full extraction); R is not changed.
 double max_rotation_change(const Model& model, const double* u, const double* R, int r_begin, int r_end);
+
+// (nqp) 1 where a point's rotation slot serves that point alone, so its R is
+// the polar factor of the point's own F and the tangent gets the rotation
+// term of rotation_stiffness.h; per-element and per-piece slots keep the
+// frozen-R tangent. All 0 for the linear model and unless the scene asks for
+// integrator.tangent "consistent".
+std::vector<char> point_rotation_flags(const Model& model);
 
 // f_int (ndof) = internal elastic force at u with rotations R; K (nnz) = the
 // corotated tangent in the pattern (skipped when K is null). Both are

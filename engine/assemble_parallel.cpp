@@ -1,11 +1,14 @@
 #include "engine/assemble_parallel.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include <Eigen/Core>
 
+#include "engine/assemble.h"
 #include "engine/polar.h"
+#include "engine/rotation_stiffness.h"
 
 namespace incise {
 
@@ -99,7 +102,8 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
     for (size_t s = 0; s < separators.size(); ++s) p.color_elem[next[color[s]]++] = separators[s];
   }
   const int n = p.max_elem_nodes;
-  p.scratch.assign(T, std::vector<double>(6 * n + 9 * n * (n + 1) / 2 + 16));
+  p.scratch.assign(T, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 16));
+  p.qp_own_rot = point_rotation_flags(m);
   // sym_matvec: column ranges of about equal nnz; workers t > 0 scatter into their own buffer.
   p.matvec_col_ptr.assign(T + 1, m.ndof());
   p.matvec_col_ptr[0] = 0;
@@ -148,6 +152,7 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
   double* xe = scratch;      // (n, 3) current positions
   double* h = xe + 3 * n;    // (n, 3) rotated gradients
   double* Kl = h + 3 * n;    // blocks a <= b, 9 each, row-major
+  double* t = Kl + 9 * n * (n + 1) / 2;  // (n, 3, 3) rotation-mode vectors (rotation_stiffness.h)
   const int nblk = n * (n + 1) / 2;
   for (int a = 0; a < n; ++a)
     for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
@@ -168,6 +173,14 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
   }
   if (K) std::fill(Kl, Kl + 9 * nblk, 0.0);
   const double mu = m.mu, lambda = m.lambda;
+  // Rotation term (rotation_stiffness.h): each point mode's vector
+  // t = sqrt(coef_k) (u_k x h_a)_a is a rank-1 update Kr += t t^T of a dense
+  // row-major element matrix (contiguous rows: the compiler vectorises them),
+  // copied into the blocks at the end.
+  constexpr int D = NN > 0 ? 3 * NN : 1;
+  constexpr int DP = (D + 3) / 4 * 4;  // rows padded to whole 4-double vectors (GCC -O2 vectorises only those)
+  alignas(32) double Kr[D * DP];
+  bool rot_terms = false;
   for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
     const double w = m.qp_weight[q];
     const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
@@ -206,6 +219,42 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
         blk[7] += la2 * hb1 + hb2 * ma1;
         blk[8] += la2 * hb2 + hb2 * ma2 + gg;
       }
+    }
+    double uk[9], coef[3];
+    if (!plan.qp_own_rot[q] || !rotation_stiffness_modes(R, F, mu, lambda, w, uk, coef)) continue;
+    if constexpr (NN == 0) {
+      add_rotation_stiffness(n, h, uk, coef, Kl, t);
+    } else {
+      for (int k = 0; k < 3; ++k) {
+        if (coef[k] <= 0.0) continue;
+        if (!rot_terms) std::fill(Kr, Kr + D * DP, 0.0);
+        rot_terms = true;
+        const double sc = std::sqrt(coef[k]);
+        const double u0 = sc * uk[3 * k], u1 = sc * uk[3 * k + 1], u2 = sc * uk[3 * k + 2];
+        alignas(32) double tv[DP];
+        for (int c = D; c < DP; ++c) tv[c] = 0.0;
+        for (int a = 0; a < NN; ++a) {
+          const double* ha = h + 3 * a;
+          tv[3 * a] = u1 * ha[2] - u2 * ha[1];
+          tv[3 * a + 1] = u2 * ha[0] - u0 * ha[2];
+          tv[3 * a + 2] = u0 * ha[1] - u1 * ha[0];
+        }
+        for (int r = 0; r < D; ++r) {  // the upper part: columns from r's 4-aligned start
+          const double alpha = tv[r];
+          double* kr = Kr + r * DP;
+          for (int c = r / 4 * 4; c < DP; c += 4)
+            for (int l = 0; l < 4; ++l) kr[c + l] += alpha * tv[c + l];
+        }
+      }
+    }
+  }
+  if constexpr (NN > 0) {
+    if (K && rot_terms) {
+      double* blk = Kl;
+      for (int a = 0; a < NN; ++a)
+        for (int b = a; b < NN; ++b, blk += 9)
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) blk[3 * i + j] += Kr[(3 * a + i) * DP + 3 * b + j];
     }
   }
   if (K) {

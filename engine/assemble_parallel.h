@@ -27,6 +27,7 @@ struct AssemblyPlan {
   std::vector<int> color_ptr;     // (ncolor + 1) into color_elem
   std::vector<int> color_elem;    // separator elements grouped by colour
   int max_elem_nodes = 0;         // largest element (DOF nodes)
+  std::vector<char> qp_own_rot;   // (nqp) 1 where the point's rotation slot is its own (rotation_stiffness.h)
   std::vector<std::vector<double>> scratch;  // (nthreads) per-worker work space
   std::vector<std::vector<double>> matvec_buf;  // (nthreads) per-worker partial y of sym_matvec
   std::vector<int> matvec_col_ptr;  // (nthreads + 1) column ranges of about equal nnz
@@ -44,7 +45,9 @@ int assemble_corotated(const Model& model, AssemblyPlan& plan, ThreadPool& pool,
                        double* f_int, double* K);
 
 // y = K(R) v without forming K: per point f_a = w R (mu (S + S^T) + lambda tr(S) I) g_a with
-// S = R^T sum_b v_b (x) g_b, which is R K0 R^T v element by element.
+// S = R^T sum_b v_b (x) g_b, which is R K0 R^T v element by element: the
+// frozen-R tangent, without the rotation term assemble_corotated adds where
+// a point owns its rotation (rotation_stiffness.h).
 void stiffness_matvec(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* R, const double* v,
                       double* y);
 

@@ -18,8 +18,8 @@ using Mat3 = Eigen::Matrix3d;
 
 // A = cK K + cM M with the constrained rows and columns projected out (Algorithm 1).
 void form_matrix(const Model& m, const double* K, double* A) {
-  const double dt = m.dt, a_ray = m.material.rayleigh_mass, b_ray = m.material.rayleigh_stiffness;
-  const double cM = 4.0 / (dt * dt) + 2.0 * a_ray / dt, cK = 1.0 + 2.0 * b_ray / dt;
+  const NewmarkCoefficients c = newmark_coefficients(m);
+  const double cM = c.cM, cK = c.cK;
   for (int k = 0; k < m.nnz(); ++k) A[k] = cK * K[k];
   if (!m.mass_csc.empty()) {  // consistent, or lumped with X-FEM couplings
     for (int k = 0; k < m.nnz(); ++k) A[k] += cM * m.mass_csc[k];

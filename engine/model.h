@@ -31,6 +31,8 @@ struct Model {
   int newton_iterations = 1;
   int max_newton_iterations = 4;    // adaptive cap (scene integrator.max_newton_iterations)
   double rotation_tolerance = 0.1;  // radians; 0 = fixed iteration count
+  double newmark_gamma = 0.5, newmark_beta = 0.25;  // 1/2, 1/4: trapezoidal rule
+  bool consistent_tangent = false;  // integrator.tangent: add the rotation term (engine/rotation_stiffness.h)
   SolverSettings solver;        // solver.* of the scene: policy, CG tolerance, threads
 
   // DOF nodes
@@ -96,7 +98,23 @@ struct Model {
   double prescribed_value(const PrescribedDof& p, double time) const {
     return (p.ramp > 0 && time < p.ramp) ? p.value * time / p.ramp : p.value;
   }
+  // Its time derivative: the right limit at the end of the ramp, which a time
+  // summed from steps (k dt) reaches within roundoff.
+  double prescribed_velocity(const PrescribedDof& p, double time) const {
+    return (p.ramp > 0 && time < p.ramp * (1.0 - 1e-9)) ? p.value / p.ramp : 0.0;
+  }
 };
+
+// Newmark's update (book eq. 3.58 for beta = 1/4, gamma = 1/2, in general
+// form) in terms of the step's increment Delta = u1 - u:
+//   a1 = a_d Delta + a_v v + a_a a,   v1 = v_d Delta + v_v v + v_a a,
+// and the dynamic matrix A = cM M + cK K with Rayleigh damping D = a M + b K
+// (eq. 3.59 in general form): cM = 1/(beta dt^2) + a gamma/(beta dt),
+// cK = 1 + b gamma/(beta dt).
+struct NewmarkCoefficients {
+  double a_d, a_v, a_a, v_d, v_v, v_a, cM, cK;
+};
+NewmarkCoefficients newmark_coefficients(const Model& model);
 
 // Builds the Model from a mesh (tet4 or tet10, checked) and the scene's
 // material, mass, constraints and loads. order 2 raises a tet4 mesh. With a

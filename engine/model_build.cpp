@@ -503,6 +503,12 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.newton_iterations = scene.newton_iterations;
   m.max_newton_iterations = std::max(scene.max_newton_iterations, scene.newton_iterations);
   m.rotation_tolerance = scene.rotation_tolerance;
+  m.newmark_gamma = scene.newmark_gamma;
+  m.newmark_beta = scene.newmark_beta;
+  m.consistent_tangent = scene.consistent_tangent;
+  if (!(m.newmark_gamma >= 0.5 && m.newmark_beta >= 0.5 * m.newmark_gamma))
+    throw Error(scene.path + ": integrator: newmark_gamma must be >= 0.5 and newmark_beta >= newmark_gamma / 2 (got " +
+                std::to_string(m.newmark_gamma) + ", " + std::to_string(m.newmark_beta) + ")");
   m.solver = scene.solver;
   m.nnode = m.ndofnode = m.mesh.nnode();
   m.X = m.mesh.X;
@@ -519,6 +525,21 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   if (!base || model_needs_rest_stiffness(m)) m.K0_csc = rest_stiffness(m);
   build_constraints(m, scene);
   return m;
+}
+
+NewmarkCoefficients newmark_coefficients(const Model& m) {
+  const double dt = m.dt, b = m.newmark_beta, g = m.newmark_gamma;
+  NewmarkCoefficients c;
+  c.a_d = 1.0 / (b * dt * dt);
+  c.a_v = -1.0 / (b * dt);
+  c.a_a = 1.0 - 0.5 / b;
+  // v1 = v + dt ((1 - gamma) a + gamma a1)
+  c.v_d = g / (b * dt);
+  c.v_v = 1.0 - g / b;
+  c.v_a = dt * (1.0 - 0.5 * g / b);
+  c.cM = c.a_d + m.material.rayleigh_mass * c.v_d;
+  c.cK = 1.0 + m.material.rayleigh_stiffness * c.v_d;
+  return c;
 }
 
 std::vector<double> rest_stiffness(const Model& m) {

@@ -359,7 +359,8 @@ void parse_prescribed(const Parser& p, const json& v, Scene& s) {
 void parse_integrator(const Parser& p, const json& v, Scene& s) {
   const std::string at = "integrator";
   p.object(v, at);
-  p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance"});
+  p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance", "newmark_gamma",
+                          "newmark_beta", "tangent"});
   if (auto it = v.find("dt"); it != v.end()) {
     double dt = p.number(*it, at + ".dt");
     if (!(dt > 0.0 && dt <= 1.0))
@@ -372,6 +373,22 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
     s.max_newton_iterations = p.at_least_one(*it, at + ".max_newton_iterations");
   if (auto it = v.find("rotation_tolerance"); it != v.end())
     s.rotation_tolerance = p.nonnegative(*it, at + ".rotation_tolerance");
+  if (auto it = v.find("tangent"); it != v.end())
+    s.consistent_tangent = p.choice(*it, at + ".tangent", {"frozen_rotation", "consistent"}) == 1;
+  if (auto it = v.find("newmark_gamma"); it != v.end()) {
+    const double g = p.number(*it, at + ".newmark_gamma");
+    if (!(g >= 0.5 && g <= 1.0)) p.fail(at + ".newmark_gamma", " must be in [0.5, 1] (0.5 = no numerical damping), got " + show(*it));
+    s.newmark_gamma = g;
+  }
+  // beta defaults to (gamma + 1/2)^2 / 4: unconditionally stable, and the
+  // high-frequency limit of the amplification is then as small as gamma allows.
+  s.newmark_beta = 0.25 * (s.newmark_gamma + 0.5) * (s.newmark_gamma + 0.5);
+  if (auto it = v.find("newmark_beta"); it != v.end()) {
+    const double b = p.number(*it, at + ".newmark_beta");
+    if (!(b >= 0.5 * s.newmark_gamma && b <= 1.0))
+      p.fail(at + ".newmark_beta", " must be in [newmark_gamma / 2, 1] (unconditionally stable), got " + show(*it));
+    s.newmark_beta = b;
+  }
 }
 
 void parse_solver(const Parser& p, const json& v, Scene& s) {

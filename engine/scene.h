@@ -119,6 +119,14 @@ struct Scene {
   // frozen at and the step's result; 0 turns the check off. See docs/numerics.md.
   int max_newton_iterations = 4;
   double rotation_tolerance = 0.1;
+  // Newmark parameters (integrator.newmark_gamma / newmark_beta): gamma = 1/2
+  // with beta = 1/4 is the trapezoidal rule (no numerical damping); gamma > 1/2
+  // damps the high frequencies (docs/numerics.md, "Numerical damping").
+  double newmark_gamma = 0.5;
+  double newmark_beta = 0.25;
+  // integrator.tangent: "frozen_rotation" (R K0 R^T) or "consistent" (plus the
+  // dR/dF term of engine/rotation_stiffness.h).
+  bool consistent_tangent = false;
   SolverSettings solver;                // solver.*
   double static_tolerance = 1e-8;       // static.tolerance: relative residual
   int static_max_iterations = 50;       // static.max_iterations

@@ -83,6 +83,7 @@ void step(const Model& m, State& s) {
   const double dt = m.dt, t1 = s.time + dt;
   const double a_ray = m.material.rayleigh_mass, b_ray = m.material.rayleigh_stiffness;
   const bool linear = m.material.model == MaterialModel::Linear;
+  const NewmarkCoefficients nc = newmark_coefficients(m);
 
   // Increment Delta = u(t+dt) - u(t): constrained DOFs take their known
   // increments up front (projection, Algorithm 1); the solves then keep
@@ -110,15 +111,16 @@ void step(const Model& m, State& s) {
     const double* K = internal_forces(m, s, x, policy_needs_tangent(m));
     s.timing.ms[kStageAssembly] += clock.lap();
 
-    // Newmark (eq. 3.58): a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v.
+    // Newmark (eq. 3.58; newmark_coefficients for general beta, gamma):
+    // a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v at beta = 1/4, gamma = 1/2.
     // Residual r = f_ext - f_int(x) - M a1 - D v1 with D = a M + b K. For
     // Delta = 0 this is eq. 3.60 with f_int the elastic force only (the book
     // folds the t-level viscous force D v into f_int, hence its D (2 v)).
     double* a1 = s.du.data();
     double* v1 = s.tmp2.data();
     for (int d = 0; d < n; ++d) {
-      a1[d] = 4.0 / (dt * dt) * s.delta[d] - 4.0 / dt * s.v[d] - s.a[d];
-      v1[d] = 2.0 / dt * s.delta[d] - s.v[d];
+      a1[d] = nc.a_d * s.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
+      v1[d] = nc.v_d * s.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
     }
     // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
     for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
@@ -130,7 +132,7 @@ void step(const Model& m, State& s) {
     for (int d = 0; d < n; ++d) s.rhs[d] = m.f_gravity[d] - s.f_int[d] - s.rhs[d];
     if (b_ray > 0.0) {
       if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, s.work.plan, *s.work.pool, K, v1, a1);
-      else stiffness_matvec(m, s.work.plan, *s.work.pool, s.R.data(), v1, a1);  // warped: K v without K
+      else stiffness_matvec(m, s.work.plan, *s.work.pool, s.R.data(), v1, a1);  // warped: frozen-R K v without K
       for (int d = 0; d < n; ++d) s.rhs[d] -= b_ray * a1[d];
     }
     double rnorm = 0.0, fnorm = 0.0;
@@ -143,7 +145,7 @@ void step(const Model& m, State& s) {
     check_finite(s.rhs, "residual", s);
     s.timing.ms[kStageOther] += clock.lap();
 
-    // A = 4/dt^2 M + 2/dt D + K (eq. 3.59), projected, solved per solver.policy.
+    // A = 4/dt^2 M + 2/dt D + K (eq. 3.59; cM M + cK K in general), projected, solved per solver.policy.
     solve_system(m, s, K, it, clock);
     check_finite(s.du, "displacement increment", s);
     for (int d = 0; d < n; ++d) s.delta[d] += s.du[d];
@@ -169,12 +171,21 @@ void step(const Model& m, State& s) {
     if (!moved) break;
   }
 
-  // Newmark update (eq. 3.58).
+  // Newmark update (eq. 3.58, general beta and gamma).
   for (int d = 0; d < n; ++d) {
-    const double a1 = 4.0 / (dt * dt) * s.delta[d] - 4.0 / dt * s.v[d] - s.a[d];
-    s.v[d] += 0.5 * dt * (s.a[d] + a1);
+    const double a1 = nc.a_d * s.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
+    s.v[d] = nc.v_d * s.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
     s.a[d] = a1;
     s.u[d] += s.delta[d];
+  }
+  // Constrained DOFs move as prescribed, not as Newmark would integrate them:
+  // from the increment alone, v1 = 2/dt Delta - v flips sign every frame once a
+  // ramp stops (Delta = 0) and alternates 0, 2V while it runs, and that
+  // sawtooth reaches the free DOFs through the damping coupling b K v.
+  for (int d : m.fixed_dofs) s.v[d] = s.a[d] = 0.0;
+  for (const auto& p : m.prescribed) {
+    s.v[p.dof] = m.prescribed_velocity(p, t1);
+    s.a[p.dof] = 0.0;  // piecewise linear in time
   }
   s.time = t1;
   ++s.frame;

@@ -34,7 +34,6 @@ inline Region box_region(Vec3 lo, Vec3 hi, const std::string& name = "fixed[0]")
   return r;
 }
 
-// The full symmetric matrix from the pattern's upper triangle.
 // |a - b| / |b| (relative L2 difference of two fields of the same size).
 inline double rel_diff(const std::vector<double>& a, const std::vector<double>& b) {
   double d = 0, n = 0;
@@ -45,6 +44,7 @@ inline double rel_diff(const std::vector<double>& a, const std::vector<double>& 
   return std::sqrt(d / n);
 }
 
+// The full symmetric matrix from the pattern's upper triangle.
 inline Eigen::MatrixXd dense(const Model& m, const std::vector<double>& v) {
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m.ndof(), m.ndof());
   for (int c = 0; c < m.ndof(); ++c)

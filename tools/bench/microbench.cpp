@@ -22,7 +22,7 @@ using namespace incise;
 struct Setup {
   Model m;
   std::vector<double> u, R, f, K;
-  Setup(int order, RotationMode rot, int nx, int ny, int nz) {
+  Setup(int order, RotationMode rot, int nx, int ny, int nz, bool consistent = false) {
     Scene s;
     s.path = "microbench";
     s.order = order;
@@ -30,6 +30,7 @@ struct Setup {
     s.material.poisson = 0.45;
     s.material.density = 1000;
     s.material.rotation = rot;
+    s.consistent_tangent = consistent;
     m = build_model(make_beam(0.2, 0.05, 0.05, nx, ny, nz, 1), s);
     u.assign(m.ndof(), 0.0);
     for (int n = 0; n < m.nnode; ++n) {  // a bent and twisted state: rotations far from I
@@ -47,8 +48,9 @@ struct Setup {
 
 // Fused kernel (engine/assemble_parallel.cpp) on `threads` workers; the
 // rotations stay warm-started from the previous call, as between frames.
-void BM_Fused(benchmark::State& state, int order, RotationMode rot, int threads, bool with_K) {
-  Setup s(order, rot, 40, 10, 10);
+// `consistent`: integrator.tangent "consistent" (the rotation term).
+void BM_Fused(benchmark::State& state, int order, RotationMode rot, int threads, bool with_K, bool consistent = false) {
+  Setup s(order, rot, 40, 10, 10, consistent);
   ThreadPool pool(threads);
   AssemblyPlan plan = make_assembly_plan(s.m, threads);
   assemble_corotated(s.m, plan, pool, s.u.data(), s.R.data(), s.f.data(), s.K.data());
@@ -143,6 +145,8 @@ BENCHMARK_CAPTURE(BM_Fused, tet4_1thread, 1, RotationMode::PerPoint, 1, true)->U
 BENCHMARK_CAPTURE(BM_Fused, tet4_2threads, 1, RotationMode::PerPoint, 2, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet4_force_only_1thread, 1, RotationMode::PerPoint, 1, false)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10_1thread, 2, RotationMode::PerPoint, 1, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Fused, tet4_consistent_1thread, 1, RotationMode::PerPoint, 1, true, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Fused, tet10_consistent_1thread, 2, RotationMode::PerPoint, 1, true, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10_2threads, 2, RotationMode::PerPoint, 2, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10SR_1thread, 2, RotationMode::Single, 1, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10_force_only_1thread, 2, RotationMode::PerPoint, 1, false)->Unit(benchmark::kMillisecond)->UseRealTime();
