@@ -239,7 +239,10 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
           tv[3 * a + 1] = u2 * ha[0] - u0 * ha[2];
           tv[3 * a + 2] = u0 * ha[1] - u1 * ha[0];
         }
-        for (int r = 0; r < D; ++r) {  // the upper part: columns from r's 4-aligned start
+        // Only the upper part, columns from r's 4-aligned start: the lower
+        // triangle of a diagonal block is then incomplete, which is harmless
+        // because the scatter drops it (the pattern stores the upper triangle).
+        for (int r = 0; r < D; ++r) {
           const double alpha = tv[r];
           double* kr = Kr + r * DP;
           for (int c = r / 4 * 4; c < DP; c += 4)

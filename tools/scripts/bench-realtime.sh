@@ -7,7 +7,9 @@
 #   incise bench    (frame, cut-frame and stage timings of the policy alone)
 # The policy: lagged CG, background factorization taken K frames after it
 # starts (K grows with the factor time), warp, CG tolerance TOL, float factor
-# copy, one assembly thread (the second core runs the factorization).
+# copy, one assembly thread (the second core runs the factorization), and the
+# consistent corotated tangent (integrator.tangent; REALTIME_TANGENT=frozen_rotation
+# for the default). incise bench times FRAMES frames too (BENCH_FRAMES to change).
 # Usage: bench-realtime.sh [BUILD_DIR] [FRAMES] [TOL]   (BENCH_ONLY="organ-10k ..." to pick cases)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -17,11 +19,13 @@ tol="${3:-1e-3}"
 incise="$build/tools/incise"
 out="$build/realtime"
 mkdir -p "$out"
-extra="${REALTIME_OPTIONS:-}"  # e.g. "--single-precision"
+extra="${REALTIME_OPTIONS:-}"  # e.g. "--single-precision false"
+tangent="${REALTIME_TANGENT:-consistent}"  # integrator.tangent of every case (frozen_rotation: the default)
+bench_frames="${BENCH_FRAMES:-$frames}"   # frames timed by incise bench (after 5 warm-up frames)
 # name mesh-or-scene K
 cases=(
   "organ-3k organ_3k 3"
-  "organ-10k organ_10k 6"
+  "organ-10k organ_10k 8"
   "organ-20k organ_20k 12"
   "organ-30k organ_30k 18"
   "beam-10k beam_20x4x4 6"
@@ -39,7 +43,7 @@ for c in "${cases[@]}"; do
 {"mesh": {"file": "$(realpath --relative-to="$out" "assets/meshes/$mesh.msh")", "order": 2},
  "material": {"model": "corotated", "young": 3e4, "poisson": 0.45, "density": 1000,
               "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
- "mass": "lumped", "gravity": [0, 0, -9.81],
+ "mass": "lumped", "gravity": [0, 0, -9.81], "integrator": {"tangent": "$tangent"},
  "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}],
  "prescribed": [{"box": [[-0.025, -0.01, 0.041], [-0.005, 0.01, 0.06]],
                  "displacement": {"x": 0.015, "y": 0, "z": -0.01}, "ramp": 1.0}]}
@@ -52,17 +56,18 @@ JSON
 {"mesh": {"file": "$mesh.vtu", "order": 2},
  "material": {"model": "corotated", "young": 1e5, "poisson": 0.45, "density": 1000,
               "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
- "mass": "lumped", "gravity": [0, 0, -9.81],
+ "mass": "lumped", "gravity": [0, 0, -9.81], "integrator": {"tangent": "$tangent"},
  "fixed": [{"box": [[-1, -1, -1], [0, 1, 1]]}],
  "prescribed": [{"plane": {"point": [0.2, 0, 0], "normal": [-1, 0, 0]},
                  "displacement": {"x": -0.12, "y": 0.1, "z": 0.08}, "ramp": 1.0}]}
 JSON
       ;;
     incision-*)
-      python3 - "assets/scenes/$mesh.json" "$scene" <<'PY'
+      python3 - "assets/scenes/$mesh.json" "$scene" "$tangent" <<'PY'
 import json, os, sys
-src, dst = sys.argv[1], sys.argv[2]
+src, dst, tangent = sys.argv[1], sys.argv[2], sys.argv[3]
 d = json.load(open(src))
+d.setdefault("integrator", {})["tangent"] = tangent
 d["mesh"]["file"] = os.path.relpath(os.path.join(os.path.dirname(src), d["mesh"]["file"]), os.path.dirname(dst))
 for k in ("output", "render", "run", "solver"):
     d.pop(k, None)
@@ -76,15 +81,15 @@ PY
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
     echo "  failed: see $out/$name.compare.log" >&2
   # shellcheck disable=SC2086
-  "$incise" bench "$scene" $opts --frames 100 --warmup 5 --json "$out/$name.bench.json" >"$out/$name.bench.log" 2>&1 ||
+  "$incise" bench "$scene" $opts --frames "$bench_frames" --warmup 5 --json "$out/$name.bench.json" >"$out/$name.bench.log" 2>&1 ||
     echo "  failed: see $out/$name.bench.log" >&2
 done
-python3 - "$out" "$tol" "${cases[@]}" <<'PY'
+python3 - "$out" "$tol" "$tangent" "${cases[@]}" <<'PY'
 import json, sys
-out, tol = sys.argv[1], sys.argv[2]
+out, tol, tangent = sys.argv[1], sys.argv[2], sys.argv[3]
 print(f"| case | DOF | nnz(L) | exact median ms | policy (CG tol {tol}) | median ms | p99 ms | max ms | cut frames: count, median / p99 / max ms | CG its median (max) | Newton/frame | err @1 | err @30 | err @last |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-for c in sys.argv[3:]:
+for c in sys.argv[4:]:
     name, _, k = c.split()
     try:
         j = json.load(open(f"{out}/{name}.compare.json")); b = json.load(open(f"{out}/{name}.bench.json"))
@@ -96,7 +101,7 @@ for c in sys.argv[3:]:
     cf = b["cut_frames"]
     cut = f"{cf['count']}, {cf['median_ms']:.1f} / {cf['p99_ms']:.1f} / {cf['max_ms']:.1f}" if cf["count"] else "-"
     it = b["solver"]["iterations"]
-    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp | "
+    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp, tangent {tangent} | "
           f"{b['frame']['median_ms']:.1f} | {b['frame']['p99_ms']:.1f} | {b['frame']['max_ms']:.1f} | {cut} | {it['median']:.0f} ({it['max']:.0f}) | "
           f"{b['newton']['mean']:.2f} | {e.get(1, float('nan')):.1e} | {e.get(30, float('nan')):.1e} | {e.get(last, float('nan')):.1e} ({last}) |")
 PY
