@@ -44,6 +44,16 @@ std::vector<char> point_rotation_flags(const Model& m) {
   return own;
 }
 
+std::vector<double> shared_slot_weights(const Model& m) {
+  std::vector<double> W(m.nrot, 0.0);
+  if (m.material.model == MaterialModel::Linear || !m.consistent_tangent) return W;
+  std::vector<int> users(m.nrot, 0);
+  for (int r : m.qp_rot) ++users[r];
+  for (size_t q = 0; q < m.qp_rot.size(); ++q)
+    if (users[m.qp_rot[q]] > 1) W[m.qp_rot[q]] += m.qp_weight[q];
+  return W;
+}
+
 int update_rotations(const Model& m, const double* u, double* R) { return update_rotations(m, u, R, 0, m.nrot); }
 
 int update_rotations(const Model& m, const double* u, double* R, int r_begin, int r_end) {
@@ -79,12 +89,23 @@ void assemble_internal(const Model& m, const double* u, const double* R, double*
   thread_local std::vector<double> h;     // (n, 3) rotated gradients
   thread_local std::vector<double> t;     // (n, 3, 3) rotation-mode vectors
   const std::vector<char> own_rot = K ? point_rotation_flags(m) : std::vector<char>();
+  const std::vector<double> slot_w = K ? shared_slot_weights(m) : std::vector<double>();
+  std::vector<int> done;  // shared slots of the element already given their term
   for (int e = 0; e < m.nelem; ++e) {
     const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
     const int nblk = n * (n + 1) / 2;
     if (K) Kloc.assign(9 * nblk, 0.0);
     h.resize(3 * n);
     t.resize(9 * n);
+    done.clear();
+    for (int q = m.elem_qp_ptr[e]; K && q < m.elem_qp_ptr[e + 1]; ++q) {
+      const int r = m.qp_rot[q];
+      if (slot_w[r] <= 0.0 || std::find(done.begin(), done.end(), r) != done.end()) continue;
+      done.push_back(r);
+      const Mat3 Fbar = deformation_gradient(m, e, u, &m.rot_grad[m.rot_grad_ptr[r]]);
+      add_slot_rotation_stiffness(n, R + 9 * r, Fbar.data(), &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda, slot_w[r],
+                                  Kloc.data(), h.data(), t.data());
+    }
     for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
       const double w = m.qp_weight[q];
       const double* g = &m.qp_grad[m.qp_grad_ptr[q]];

@@ -36,6 +36,12 @@ double max_rotation_change(const Model& model, const double* u, const double* R,
 // integrator.tangent "consistent".
 std::vector<char> point_rotation_flags(const Model& model);
 
+// (nrot) total cubature weight of each rotation slot that several points
+// share (per element or per cut piece), which gets the slot form of the
+// rotation term (add_slot_rotation_stiffness); 0 for a point's own slot, and
+// all 0 under the same conditions as point_rotation_flags.
+std::vector<double> shared_slot_weights(const Model& model);
+
 // f_int (ndof) = internal elastic force at u with rotations R; K (nnz) = the
 // corotated tangent in the pattern (skipped when K is null). Both are
 // overwritten.

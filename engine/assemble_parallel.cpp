@@ -104,6 +104,7 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
   const int n = p.max_elem_nodes;
   p.scratch.assign(T, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 16));
   p.qp_own_rot = point_rotation_flags(m);
+  p.slot_weight = shared_slot_weights(m);
   // sym_matvec: column ranges of about equal nnz; workers t > 0 scatter into their own buffer.
   p.matvec_col_ptr.assign(T + 1, m.ndof());
   p.matvec_col_ptr[0] = 0;
@@ -158,6 +159,7 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
   int fallbacks = 0;
   const bool linear = m.material.model == MaterialModel::Linear;
+  if (K) std::fill(Kl, Kl + 9 * nblk, 0.0);
   for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
     const int r = plan.elem_rot[k];
     Eigen::Map<Mat3> Rm(Rall + 9 * r);
@@ -170,8 +172,10 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     Mat3 Rr = Rm;
     if (extract_rotation(Eigen::Map<const Mat3>(F), Rr) < 0) ++fallbacks;
     Rm = Rr;
+    if (K && plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points below)
+      add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
+                                  plan.slot_weight[r], Kl, h, t);
   }
-  if (K) std::fill(Kl, Kl + 9 * nblk, 0.0);
   const double mu = m.mu, lambda = m.lambda;
   // Rotation term (rotation_stiffness.h): each point mode's vector
   // t = sqrt(coef_k) (u_k x h_a)_a is a rank-1 update Kr += t t^T of a dense

@@ -28,6 +28,7 @@ struct AssemblyPlan {
   std::vector<int> color_elem;    // separator elements grouped by colour
   int max_elem_nodes = 0;         // largest element (DOF nodes)
   std::vector<char> qp_own_rot;   // (nqp) 1 where the point's rotation slot is its own (rotation_stiffness.h)
+  std::vector<double> slot_weight;  // (nrot) shared_slot_weights: > 0 where a shared slot gets the rotation term
   std::vector<std::vector<double>> scratch;  // (nthreads) per-worker work space
   std::vector<std::vector<double>> matvec_buf;  // (nthreads) per-worker partial y of sym_matvec
   std::vector<int> matvec_col_ptr;  // (nthreads + 1) column ranges of about equal nnz

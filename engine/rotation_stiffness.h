@@ -126,4 +126,23 @@ inline void add_rotation_stiffness(int n, const double* h, const double* u, cons
   }
 }
 
+// The term for a rotation slot that several points share (one rotation per
+// element or per cut piece, the polar factor of the volume-averaged gradient
+// F of the slot's points, total weight W, averaged gradients gbar (n, 3)):
+// the point formula with F, W and gbar standing for the slot's points. Exact
+// for constant-gradient elements, an approximation (still positive
+// semi-definite) otherwise. hbar (n, 3) and t (n, 3, 3) are scratch.
+inline void add_slot_rotation_stiffness(int n, const double* R, const double* F, const double* gbar, double mu,
+                                        double lambda, double W, double* blocks, double* hbar, double* t) {
+  double u[9], coef[3];
+  if (!rotation_stiffness_modes(R, F, mu, lambda, W, u, coef)) return;
+  for (int a = 0; a < n; ++a) {
+    const double g0 = gbar[3 * a], g1 = gbar[3 * a + 1], g2 = gbar[3 * a + 2];
+    hbar[3 * a] = R[0] * g0 + R[3] * g1 + R[6] * g2;
+    hbar[3 * a + 1] = R[1] * g0 + R[4] * g1 + R[7] * g2;
+    hbar[3 * a + 2] = R[2] * g0 + R[5] * g1 + R[8] * g2;
+  }
+  add_rotation_stiffness(n, hbar, u, coef, blocks, t);
+}
+
 }  // namespace incise
