@@ -23,6 +23,28 @@ void old_piece_values(const Model& m, const Kinematics& s, int e, const double r
     for (int c = 0; c < 3; ++c) out[3 * k + c] = (*f[k])[3 * i + c] + (q >= 0 ? (*f[k])[3 * q + c] : 0.0);
 }
 
+// Warm starts for the new model's rotation slots: an element with as many
+// slots as before keeps its old rotations (uncut elements, and cut ones whose
+// pieces did not change), the others start from the identity. Saves the polar
+// iterations of a cold start in the rebuild's force evaluation and the next step.
+std::vector<double> carried_rotations(const Model& from, const std::vector<double>& R_from, const Model& to) {
+  std::vector<int> old_ptr(from.nelem + 1, 0), new_ptr(to.nelem + 1, 0);
+  for (int r = 0; r < from.nrot; ++r) ++old_ptr[from.rot_elem[r] + 1];
+  for (int r = 0; r < to.nrot; ++r) ++new_ptr[to.rot_elem[r] + 1];
+  for (int e = 0; e < from.nelem; ++e) old_ptr[e + 1] += old_ptr[e];
+  for (int e = 0; e < to.nelem; ++e) new_ptr[e + 1] += new_ptr[e];
+  std::vector<double> R(9 * static_cast<size_t>(to.nrot), 0.0);
+  for (int r = 0; r < to.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  // Slots are numbered element by element (model_build.cpp), so slot k of e is ptr[e] + k.
+  for (int e = 0; e < to.nelem && e < from.nelem; ++e) {
+    const int n_old = old_ptr[e + 1] - old_ptr[e], n_new = new_ptr[e + 1] - new_ptr[e];
+    if (n_old != n_new) continue;
+    std::copy(R_from.begin() + 9 * static_cast<size_t>(old_ptr[e]), R_from.begin() + 9 * static_cast<size_t>(old_ptr[e + 1]),
+              R.begin() + 9 * static_cast<size_t>(new_ptr[e]));
+  }
+  return R;
+}
+
 bool same_layout(const Model& m, const CutLayout& L) {
   const CutLayout& O = m.cuts;
   return m.has_cuts() && O.n_enriched == L.n_enriched && O.elem_piece_ptr == L.elem_piece_ptr &&
@@ -54,6 +76,7 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   const int frame = sim.state.frame, refactorizations = sim.state.refactorizations;
   const bool carry = solver_carries_over_cuts(next, sim.state);
   const std::vector<int> map = carry ? dofnode_map(sim.model, next) : std::vector<int>{};
+  std::vector<double> R = carried_rotations(sim.model, sim.state.R, next);
   sim.model = std::move(next);
   if (carry) {  // the lagged factors stay; the new pattern is analyzed off this frame
     size_state(sim.model, sim.state);
@@ -61,6 +84,7 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   } else {
     init_state(sim.model, sim.state, /*consistent_a0=*/false);  // new pattern: symbolic analysis
   }
+  sim.state.R.swap(R);
   sim.state.u.swap(k.u);
   sim.state.v.swap(k.v);
   sim.state.a.swap(k.a);
