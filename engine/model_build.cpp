@@ -192,6 +192,119 @@ void build_boundary_faces(Model& m) {
   }
 }
 
+// build_pattern for a model of the same mesh as `base` (a cut rebuild). The
+// columns of mesh nodes only have mesh-node rows, which cuts never change,
+// so they are copied; the enriched DOF nodes' columns are built from the
+// elements that carry enrichment, and the scatter of an element with the same
+// DOF nodes and no enrichment is copied. The result equals build_pattern's
+// (Xfem.RebuildFromTheBaseModelEqualsAFreshBuild).
+void build_pattern_from_base(Model& m, const Model& base) {
+  const int nstd = m.nnode, cstd = 3 * nstd;
+  m.Ap.assign(base.Ap.begin(), base.Ap.begin() + cstd + 1);
+  m.Ai.assign(base.Ai.begin(), base.Ai.begin() + base.Ap[cstd]);
+  m.Ap.resize(m.ndof() + 1);
+  // Node-level rows of the enriched columns c >= nstd (index c - nstd).
+  const int nenr = m.ndofnode - nstd;
+  std::vector<char> enriched_elem(m.nelem, 0);
+  for (int e = 0; e < m.nelem; ++e)
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+      if (m.elem_dof_node[k] >= nstd) enriched_elem[e] = 1;
+  std::vector<int> cnt(nenr + 1, 1);
+  cnt[0] = 0;
+  for (int e = 0; e < m.nelem; ++e) {
+    if (!enriched_elem[e]) continue;
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    for (int a = 0; a < n; ++a)
+      for (int c = 0; c < n; ++c) {
+        const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+        if (nc >= nstd && na <= nc) ++cnt[nc - nstd + 1];
+      }
+  }
+  for (int c = 0; c < nenr; ++c) cnt[c + 1] += cnt[c];
+  std::vector<int> rows(cnt.back()), fill(cnt.begin(), cnt.end() - 1);
+  for (int c = 0; c < nenr; ++c) rows[fill[c]++] = nstd + c;
+  for (int e = 0; e < m.nelem; ++e) {
+    if (!enriched_elem[e]) continue;
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    for (int a = 0; a < n; ++a)
+      for (int c = 0; c < n; ++c) {
+        const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+        if (nc >= nstd && na <= nc) rows[fill[nc - nstd]++] = na;
+      }
+  }
+  std::vector<int> rp(nenr + 1, 0);
+  int w = 0;
+  for (int c = 0; c < nenr; ++c) {
+    const auto first = rows.begin() + cnt[c], last = rows.begin() + cnt[c + 1];
+    std::sort(first, last);
+    const int k = static_cast<int>(std::unique(first, last) - first);
+    std::copy(first, first + k, rows.begin() + w);
+    rp[c] = w;
+    w += k;
+    rp[c + 1] = w;
+  }
+  for (int c = 0; c < nenr; ++c) {
+    const int nr = rp[c + 1] - rp[c], col = 3 * (nstd + c);
+    for (int j = 0; j < 3; ++j) m.Ap[col + j + 1] = m.Ap[col + j] + 3 * (nr - 1) + j + 1;
+  }
+  m.Ai.resize(m.Ap.back());
+  for (int c = 0; c < nenr; ++c)
+    for (int j = 0; j < 3; ++j) {
+      int k = m.Ap[3 * (nstd + c) + j];
+      for (int t = rp[c]; t < rp[c + 1]; ++t) {
+        const int last = rows[t] < nstd + c ? 2 : j;
+        for (int i = 0; i <= last; ++i) m.Ai[k++] = 3 * rows[t] + i;
+      }
+    }
+  m.diag.resize(m.ndof());
+  for (int d = 0; d < m.ndof(); ++d) m.diag[d] = m.Ap[d + 1] - 1;
+  // Index t of row node na among column node nc's row nodes.
+  const auto row_index = [&](int na, int nc) {
+    if (nc >= nstd) {
+      const auto first = rows.begin() + rp[nc - nstd];
+      return static_cast<int>(std::lower_bound(first, rows.begin() + rp[nc - nstd + 1], na) - first);
+    }
+    // A mesh node's column 3 nc lists 3 r for each row node r at stride 3.
+    int lo = 0, hi = (m.Ap[3 * nc + 1] - m.Ap[3 * nc] - 1) / 3 + 1;
+    while (lo < hi) {
+      const int mid = (lo + hi) / 2;
+      if (m.Ai[m.Ap[3 * nc] + 3 * mid] < 3 * na) lo = mid + 1;
+      else hi = mid;
+    }
+    return lo;
+  };
+  m.elem_scatter_ptr.assign(1, 0);
+  m.elem_scatter.clear();
+  for (int e = 0; e < m.nelem; ++e) {
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    const bool same = !enriched_elem[e] && base.elem_dof_ptr[e + 1] - base.elem_dof_ptr[e] == n &&
+                      std::equal(m.elem_dof_node.begin() + b, m.elem_dof_node.begin() + b + n,
+                                 base.elem_dof_node.begin() + base.elem_dof_ptr[e]);
+    if (same) {
+      m.elem_scatter.insert(m.elem_scatter.end(), base.elem_scatter.begin() + base.elem_scatter_ptr[e],
+                            base.elem_scatter.begin() + base.elem_scatter_ptr[e + 1]);
+    } else {
+      for (int a = 0; a < n; ++a)
+        for (int c = a; c < n; ++c) {
+          int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+          const bool swapped = na > nc;
+          if (swapped) std::swap(na, nc);
+          const int t = row_index(na, nc);
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) {
+              if (a == c && i > j) {
+                m.elem_scatter.push_back(-1);
+                continue;
+              }
+              const int R = swapped ? j : i, C = swapped ? i : j;
+              m.elem_scatter.push_back(m.Ap[3 * nc + C] + 3 * t + R);
+            }
+        }
+    }
+    m.elem_scatter_ptr.push_back(static_cast<int>(m.elem_scatter.size()));
+  }
+}
+
 void build_pattern(Model& m) {
   // Upper triangle at DOF-node level: rows(c) = DOF nodes r <= c sharing an
   // element, as a node-level CSR built by counting (a cut rebuild redoes this,
@@ -520,7 +633,8 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   build_elements(m, scene);
   if (base) m.tet_face_boundary = base->tet_face_boundary;
   else build_boundary_faces(m);
-  build_pattern(m);
+  if (base && base->nnode == m.nnode && base->nelem == m.nelem) build_pattern_from_base(m, *base);
+  else build_pattern(m);
   build_mass(m, scene, base);
   if (!base || model_needs_rest_stiffness(m)) m.K0_csc = rest_stiffness(m);
   build_constraints(m, scene);

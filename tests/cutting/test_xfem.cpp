@@ -368,7 +368,8 @@ TEST(Xfem, LumpedAccelerationAfterACutSolvesTheMassSystem) {
 }
 
 // A cut rebuild on a base model equals a build from scratch: same pattern,
-// masses and loads (the base only saves recomputation).
+// masses and loads (the base only saves recomputation), from an uncut base
+// and from a cut one.
 TEST(Xfem, RebuildFromTheBaseModelEqualsAFreshBuild) {
   Scene s = test::block_scene(2);
   s.mass = MassKind::Consistent;
@@ -385,6 +386,17 @@ TEST(Xfem, RebuildFromTheBaseModelEqualsAFreshBuild) {
   for (size_t k = 0; k < fresh.mass_csc.size(); ++k) EXPECT_NEAR(fresh.mass_csc[k], rebuilt.mass_csc[k], 1e-14);
   for (int d = 0; d < fresh.ndof(); ++d) EXPECT_NEAR(fresh.f_gravity[d], rebuilt.f_gravity[d], 1e-13);
   EXPECT_TRUE(rebuilt.K0_csc.empty());  // corotated, exact policy: not needed
+  // A second cut on top of the first: the base now has enriched columns and
+  // elements (the pattern copies its mesh-node columns and unchanged elements).
+  const auto plane2 = make_cut_surface(test::plane_cut({0, 0, 0.55}, {0.1, 0, 1}, "cuts[1]"), 0.0);
+  const CutLayout layout2 = compute_cut_layout(uncut, {plane.get(), plane2.get()}, nullptr);
+  ASSERT_GT(layout2.n_enriched, layout.n_enriched);
+  const Model fresh2 = build_model(mesh, s, &layout2), rebuilt2 = build_model(mesh, s, &layout2, &rebuilt);
+  EXPECT_EQ(fresh2.Ap, rebuilt2.Ap);
+  EXPECT_EQ(fresh2.Ai, rebuilt2.Ai);
+  EXPECT_EQ(fresh2.diag, rebuilt2.diag);
+  EXPECT_EQ(fresh2.elem_scatter, rebuilt2.elem_scatter);
+  EXPECT_EQ(fresh2.elem_scatter_ptr, rebuilt2.elem_scatter_ptr);
 }
 
 TEST(Xfem, ConsistentTangentOfACutModelParallelEqualsSerialAndStepsStably) {
