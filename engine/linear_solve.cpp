@@ -65,7 +65,8 @@ void warped_apply(const Model& m, State& s, const double* b, double* x) {
 // Preconditioned CG on A x = b from x = 0 to |r| <= tol |b|. Records iterations,
 // residual and convergence in state.timing.
 template <class Precond>
-void pcg(const Model& m, State& s, const double* A, const double* b, double* x, const Precond& precond) {
+void pcg(const Model& m, State& s, const double* A, const double* b, double* x, const Precond& precond,
+         int max_iterations) {
   auto& w = s.work;
   const int n = m.ndof();
   std::vector<double>& r = w.r;
@@ -83,7 +84,7 @@ void pcg(const Model& m, State& s, const double* A, const double* b, double* x, 
   p = z;
   double rz = dot(r, z), rel = 1.0;
   int it = 0;
-  while (it < m.solver.max_iterations) {
+  while (it < max_iterations) {
     sym_matvec_parallel(m, w.plan, *w.pool, A, p.data(), q.data());
     ++it;
     const double pq = dot(p, q);
@@ -95,7 +96,7 @@ void pcg(const Model& m, State& s, const double* A, const double* b, double* x, 
     }
     rel = std::sqrt(dot(r, r)) / bnorm;
     if (rel <= tol) break;
-    if (it == m.solver.max_iterations) break;
+    if (it == max_iterations) break;
     precond(r.data(), z.data());
     const double rz_new = dot(r, z);
     const double beta = rz_new / rz;
@@ -158,6 +159,7 @@ void launch_job(const Model& m, State& s) {
   CholmodSolver* f = &slot_factor(s, k);
   SolverWork* wp = &w;
   const int n = m.ndof();
+  w.job_done = false;
   w.job = std::thread([f, wp, n] {
     try {
       if (wp->job_analyze) f->analyze(n, wp->job_Ap, wp->job_Ai);
@@ -165,6 +167,7 @@ void launch_job(const Model& m, State& s) {
     } catch (...) {
       wp->job_error = std::current_exception();
     }
+    wp->job_done = true;
   });
   w.job_running = true;
   w.job_slot = k;
@@ -189,9 +192,11 @@ void lagged_refresh(const Model& m, State& s, Stopwatch& clock) {
       w.front_frame = w.last_launch = f;
     }
   } else {
-    // deterministic: a job started k frames ago is taken now (waiting if it
-    // is late), so replays give the same states
-    if (w.job_running && f - w.job_frame >= k) take_job(s);
+    // late_factor "wait" (deterministic): a job started k frames ago is taken
+    // now, waiting if it is late, so replays give the same states. "skip":
+    // a late job is taken in the first frame it has finished in; no stall,
+    // but the trajectory then depends on the machine's speed.
+    if (w.job_running && f - w.job_frame >= k && (!m.solver.skip_late_factor || w.job_done)) take_job(s);
     if (!w.job_running && f - w.last_launch >= k) launch_job(m, s);
   }
   s.timing.ms[kStageFactorization] += clock.lap();
@@ -471,8 +476,28 @@ void solve_system(const Model& m, State& s, const double* K, int iteration, Stop
       if (m.solver.warp) lagged_warp_rotations(m, s);
       if (iteration == 0 || s.work.patch_key < 0) lagged_patch(m, s, s.A.data());
       s.timing.ms[kStageFactorization] += clock.lap();
-      pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); });
+    {
+      const auto precond = [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); };
+      const int rescue = m.solver.rescue_after;
+      const bool converged_before = s.timing.converged;
+      pcg(m, s, s.A.data(), s.rhs.data(), du, precond,
+          rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations);
+      if (rescue > 0 && !s.timing.converged && rescue < m.solver.max_iterations) {
+        // The lagged factor is too far from A (fast large rotations): factor
+        // A now, synchronously (waiting for a running background job), and
+        // solve again with it, instead of hundreds of CG iterations.
+        s.timing.ms[kStageSolve] += clock.lap();
+        s.factor_current = false;
+        lagged_refresh(m, s, clock);
+        if (m.solver.warp) lagged_warp_rotations(m, s);
+        lagged_patch(m, s, s.A.data());
+        s.timing.ms[kStageFactorization] += clock.lap();
+        ++s.timing.rescues;
+        s.timing.converged = converged_before;
+        pcg(m, s, s.A.data(), s.rhs.data(), du, precond, m.solver.max_iterations);
+      }
       break;
+    }
     case SolverPolicy::Warped:
       rest_factor(m, s, clock);
       update_node_rotations(m, s);
@@ -483,7 +508,8 @@ void solve_system(const Model& m, State& s, const double* K, int iteration, Stop
       form_matrix(m, K, s.A.data());
       update_node_rotations(m, s);
       s.timing.ms[kStageAssembly] += clock.lap();
-      pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, s, r, z); });
+      pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, s, r, z); },
+          m.solver.max_iterations);
       break;
   }
   s.timing.ms[kStageSolve] += clock.lap();

@@ -178,6 +178,12 @@ class Parser {
     return x;
   }
 
+  int nonnegative_int(const json& v, const std::string& where) const {
+    int n = integer(v, where);
+    if (n < 0) fail(where, " must be an integer >= 0, got " + show(v));
+    return n;
+  }
+
   int at_least_one(const json& v, const std::string& where) const {
     int n = integer(v, where);
     if (n < 1) fail(where, " must be an integer >= 1, got " + show(v));
@@ -394,8 +400,8 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
 void parse_solver(const Parser& p, const json& v, Scene& s) {
   const std::string at = "solver";
   p.object(v, at);
-  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "tolerance", "max_iterations", "threads",
-                         "factorization", "ordering"});
+  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "rescue_after", "late_factor", "tolerance",
+                         "max_iterations", "threads", "factorization", "ordering"});
   SolverSettings& o = s.solver;
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
@@ -404,6 +410,9 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("background"); it != v.end()) o.background = p.boolean(*it, at + ".background");
   if (auto it = v.find("warp"); it != v.end()) o.warp = p.boolean(*it, at + ".warp");
   if (auto it = v.find("single_precision"); it != v.end()) o.single_precision = p.boolean(*it, at + ".single_precision");
+  if (auto it = v.find("rescue_after"); it != v.end()) o.rescue_after = p.nonnegative_int(*it, at + ".rescue_after");
+  if (auto it = v.find("late_factor"); it != v.end())
+    o.skip_late_factor = p.choice(*it, at + ".late_factor", {"wait", "skip"}) == 1;
   if (auto it = v.find("tolerance"); it != v.end()) {
     o.tolerance = p.positive(*it, at + ".tolerance");
     if (!(o.tolerance < 1.0)) p.fail(at + ".tolerance", " must be in (0, 1), got " + show(*it));
@@ -423,7 +432,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     if (v.contains(k) && !iterative)
       p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");
-  for (const char* k : {"refresh_every", "background", "warp", "single_precision"})
+  for (const char* k : {"refresh_every", "background", "warp", "single_precision", "rescue_after", "late_factor"})
     if (v.contains(k) && o.policy != SolverPolicy::Lagged)
       p.fail(Parser::key(at, k), ": only used by solver.policy \"lagged\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");

@@ -3,6 +3,7 @@
 // held by State: the worker pool, the assembly plan, the second (background)
 // factor of the lagged policy, node rotations of the warped policies, and CG
 // vectors. Built by prepare_solver (engine/linear_solve.h).
+#include <atomic>
 #include <exception>
 #include <memory>
 #include <thread>
@@ -39,6 +40,7 @@ struct SolverWork {
   int job_slot = -1;
   std::thread job;
   bool job_running = false;
+  std::atomic<bool> job_done{false};   // set by the job when it has finished (late_factor "skip" polls it)
   int job_frame = -1;
   std::exception_ptr job_error;
   std::vector<double> t_slot;          // gather buffer of a mapped slot

@@ -23,6 +23,7 @@ struct FrameTiming {
   double solve_kernel_ms = 0; // time inside those substitutions
   double residual = 0;        // last relative residual |A du - b| / |b| of CG (0 when direct)
   bool converged = true;      // CG reached solver.tolerance within solver.max_iterations
+  int rescues = 0;            // lagged: synchronous refactorizations after solver.rescue_after CG iterations
 };
 
 class Stopwatch {

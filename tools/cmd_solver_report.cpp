@@ -30,6 +30,7 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
     sub_ms += t.solve_kernel_ms;
     nsub += t.solves;
     if (!t.converged) ++r.not_converged_frames;
+    r.rescue_frames += t.rescues > 0;
     r.max_residual = std::max(r.max_residual, t.residual);
   }
   r.substitutions_per_frame = percentiles(subs).median_ms;
@@ -59,6 +60,11 @@ std::string format_solver_report(const SolverReport& r) {
                   r.iterations.median_ms, r.iterations.p99_ms, r.iterations.max_ms, r.not_converged_frames,
                   r.not_converged_frames == 1 ? "" : "s", r.max_residual);
     out += buf;
+    if (r.rescue_frames > 0) {
+      std::snprintf(buf, sizeof buf, "rescues: %d frame%s factored the current matrix after solver.rescue_after CG iterations\n",
+                    r.rescue_frames, r.rescue_frames == 1 ? "" : "s");
+      out += buf;
+    }
   }
   return out;
 }
@@ -68,6 +74,7 @@ nlohmann::json solver_report_json(const SolverReport& r) {
           {"threads", r.threads},
           {"iterations", {{"median", r.iterations.median_ms}, {"p99", r.iterations.p99_ms}, {"max", r.iterations.max_ms}}},
           {"not_converged_frames", r.not_converged_frames},
+          {"rescue_frames", r.rescue_frames},
           {"max_residual", r.max_residual},
           {"substitutions_per_frame", r.substitutions_per_frame},
           {"substitution_ms", r.substitution_ms},
@@ -98,6 +105,12 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
   cmd->add_option("--max-iterations", o.max_iterations, "CG iterations per solve")->check(CLI::PositiveNumber);
   cmd->add_option("--refresh-every", o.refresh_every, "lagged: refactor every K frames")->check(CLI::PositiveNumber);
   cmd->add_flag("--background", o.background, "lagged: factorize on a second thread");
+  cmd->add_option("--rescue-after", o.rescue_after,
+                  "lagged: after N CG iterations factor the current matrix now and finish with it (0 = never)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--late-factor", o.late_factor,
+                  "lagged, background: wait for a late factor (deterministic) or skip it until it is ready")
+      ->check(CLI::IsMember({"wait", "skip"}));
   cmd->add_flag("--warp", o.warp, "lagged: rotate the lagged factor by the node rotations since its frame");
   cmd->add_option("--single-precision", o.single_precision, "lagged: float copy of the factor for the substitutions")
       ->check(CLI::IsMember({"true", "false"}));
@@ -119,6 +132,8 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (o.max_iterations > 0) s.max_iterations = o.max_iterations;
   if (o.refresh_every > 0) s.refresh_every = o.refresh_every;
   if (o.background) s.background = true;
+  if (o.rescue_after >= 0) s.rescue_after = o.rescue_after;
+  if (!o.late_factor.empty()) s.skip_late_factor = o.late_factor == "skip";
   if (o.warp) s.warp = true;
   if (o.single_precision == "true") s.single_precision = true;
   if (o.single_precision == "false") s.single_precision = false;

@@ -29,6 +29,7 @@ struct SolverReport {
   double frame_multiple = 0;       // median frame time / bandwidth_limit_ms
   Percentiles iterations;          // CG iterations per frame (as "ms" fields: median, p95, p99, max)
   int not_converged_frames = 0;    // frames whose CG stopped at max_iterations above tolerance
+  int rescue_frames = 0;           // lagged: frames that factored the current matrix (solver.rescue_after)
   double max_residual = 0;         // largest final CG relative residual
 };
 
@@ -46,9 +47,11 @@ struct SolverOverrides {
   std::string policy;  // empty: the scene's
   double tolerance = 0;  // 0: the scene's
   int max_iterations = 0, refresh_every = 0, threads = 0;
+  int rescue_after = -1;  // -1: the scene's
   bool background = false;
   bool warp = false;
   std::string single_precision;  // "", "true" or "false"
+  std::string late_factor;       // "", "wait" or "skip"
   std::string factorization, ordering;  // empty: the scene's
 };
 // Registers --policy, --tolerance, ... on a sub-command.

@@ -1,6 +1,7 @@
 // Solver policies (issue 4): warped is exact where it should be, every
 // iterative policy converges to the exact trajectory as its tolerance
 // tightens, and the background factorization is deterministic.
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Geometry>
@@ -202,6 +203,22 @@ TEST(SolverPolicies, BackgroundFactorizationIsDeterministic) {
   EXPECT_EQ(a, b) << "the factor started k frames ago is always the one used";
 }
 
+TEST(SolverPolicies, SkippingLateFactorsStaysWithinTheCgTolerance) {
+  // late_factor "skip" takes a background factor whenever it is ready, so
+  // which factor preconditions a frame depends on timing; the result must
+  // still be exact to the CG tolerance.
+  const int frames = 20;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.background = true;
+  s.skip_late_factor = true;
+  s.refresh_every = 2;
+  s.tolerance = 1e-10;
+  s.max_iterations = 500;
+  EXPECT_LT(test::rel_diff(run_swing(s, frames), exact), 1e-8);
+}
+
 TEST(SolverPolicies, LaggedRefreshEveryFrameIsOneIterationPerFrame) {
   SolverSettings s;
   s.policy = SolverPolicy::Lagged;
@@ -209,6 +226,40 @@ TEST(SolverPolicies, LaggedRefreshEveryFrameIsOneIterationPerFrame) {
   std::vector<int> its;
   run_swing(s, 10, &its);
   for (int i : its) EXPECT_EQ(i, 1);
+}
+
+TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
+  // A factor refreshed every 50 frames is far from the swinging beam's
+  // matrix: CG needs many iterations. With rescue_after = 3 a frame that has
+  // not converged after 3 iterations factors its matrix and finishes with it,
+  // so no frame takes more than 3 + 1 iterations per Newton iteration, and the
+  // trajectory matches exact to the CG tolerance.
+  const int frames = 20;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.refresh_every = 50;
+  s.tolerance = 1e-10;
+  s.max_iterations = 500;
+  std::vector<int> slow;
+  const auto lagged = run_swing(s, frames, &slow);
+  s.rescue_after = 3;
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  const Model m = build_model(mesh, swing_scene(s));
+  State st;
+  init_state(m, st);
+  int rescues = 0, worst = 0;
+  for (int k = 0; k < frames; ++k) {
+    step(m, st);
+    rescues += st.timing.rescues;
+    worst = std::max(worst, st.timing.iterations / std::max(1, st.newton_iterations_done));
+    EXPECT_TRUE(st.timing.converged) << "frame " << k;
+  }
+  EXPECT_GT(*std::max_element(slow.begin(), slow.end()), 10) << "without rescue CG must struggle";
+  EXPECT_GT(rescues, 0);
+  EXPECT_LE(worst, 3 + 2) << "3 stalled iterations, then 1-2 with the fresh factor";
+  EXPECT_LT(test::rel_diff(st.u, exact), 1e-8);
+  EXPECT_LT(test::rel_diff(lagged, exact), 1e-8);
 }
 
 // Parallel fused assembly equals the serial reference (assemble_internal +

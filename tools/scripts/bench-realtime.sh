@@ -9,7 +9,10 @@
 # starts (K grows with the factor time), warp, CG tolerance TOL, float factor
 # copy, one assembly thread (the second core runs the factorization), and the
 # consistent corotated tangent (integrator.tangent; REALTIME_TANGENT=frozen_rotation
-# for the default). incise bench times FRAMES frames too (BENCH_FRAMES to change).
+# for the default), a rescue refactorization after 20 stalled CG iterations
+# (REALTIME_RESCUE) and late background factors skipped instead of waited for
+# (REALTIME_LATE=wait for deterministic runs). incise bench times FRAMES frames
+# too (BENCH_FRAMES to change).
 # Usage: bench-realtime.sh [BUILD_DIR] [FRAMES] [TOL]   (BENCH_ONLY="organ-10k ..." to pick cases)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -22,6 +25,8 @@ mkdir -p "$out"
 extra="${REALTIME_OPTIONS:-}"  # e.g. "--single-precision false"
 tangent="${REALTIME_TANGENT:-consistent}"  # integrator.tangent of every case (frozen_rotation: the default)
 bench_frames="${BENCH_FRAMES:-$frames}"   # frames timed by incise bench (after 5 warm-up frames)
+rescue="${REALTIME_RESCUE:-20}"            # solver.rescue_after (0: off)
+late="${REALTIME_LATE:-skip}"              # solver.late_factor: skip (no stalls) or wait (deterministic)
 # name mesh-or-scene K
 cases=(
   "organ-3k organ_3k 3"
@@ -75,7 +80,7 @@ json.dump(d, open(dst, "w"), indent=1)
 PY
       ;;
   esac
-  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 $extra"
+  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 --rescue-after $rescue --late-factor $late $extra"
   echo "compare $name ($frames frames; $opts) ..." >&2
   # shellcheck disable=SC2086
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
