@@ -209,29 +209,25 @@ void build_pattern_from_base(Model& m, const Model& base) {
   for (int e = 0; e < m.nelem; ++e)
     for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
       if (m.elem_dof_node[k] >= nstd) enriched_elem[e] = 1;
+  // visit(na, nc) for every pair of DOF nodes na <= nc of an element, nc enriched.
+  const auto for_each_enriched_pair = [&](auto visit) {
+    for (int e = 0; e < m.nelem; ++e) {
+      if (!enriched_elem[e]) continue;
+      const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+      for (int a = 0; a < n; ++a)
+        for (int c = 0; c < n; ++c) {
+          const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+          if (nc >= nstd && na <= nc) visit(na, nc);
+        }
+    }
+  };
   std::vector<int> cnt(nenr + 1, 1);
   cnt[0] = 0;
-  for (int e = 0; e < m.nelem; ++e) {
-    if (!enriched_elem[e]) continue;
-    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
-    for (int a = 0; a < n; ++a)
-      for (int c = 0; c < n; ++c) {
-        const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
-        if (nc >= nstd && na <= nc) ++cnt[nc - nstd + 1];
-      }
-  }
+  for_each_enriched_pair([&](int, int nc) { ++cnt[nc - nstd + 1]; });
   for (int c = 0; c < nenr; ++c) cnt[c + 1] += cnt[c];
   std::vector<int> rows(cnt.back()), fill(cnt.begin(), cnt.end() - 1);
   for (int c = 0; c < nenr; ++c) rows[fill[c]++] = nstd + c;
-  for (int e = 0; e < m.nelem; ++e) {
-    if (!enriched_elem[e]) continue;
-    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
-    for (int a = 0; a < n; ++a)
-      for (int c = 0; c < n; ++c) {
-        const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
-        if (nc >= nstd && na <= nc) rows[fill[nc - nstd]++] = na;
-      }
-  }
+  for_each_enriched_pair([&](int na, int nc) { rows[fill[nc - nstd]++] = na; });
   std::vector<int> rp(nenr + 1, 0);
   int w = 0;
   for (int c = 0; c < nenr; ++c) {
