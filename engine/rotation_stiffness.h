@@ -19,7 +19,11 @@
 // semi-definite (the eigenvalue projection of Teran et al. 2005 restricted to
 // the rotation modes). Stretched elements then resist the rotations that a
 // frozen-R linearisation lets through: on the 10k organ drag that missing
-// stiffness kept a strained element wobbling by ~0.1 rad per frame.
+// stiffness kept a strained element wobbling by ~0.1 rad per frame. This is
+// the Newton tangent from dP/dF of the stress actually used (the lectures'
+// sec. 2.5.3, dq/du), projected. Used only under integrator.tangent
+// "consistent" (point_rotation_flags / shared_slot_weights, engine/assemble.h):
+// near-incompressible tissue at 30 Hz diverges with it (docs/numerics.md).
 #include <cmath>
 
 #include <Eigen/Core>
