@@ -476,28 +476,28 @@ void solve_system(const Model& m, State& s, const double* K, int iteration, Stop
       if (m.solver.warp) lagged_warp_rotations(m, s);
       if (iteration == 0 || s.work.patch_key < 0) lagged_patch(m, s, s.A.data());
       s.timing.ms[kStageFactorization] += clock.lap();
-    {
-      const auto precond = [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); };
-      const int rescue = m.solver.rescue_after;
-      const bool converged_before = s.timing.converged;
-      pcg(m, s, s.A.data(), s.rhs.data(), du, precond,
-          rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations);
-      if (rescue > 0 && !s.timing.converged && rescue < m.solver.max_iterations) {
-        // The lagged factor is too far from A (fast large rotations): factor
-        // A now, synchronously (waiting for a running background job), and
-        // solve again with it, instead of hundreds of CG iterations.
-        s.timing.ms[kStageSolve] += clock.lap();
-        s.factor_current = false;
-        lagged_refresh(m, s, clock);
-        if (m.solver.warp) lagged_warp_rotations(m, s);
-        lagged_patch(m, s, s.A.data());
-        s.timing.ms[kStageFactorization] += clock.lap();
-        ++s.timing.rescues;
-        s.timing.converged = converged_before;
-        pcg(m, s, s.A.data(), s.rhs.data(), du, precond, m.solver.max_iterations);
+      {
+        const auto precond = [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); };
+        const int rescue = m.solver.rescue_after;
+        const bool converged_before = s.timing.converged;
+        pcg(m, s, s.A.data(), s.rhs.data(), du, precond,
+            rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations);
+        if (rescue > 0 && !s.timing.converged && rescue < m.solver.max_iterations) {
+          // The lagged factor is too far from A (fast large rotations): factor
+          // A now, synchronously (waiting for a running background job), and
+          // solve again with it, instead of hundreds of CG iterations.
+          s.timing.ms[kStageSolve] += clock.lap();
+          s.factor_current = false;
+          lagged_refresh(m, s, clock);
+          if (m.solver.warp) lagged_warp_rotations(m, s);
+          lagged_patch(m, s, s.A.data());
+          s.timing.ms[kStageFactorization] += clock.lap();
+          ++s.timing.rescues;
+          s.timing.converged = converged_before;
+          pcg(m, s, s.A.data(), s.rhs.data(), du, precond, m.solver.max_iterations);
+        }
+        break;
       }
-      break;
-    }
     case SolverPolicy::Warped:
       rest_factor(m, s, clock);
       update_node_rotations(m, s);
