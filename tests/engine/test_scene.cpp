@@ -589,3 +589,26 @@ TEST_F(SceneTest, AdaptiveNewtonKeys) {
   expect_error(minimal(R"("integrator": {"max_newton_iterations": 0})"),
                "integrator.max_newton_iterations must be an integer >= 1, got 0");
 }
+
+TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
+  Scene s = parse_scene(minimal(R"("integrator": {"tangent": "consistent", "newmark_gamma": 0.6})"), scene_path_);
+  EXPECT_TRUE(s.consistent_tangent);
+  EXPECT_DOUBLE_EQ(s.newmark_gamma, 0.6);
+  EXPECT_DOUBLE_EQ(s.newmark_beta, 0.3025);  // (gamma + 1/2)^2 / 4
+  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "background": true, "rescue_after": 20, "late_factor": "skip"})"),
+                  scene_path_);
+  EXPECT_EQ(s.solver.rescue_after, 20);
+  EXPECT_TRUE(s.solver.skip_late_factor);
+  expect_error(minimal(R"("integrator": {"tangent": "exact"})"),
+               "integrator.tangent must be one of \"frozen_rotation\", \"consistent\", got \"exact\"");
+  expect_error(minimal(R"("integrator": {"newmark_gamma": 0.4})"),
+               "integrator.newmark_gamma must be in [0.5, 1] (0.5 = no numerical damping), got 0.4");
+  expect_error(minimal(R"("integrator": {"newmark_gamma": 0.6, "newmark_beta": 0.25})"),
+               "integrator.newmark_beta must be in [newmark_gamma / 2, 1] (unconditionally stable), got 0.25");
+  expect_error(minimal(R"("solver": {"rescue_after": 5})"),
+               "solver.rescue_after: only used by solver.policy \"lagged\"; solver.policy is \"exact\"");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "rescue_after": -1})"),
+               "solver.rescue_after must be an integer >= 0, got -1");
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "late_factor": "sometimes"})"),
+                        "solver.late_factor must be one of \"wait\", \"skip\"");
+}
