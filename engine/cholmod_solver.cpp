@@ -53,6 +53,18 @@ typedef float F4 __attribute__((vector_size(16)));
     }                                                                    \
   } while (0)
 
+// Rows i..i+3 of the gathered vector w and of the four columns c0..c3 (both
+// passes of the kernel below read this block).
+template <class T>
+__attribute__((always_inline)) inline void load_rows(const double* w, const T* c0, const T* c1, const T* c2,
+                                                     const T* c3, int i, D4& v, D4& a0, D4& a1, D4& a2, D4& a3) {
+  std::memcpy(&v, w + i, sizeof(D4));
+  INCISE_LOAD4(a0, c0 + i);
+  INCISE_LOAD4(a1, c1 + i);
+  INCISE_LOAD4(a2, c2 + i);
+  INCISE_LOAD4(a3, c3 + i);
+}
+
 // x = (P^T L L^T P)^-1 b with L supernodal: a dense column-major block of
 // nsrow x nscol per supernode (rows Ls[pi[s]..pi[s+1]), the first nscol being
 // the supernode's own columns), its values at Lx + px[s]. T is the stored
@@ -96,11 +108,7 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const do
       int i = j + 4;
       for (; i + 4 <= nsrow; i += 4) {
         D4 v, a0, a1, a2, a3;
-        std::memcpy(&v, w + i, sizeof(D4));
-        INCISE_LOAD4(a0, c0 + i);
-        INCISE_LOAD4(a1, c1 + i);
-        INCISE_LOAD4(a2, c2 + i);
-        INCISE_LOAD4(a3, c3 + i);
+        load_rows(w, c0, c1, c2, c3, i, v, a0, a1, a2, a3);
         v -= a0 * W0 + a1 * W1 + a2 * W2 + a3 * W3;
         std::memcpy(w + i, &v, sizeof(D4));
       }
@@ -136,11 +144,7 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const do
       int i = j + 1;
       for (; i + 4 <= nsrow; i += 4) {
         D4 v, a0, a1, a2, a3;
-        std::memcpy(&v, w + i, sizeof(D4));
-        INCISE_LOAD4(a0, c0 + i);
-        INCISE_LOAD4(a1, c1 + i);
-        INCISE_LOAD4(a2, c2 + i);
-        INCISE_LOAD4(a3, c3 + i);
+        load_rows(w, c0, c1, c2, c3, i, v, a0, a1, a2, a3);
         A0 += a0 * v;
         A1 += a1 * v;
         A2 += a2 * v;
