@@ -65,12 +65,15 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   }
   sim.cut_progress = progress;
   if (surfaces.empty()) return up;
+  Stopwatch part;
   CutLayout layout = compute_cut_layout(sim.model, surfaces, &up.report);
+  up.part_ms[kCutLayout] = part.lap();
   if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && up.report.cut_elements == 0)) {
     up.ms = clock.ms();
     return up;
   }
   Model next = build_model(sim.mesh, sim.scene, &layout, &sim.model);
+  up.part_ms[kCutModel] = part.lap();
   Kinematics k = transfer_kinematics(sim.model, {sim.state.u, sim.state.v, sim.state.a}, next);
   const double time = sim.state.time;
   const int frame = sim.state.frame, refactorizations = sim.state.refactorizations;
@@ -78,6 +81,7 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   const std::vector<int> map = carry ? dofnode_map(sim.model, next) : std::vector<int>{};
   std::vector<double> R = carried_rotations(sim.model, sim.state.R, next);
   sim.model = std::move(next);
+  up.part_ms[kCutTransfer] = part.lap();
   if (carry) {  // the lagged factors stay; the new pattern is analyzed off this frame
     size_state(sim.model, sim.state);
     prepare_solver(sim.model, sim.state, &map);
@@ -90,7 +94,9 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   sim.state.a.swap(k.a);
   sim.state.time = time;
   sim.state.frame = frame;
+  up.part_ms[kCutSolverSetup] = part.lap();
   consistent_acceleration(sim.model, sim.state);
+  up.part_ms[kCutAcceleration] = part.lap();
   sim.state.refactorizations = refactorizations;
   up.changed = true;
   up.ms = clock.ms();

@@ -3,7 +3,10 @@
 // rebuilds the Model with the new X-FEM layout (a new DOF set, so a fresh
 // symbolic analysis) and carries the State over to it.
 #include "cutting/xfem_layout.h"
+#include <array>
+
 #include "engine/simulation.h"
+#include "engine/timing.h"
 
 namespace incise {
 
@@ -11,6 +14,7 @@ struct CutUpdate {
   bool changed = false;  // the model (DOF set) changed this frame
   CutReport report;      // of the new layout
   double ms = 0.0;       // time spent (layout, model, analysis, transfer)
+  std::array<double, kNumCutParts> part_ms{};  // its parts (engine/timing.h)
 };
 
 // Cuts with at_time <= t are active; a swept cut covers its sweep up to time

@@ -105,6 +105,15 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
   p.scratch.assign(T, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 16));
   p.qp_own_rot = point_rotation_flags(m);
   p.slot_weight = shared_slot_weights(m);
+  // Condensed elements: every slot has a rest stiffness (Model::rot_K0).
+  p.elem_condensed.assign(m.nelem, 0);
+  if (!m.rot_K0_ptr.empty())
+    for (int e = 0; e < m.nelem; ++e) {
+      bool all = p.elem_rot_ptr[e + 1] > p.elem_rot_ptr[e];
+      for (int k = p.elem_rot_ptr[e]; k < p.elem_rot_ptr[e + 1]; ++k)
+        all = all && m.rot_K0_ptr[p.elem_rot[k] + 1] > m.rot_K0_ptr[p.elem_rot[k]];
+      p.elem_condensed[e] = all;
+    }
   // sym_matvec: column ranges of about equal nnz; workers t > 0 scatter into their own buffer.
   p.matvec_col_ptr.assign(T + 1, m.ndof());
   p.matvec_col_ptr[0] = 0;
@@ -144,6 +153,44 @@ inline void rotated_stress(const double* R, const double* F, double w, double mu
   Pm.noalias() = w * (Rm * sig);
 }
 
+// A condensed slot (Model::rot_K0): out_a += R sum_b K0_ab (R^T in_b - X_b)
+// over the element's n DOF nodes (X = null: no rest positions, the product
+// R^ K0 R^T in). K0 holds blocks a <= b, row-major; y and t are (n, 3) scratch.
+void condensed_slot_force(int n, const double* K0, const double* R, const double* in, const double* X,
+                          const int* nodes, double* y, double* t, double* out) {
+  const Eigen::Map<const Mat3> Rm(R);
+  for (int a = 0; a < n; ++a) {
+    Eigen::Map<Eigen::Vector3d> ya(y + 3 * a);
+    ya.noalias() = Rm.transpose() * Eigen::Map<const Eigen::Vector3d>(in + 3 * a);
+    if (X) ya -= Eigen::Map<const Eigen::Vector3d>(X + 3 * nodes[a]);
+  }
+  // t = K0 y from the upper blocks: (a, b) adds K_ab y_b to t_a and K_ab^T y_a to t_b.
+  std::fill(t, t + 3 * n, 0.0);
+  const double* blk = K0;
+  for (int a = 0; a < n; ++a)
+    for (int b = a; b < n; ++b, blk += 9) {
+      const double* yb = y + 3 * b;
+      for (int i = 0; i < 3; ++i) t[3 * a + i] += blk[3 * i] * yb[0] + blk[3 * i + 1] * yb[1] + blk[3 * i + 2] * yb[2];
+      if (b == a) continue;
+      const double* ya = y + 3 * a;
+      for (int j = 0; j < 3; ++j) t[3 * b + j] += blk[j] * ya[0] + blk[3 + j] * ya[1] + blk[6 + j] * ya[2];
+    }
+  for (int a = 0; a < n; ++a)
+    Eigen::Map<Eigen::Vector3d>(out + 3 * nodes[a]) += Rm * Eigen::Map<const Eigen::Vector3d>(t + 3 * a);
+}
+
+// Kl += R^ K0 R^T block by block (blocks a <= b, row-major).
+void condensed_slot_stiffness(int n, const double* K0, const double* R, double* Kl) {
+  const Eigen::Map<const Mat3> Rm(R);
+  const int nblk = n * (n + 1) / 2;
+  for (int k = 0; k < nblk; ++k) {
+    // row-major 3x3 block = column-major transpose
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> B(K0 + 9 * k);
+    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> O(Kl + 9 * k);
+    O.noalias() += Rm * B * Rm.transpose();
+  }
+}
+
 template <int NN>
 int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double* u, double* Rall, double* f, double* K,
                   double* scratch) {
@@ -175,6 +222,20 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     if (K && plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points below)
       add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
                                   plan.slot_weight[r], Kl, h, t);
+  }
+  if (plan.elem_condensed[e]) {  // a split element: rotate its pieces' rest stiffness
+    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+      const int r = plan.elem_rot[k];
+      const double* K0 = &m.rot_K0[m.rot_K0_ptr[r]];
+      condensed_slot_force(n, K0, Rall + 9 * r, xe, m.X.data(), nodes, h, t, f);
+      if (K) condensed_slot_stiffness(n, K0, Rall + 9 * r, Kl);
+    }
+    if (K) {
+      const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+      for (int k = 0; k < 9 * nblk; ++k)
+        if (sc[k] >= 0) K[sc[k]] += Kl[k];
+    }
+    return fallbacks;
   }
   const double mu = m.mu, lambda = m.lambda;
   // Rotation term (rotation_stiffness.h): each point mode's vector
@@ -273,13 +334,20 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
 }
 
 template <int NN>
-void element_matvec(const Model& m, int e, const double* Rall, const double* v, double* y, double* scratch) {
+void element_matvec(const Model& m, const AssemblyPlan& plan, int e, const double* Rall, const double* v, double* y, double* scratch) {
   const int b0 = m.elem_dof_ptr[e];
   const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
   const int* nodes = &m.elem_dof_node[b0];
   double* ve = scratch;
   for (int a = 0; a < n; ++a)
     for (int i = 0; i < 3; ++i) ve[3 * a + i] = v[3 * nodes[a] + i];
+  if (plan.elem_condensed[e]) {
+    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+      const int r = plan.elem_rot[k];
+      condensed_slot_force(n, &m.rot_K0[m.rot_K0_ptr[r]], Rall + 9 * r, ve, nullptr, nodes, ve + 3 * n, ve + 6 * n, y);
+    }
+    return;
+  }
   for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
     const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
     double G[9], P[9];
@@ -345,9 +413,9 @@ void stiffness_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, cons
   for_each_element(plan, pool, y, m.ndof(), nullptr, 0, [&](int e, int tid) {
     double* s = plan.scratch[tid].data();
     const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
-    if (n == 10) element_matvec<10>(m, e, R, v, y, s);
-    else if (n == 4) element_matvec<4>(m, e, R, v, y, s);
-    else element_matvec<0>(m, e, R, v, y, s);
+    if (n == 10) element_matvec<10>(m, plan, e, R, v, y, s);
+    else if (n == 4) element_matvec<4>(m, plan, e, R, v, y, s);
+    else element_matvec<0>(m, plan, e, R, v, y, s);
   });
 }
 

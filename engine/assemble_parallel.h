@@ -29,6 +29,7 @@ struct AssemblyPlan {
   int max_elem_nodes = 0;         // largest element (DOF nodes)
   std::vector<char> qp_own_rot;   // (nqp) 1 where the point's rotation slot is its own (rotation_stiffness.h)
   std::vector<double> slot_weight;  // (nrot) shared_slot_weights: > 0 where a shared slot gets the rotation term
+  std::vector<char> elem_condensed;  // (nelem) 1 where every slot of the element has a rest stiffness (Model::rot_K0)
   std::vector<std::vector<double>> scratch;  // (nthreads) per-worker work space
   std::vector<std::vector<double>> matvec_buf;  // (nthreads) per-worker partial y of sym_matvec
   std::vector<int> matvec_col_ptr;  // (nthreads + 1) column ranges of about equal nnz

@@ -60,6 +60,12 @@ struct Model {
   std::vector<int> rot_elem;       // (nrot) element of the slot
   std::vector<int> rot_grad_ptr;   // (nrot + 1) into rot_grad
   std::vector<double> rot_grad;    // gradients giving the slot's deformation gradient
+  // Rest stiffness of the points of a shared slot (a piece of a split element):
+  // with one rotation R for all of them, their force is R^ K0 (R^T x - X) and
+  // their frozen-R tangent R^ K0 R^T (R^ = diag(R, ...)), so assembly rotates
+  // this matrix instead of integrating the piece's many sub-element points.
+  std::vector<int> rot_K0_ptr;     // (nrot + 1) into rot_K0; an empty range: the slot's points are integrated
+  std::vector<double> rot_K0;      // per condensed slot: blocks (a <= b) x 9, row-major, over the element's DOF nodes
 
   // Global sparse pattern: upper triangle, compressed columns, ndof x ndof
   std::vector<int> Ap;             // (ndof + 1) column starts

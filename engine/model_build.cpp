@@ -167,6 +167,50 @@ void build_elements(Model& m, const Scene& scene) {
   m.nrot = static_cast<int>(m.rot_elem.size());
 }
 
+// Rest stiffness of each piece of a split element (Model::rot_K0): K0 =
+// sum_q w (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I) over the
+// piece's points (the corotated point stiffness with R = I, book eq. 4.22
+// form). Split elements hold 12-50 sub-element points per piece and twice the
+// DOF nodes of a whole one; rotating K0 per frame costs a tenth of integrating them.
+void build_slot_stiffness(Model& m) {
+  m.rot_K0_ptr.assign(m.nrot + 1, 0);
+  m.rot_K0.clear();
+  if (!m.has_cuts()) return;
+  std::vector<int> first_q(m.nrot, -1), last_q(m.nrot, -1);
+  for (int e = 0; e < m.nelem; ++e) {
+    if (!m.cuts.elem_split[e]) continue;
+    for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
+      const int r = m.qp_rot[q];
+      if (first_q[r] < 0) first_q[r] = q;
+      last_q[r] = q + 1;
+    }
+  }
+  const double mu = m.mu, lambda = m.lambda;
+  for (int r = 0; r < m.nrot; ++r) {
+    const int e = m.rot_elem[r];
+    if (first_q[r] >= 0) {
+      const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
+      const size_t base = m.rot_K0.size();
+      m.rot_K0.resize(base + 9 * static_cast<size_t>(n) * (n + 1) / 2, 0.0);
+      for (int q = first_q[r]; q < last_q[r]; ++q) {
+        if (m.qp_rot[q] != r) continue;
+        const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
+        const double wl = m.qp_weight[q] * lambda, wm = m.qp_weight[q] * mu;
+        double* blk = &m.rot_K0[base];
+        for (int a = 0; a < n; ++a)
+          for (int b = a; b < n; ++b, blk += 9) {
+            const double* ga = g + 3 * a;
+            const double* gb = g + 3 * b;
+            const double gg = wm * (ga[0] * gb[0] + ga[1] * gb[1] + ga[2] * gb[2]);
+            for (int i = 0; i < 3; ++i)
+              for (int j = 0; j < 3; ++j) blk[3 * i + j] += wl * ga[i] * gb[j] + wm * gb[i] * ga[j] + (i == j ? gg : 0.0);
+          }
+      }
+    }
+    m.rot_K0_ptr[r + 1] = static_cast<int>(m.rot_K0.size());
+  }
+}
+
 // A face is on the boundary when no other tetrahedron has the same corners.
 void build_boundary_faces(Model& m) {
   const Mesh& mesh = m.mesh;
@@ -627,6 +671,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
     m.X.resize(3 * static_cast<size_t>(m.ndofnode), 0.0);  // enriched DOF nodes: X = 0 (preprint eq. 64)
   }
   build_elements(m, scene);
+  build_slot_stiffness(m);
   if (base) m.tet_face_boundary = base->tet_face_boundary;
   else build_boundary_faces(m);
   if (base && base->nnode == m.nnode && base->nelem == m.nelem) build_pattern_from_base(m, *base);

@@ -12,8 +12,17 @@ enum Stage { kStageCutting, kStageAssembly, kStageFactorization, kStageSolve, kS
 inline constexpr std::array<const char*, kNumStages> kStageNames = {"cutting", "assembly", "factorization", "solve", "render",
                                                                     "other"};
 
+// Parts of the cutting stage in a cut frame (they sum to its ms[kStageCutting]
+// up to the surface set-up): the X-FEM layout, the Model rebuild, the transfer
+// of u, v, a and rotations, the solver's set-up for the new pattern, and the
+// consistent acceleration.
+enum CutPart { kCutLayout, kCutModel, kCutTransfer, kCutSolverSetup, kCutAcceleration, kNumCutParts };
+inline constexpr std::array<const char*, kNumCutParts> kCutPartNames = {"  layout", "  model", "  transfer",
+                                                                       "  solver setup", "  acceleration"};
+
 struct FrameTiming {
   std::array<double, kNumStages> ms{};  // per stage
+  std::array<double, kNumCutParts> cut_ms{};  // parts of ms[kStageCutting] (cut frames)
   double frame_ms = 0.0;                // whole frame, wall clock
   bool cut_frame = false;               // the DOF set changed this frame (new symbolic analysis)
   int newton = 0;                       // linearised solves (Newton iterations) this frame

@@ -26,13 +26,14 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
   TimingSummary s;
   s.budget_ms = budget_ms;
   std::vector<double> f, cut, plain;
-  std::vector<double> st[kNumStages];
+  std::vector<double> st[kNumStages], parts[kNumCutParts];
   int over = 0;
   for (const auto& t : frames) {
     f.push_back(t.frame_ms);
     (t.cut_frame ? cut : plain).push_back(t.frame_ms);
     over += t.frame_ms > budget_ms;
     for (int k = 0; k < kNumStages; ++k) st[k].push_back(t.ms[k]);
+    for (int k = 0; t.cut_frame && k < kNumCutParts; ++k) parts[k].push_back(t.cut_ms[k]);
   }
   for (const auto& t : frames) {
     s.newton_mean += t.newton;
@@ -43,6 +44,7 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
   s.cut_frames = percentiles(cut);
   s.plain_frames = percentiles(plain);
   for (int k = 0; k < kNumStages; ++k) s.stages[k] = percentiles(st[k]);
+  for (int k = 0; k < kNumCutParts; ++k) s.cut_parts[k] = percentiles(parts[k]);
   s.over_budget = frames.empty() ? 0.0 : static_cast<double>(over) / frames.size();
   return s;
 }
@@ -57,7 +59,12 @@ std::string format_summary(const TimingSummary& s) {
                   p.max_ms);
     out += line;
   };
-  for (int k = 0; k < kNumStages; ++k) row(kStageNames[k], s.stages[k]);
+  for (int k = 0; k < kNumStages; ++k) {
+    row(kStageNames[k], s.stages[k]);
+    // The cutting stage's parts, over the cut frames only.
+    for (int j = 0; k == kStageCutting && s.cut_frames.count > 0 && j < kNumCutParts; ++j)
+      row(kCutPartNames[j], s.cut_parts[j]);
+  }
   row("frame", s.frame);
   if (s.cut_frames.count > 0) {
     row("cut frame", s.cut_frames);

@@ -20,6 +20,7 @@ struct TimingSummary {
   double over_budget = 0.0;  // share of frames with frame_ms > budget_ms
   Percentiles cut_frames;    // frames whose DOF set changed (a cut), frame_ms
   Percentiles plain_frames;  // the other frames
+  Percentiles cut_parts[kNumCutParts];  // parts of the cutting stage, over the cut frames
   double newton_mean = 0;    // linearised solves per frame
   int newton_max = 0;
   double budget_ms = 1000.0 / 30.0;

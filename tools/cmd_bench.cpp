@@ -5,6 +5,7 @@
 #include "engine/timing_stats.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
+#include "tools/frame_trace.h"
 #include "tools/solver_report.h"
 #include "tools/render_stage.h"
 #include "tools/timing_json.h"
@@ -13,7 +14,7 @@ namespace incise {
 
 namespace {
 struct BenchOptions {
-  std::string scene, json;
+  std::string scene, json, trace;
   int frames = 100, warmup = 0;
   double bandwidth_gbs = 11.0;
   SolverOverrides solver;
@@ -40,6 +41,10 @@ void bench(const BenchOptions& o) {
     write_timing_json(o.json, *sim, s, &timings, o.bandwidth_gbs);
     std::printf("wrote %s\n", o.json.c_str());
   }
+  if (!o.trace.empty()) {
+    write_frame_trace(o.trace, timings, o.warmup + 1);
+    std::printf("wrote %s\n", o.trace.c_str());
+  }
 }
 }  // namespace
 
@@ -53,6 +58,7 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--bandwidth-gbs", opts->bandwidth_gbs,
                   "Memory bandwidth (GB/s) for the one-substitution limit the frame time is compared with")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--trace", opts->trace, "Write one CSV row per timed frame: stages, cutting parts, CG iterations");
   add_solver_options(cmd, opts->solver);
   cmd->add_flag("--render", opts->render, "Render each frame offscreen (scene's render settings) and time it as the render stage");
   cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")

@@ -13,6 +13,7 @@ FrameTiming advance_frame(Simulation& sim) {
   step(sim.model, sim.state);
   FrameTiming t = sim.state.timing;
   t.ms[kStageCutting] = cut.ms;
+  t.cut_ms = cut.part_ms;
   t.cut_frame = cut.changed;
   t.frame_ms = clock.ms();
   return t;

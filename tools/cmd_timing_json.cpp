@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 
@@ -24,6 +25,12 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["newton"] = {{"mean", s.newton_mean}, {"max", s.newton_max}};
   j["cut_frames"] = pct(s.cut_frames);
   j["cut_frames"]["count"] = s.cut_frames.count;
+  for (int k = 0; k < kNumCutParts; ++k) {
+    std::string name = kCutPartNames[k];
+    name = name.substr(name.find_first_not_of(' '));
+    std::replace(name.begin(), name.end(), ' ', '_');
+    j["cut_frames"]["parts"][name] = pct(s.cut_parts[k]);
+  }
   j["enriched_dof"] = 3 * (sim.model.ndofnode - sim.model.nnode);
   const Model& m = sim.model;
   j["dof"] = m.ndof();

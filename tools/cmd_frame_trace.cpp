@@ -1,0 +1,47 @@
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "engine/error.h"
+#include "tools/frame_trace.h"
+
+namespace incise {
+
+void write_frame_trace(const std::string& path, const std::vector<FrameTiming>& frames, int first_frame) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream os(tmp);
+    if (!os) throw Error(path + ": cannot write the frame trace (is the folder there and writable?)");
+    os << "frame,frame_ms,cut_frame";
+    for (const char* s : kStageNames) os << ',' << s << "_ms";
+    for (std::string p : kCutPartNames) {
+      p = p.substr(p.find_first_not_of(' '));
+      for (char& c : p) c = c == ' ' ? '_' : c;
+      os << ",cut_" << p << "_ms";
+    }
+    os << ",newton,cg_iterations,substitutions,rescues,converged\n";
+    char buf[32];
+    const auto num = [&](double v) {
+      std::snprintf(buf, sizeof buf, "%.3f", v);
+      return buf;
+    };
+    for (size_t k = 0; k < frames.size(); ++k) {
+      const FrameTiming& t = frames[k];
+      os << first_frame + static_cast<int>(k) << ',' << num(t.frame_ms) << ',' << (t.cut_frame ? 1 : 0);
+      for (double v : t.ms) os << ',' << num(v);
+      for (double v : t.cut_ms) os << ',' << num(v);
+      os << ',' << t.newton << ',' << t.iterations << ',' << t.solves << ',' << t.rescues << ','
+         << (t.converged ? 1 : 0) << '\n';
+    }
+    if (!os) {
+      std::remove(tmp.c_str());
+      throw Error(path + ": write failed");
+    }
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw Error(path + ": cannot move the frame trace into place");
+  }
+}
+
+}  // namespace incise
