@@ -11,6 +11,9 @@ namespace incise {
 
 namespace {
 
+// Whether element e of m lists enriched DOF nodes besides its mesh nodes.
+bool enriched(const Model& m, int e) { return m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e] > m.mesh.npe(); }
+
 // Old model's effective value (u, v or a) of node a of element e, in the piece
 // holding local point rst.
 void old_piece_values(const Model& m, const Kinematics& s, int e, const double rst[3], int a, double out[9]) {
@@ -80,6 +83,9 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   const bool carry = solver_carries_over_cuts(next, sim.state);
   const std::vector<int> map = carry ? dofnode_map(sim.model, next) : std::vector<int>{};
   std::vector<double> R = carried_rotations(sim.model, sim.state.R, next);
+  std::vector<int> changed;  // elements whose pieces the cut changed: the equations changed there only
+  for (int e = 0; e < next.nelem; ++e)
+    if (!same_element_pieces(next, sim.model, e)) changed.push_back(e);
   sim.model = std::move(next);
   up.part_ms[kCutTransfer] = part.lap();
   if (carry) {  // the lagged factors stay; the new pattern is analyzed off this frame
@@ -95,7 +101,7 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   sim.state.time = time;
   sim.state.frame = frame;
   up.part_ms[kCutSolverSetup] = part.lap();
-  consistent_acceleration(sim.model, sim.state);
+  consistent_acceleration_near(sim.model, sim.state, changed);
   up.part_ms[kCutAcceleration] = part.lap();
   sim.state.refactorizations = refactorizations;
   up.changed = true;
@@ -111,7 +117,8 @@ std::vector<int> dofnode_map(const Model& from, const Model& to) {
   if (!to.has_cuts()) return map;
   const CutLayout& L = to.cuts;
   const int npe = to.mesh.npe();
-  for (int e = 0; e < to.nelem; ++e)
+  for (int e = 0; e < to.nelem; ++e) {
+    if (!enriched(to, e)) continue;  // only mesh nodes: mapped to themselves above
     for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
       const double* v = &L.subtet_rst[12 * static_cast<size_t>(L.piece_subtet_ptr[P])];
       const double rst[3] = {0.25 * (v[0] + v[3] + v[6] + v[9]), 0.25 * (v[1] + v[4] + v[7] + v[10]),
@@ -124,6 +131,7 @@ std::vector<int> dofnode_map(const Model& from, const Model& to) {
         if (oq >= 0) map[q] = oq;
       }
     }
+  }
   return map;
 }
 
@@ -137,8 +145,11 @@ Kinematics transfer_kinematics(const Model& from, const Kinematics& os, const Mo
   if (!to.has_cuts()) return ns;
   const CutLayout& L = to.cuts;
   // Two passes: home values (standard DOFs) first, then enriched = old - home.
+  // An element without enrichment in either model has the old nodal values,
+  // copied above: only the elements near the cuts are visited.
   for (int pass = 0; pass < 2; ++pass)
-    for (int e = 0; e < to.nelem; ++e)
+    for (int e = 0; e < to.nelem; ++e) {
+      if (!enriched(to, e) && !enriched(from, e)) continue;
       for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
         // a point inside the piece: the centroid of its first sub-tetrahedron
         const double* v = &L.subtet_rst[12 * static_cast<size_t>(L.piece_subtet_ptr[P])];
@@ -158,6 +169,7 @@ Kinematics transfer_kinematics(const Model& from, const Kinematics& os, const Mo
             }
         }
       }
+    }
   return ns;
 }
 

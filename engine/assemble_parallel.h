@@ -46,6 +46,13 @@ AssemblyPlan make_assembly_plan(const Model& model, int nthreads);
 int assemble_corotated(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, double* R,
                        double* f_int, double* K);
 
+// Serial, over `elems` only, accumulating (nothing is zeroed): f_int += the
+// elements' internal forces at u (their rotation slots updated in R, warm
+// started), and, when v is given, Kv += their R K0 R^T v. For a cut rebuild's
+// consistent acceleration near the elements the cut changed.
+void element_subset_forces(const Model& model, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,
+                           double* R, double* f_int, const double* v, double* Kv);
+
 // y = K(R) v without forming K: per point f_a = w R (mu (S + S^T) + lambda tr(S) I) g_a with
 // S = R^T sum_b v_b (x) g_b, which is R K0 R^T v element by element: the
 // frozen-R tangent, without the rotation term assemble_corotated adds where

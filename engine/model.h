@@ -131,6 +131,11 @@ NewmarkCoefficients newmark_coefficients(const Model& model);
 // a cut rebuild integrates only what the cut changed (docs/numerics.md).
 Model build_model(const Mesh& mesh, const Scene& scene, const CutLayout* cuts = nullptr, const Model* base = nullptr);
 
+// Whether element e has the same pieces in m as in base (a model of the same
+// mesh; no cuts = one whole piece): enrichment up to renumbering, split flag
+// and sub-tetrahedra. build_model copies such elements' integration data.
+bool same_element_pieces(const Model& m, const Model& base, int e);
+
 // The rest stiffness K0 (R = I) in the model's pattern, (nnz).
 std::vector<double> rest_stiffness(const Model& model);
 // Whether stepping uses K0: the linear model and the warped policies.

@@ -58,13 +58,67 @@ double subtet_ref_volume(const double* v) {
 
 const double kRefTet[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
 
+// Whether element e has the same pieces in m's layout as in base's (none
+// there = one whole piece): same enrichment, split flag and sub-tetrahedra,
+// so its integration data can be copied from base (a cut rebuild redoes
+// only the elements the new cut touched).
+bool same_pieces(const Model& m, const Model& base, int e) {
+  const int npe = m.mesh.npe();
+  const CutLayout& L = m.cuts;
+  const CutLayout& B = base.cuts;
+  const int p0 = m.has_cuts() ? L.elem_piece_ptr[e] : 0, np = m.has_cuts() ? L.elem_piece_ptr[e + 1] - p0 : 1;
+  const int b0 = base.has_cuts() ? B.elem_piece_ptr[e] : 0, nb = base.has_cuts() ? B.elem_piece_ptr[e + 1] - b0 : 1;
+  if (np != nb) return false;
+  const bool split = m.has_cuts() && L.elem_split[e], bsplit = base.has_cuts() && B.elem_split[e];
+  if (split != bsplit) return false;
+  // Enriched DOF nodes may be renumbered between layouts: the element's
+  // integration data depend only on which (piece, node) pairs share one, so
+  // the ids must correspond one to one within the element.
+  int xs[64], ys[64], nmap = 0;
+  for (int k = 0; k < np; ++k) {
+    for (int a = 0; a < npe; ++a) {
+      const int x = m.has_cuts() ? L.piece_enr[static_cast<size_t>(p0 + k) * npe + a] : -1;
+      const int y = base.has_cuts() ? B.piece_enr[static_cast<size_t>(b0 + k) * npe + a] : -1;
+      if ((x < 0) != (y < 0)) return false;
+      if (x < 0) continue;
+      int j = 0;
+      while (j < nmap && xs[j] != x && ys[j] != y) ++j;
+      if (j < nmap && (xs[j] != x || ys[j] != y)) return false;
+      if (j == nmap) {
+        if (nmap == 64) return false;
+        xs[nmap] = x, ys[nmap++] = y;
+      }
+    }
+    if (!split) continue;
+    const int s0 = L.piece_subtet_ptr[p0 + k], ns = L.piece_subtet_ptr[p0 + k + 1] - s0;
+    const int t0 = B.piece_subtet_ptr[b0 + k], nt = B.piece_subtet_ptr[b0 + k + 1] - t0;
+    if (ns != nt || !std::equal(L.subtet_rst.begin() + 12 * static_cast<size_t>(s0),
+                                L.subtet_rst.begin() + 12 * static_cast<size_t>(s0 + ns),
+                                B.subtet_rst.begin() + 12 * static_cast<size_t>(t0)))
+      return false;
+  }
+  return true;
+}
+
+// First rotation slot of each element, (nelem + 1): slots are numbered element by element.
+std::vector<int> element_slot_ptr(const Model& m) {
+  std::vector<int> ptr(m.nelem + 1, 0);
+  for (int r = 0; r < m.nrot; ++r) ++ptr[m.rot_elem[r] + 1];
+  for (int e = 0; e < m.nelem; ++e) ptr[e + 1] += ptr[e];
+  return ptr;
+}
+
 // Per element: DOF nodes (its nodes, then the enriched DOF nodes its pieces
 // use), quadrature points over every piece's sub-tetrahedra with the
 // gradients of each DOF node's shape function in that piece (preprint eq. 64:
 // an enriched DOF node carries N_a in the pieces of its region, 0 elsewhere),
 // and rotation slots: per cubature point (tet10 per_point), else one per
 // piece (tet4, tet10SR; the preprint's one rotation per side, eq. 64-71).
-void build_elements(Model& m, const Scene& scene) {
+//
+// With `base` (same mesh and scene), an element whose pieces are unchanged
+// copies its DOF nodes, points and slots from base; slot_src (nrot) then gives
+// each slot's base slot (-1: integrated here) for build_slot_stiffness.
+void build_elements(Model& m, const Scene& scene, const Model* base, std::vector<int>& slot_src) {
   const Mesh& mesh = m.mesh;
   const int npe = mesh.npe();
   const Cubature& cub = npe == 4 ? cubature_tet1() : cubature_tet4();
@@ -77,6 +131,8 @@ void build_elements(Model& m, const Scene& scene) {
   m.elem_volume.assign(m.nelem, 0.0);
   std::vector<double> Xe(3 * npe), grad(3 * npe), gmask;
   std::vector<int> local;  // DOF node list of the element
+  slot_src.clear();
+  const std::vector<int> base_slot = base ? element_slot_ptr(*base) : std::vector<int>{};
   for (int e = 0; e < m.nelem; ++e) {
     const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
     for (int a = 0; a < npe; ++a)
@@ -90,6 +146,25 @@ void build_elements(Model& m, const Scene& scene) {
     const int n = static_cast<int>(local.size());
     m.elem_dof_node.insert(m.elem_dof_node.end(), local.begin(), local.end());
     m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
+    if (base && same_pieces(m, *base, e)) {
+      const Model& B = *base;
+      const int shift = static_cast<int>(m.rot_elem.size()) - base_slot[e];  // new slot id - base slot id
+      for (int r = base_slot[e]; r < base_slot[e + 1]; ++r) {
+        m.rot_elem.push_back(e);
+        slot_src.push_back(r);
+        m.rot_grad.insert(m.rot_grad.end(), B.rot_grad.begin() + B.rot_grad_ptr[r], B.rot_grad.begin() + B.rot_grad_ptr[r + 1]);
+        m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+      }
+      for (int q = B.elem_qp_ptr[e]; q < B.elem_qp_ptr[e + 1]; ++q) {
+        m.qp_weight.push_back(B.qp_weight[q]);
+        m.qp_grad.insert(m.qp_grad.end(), B.qp_grad.begin() + B.qp_grad_ptr[q], B.qp_grad.begin() + B.qp_grad_ptr[q + 1]);
+        m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
+        m.qp_rot.push_back(B.qp_rot[q] + shift);
+      }
+      m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
+      m.elem_volume[e] = B.elem_volume[e];
+      continue;
+    }
     // Gradients g (npe, 3) spread over the element's DOF nodes for one piece.
     auto spread = [&](const PieceView& P, const double* g) {
       gmask.assign(3 * n, 0.0);
@@ -118,7 +193,7 @@ void build_elements(Model& m, const Scene& scene) {
     }
     for (const PieceView& P : pieces) {
       const int q_first = static_cast<int>(m.qp_weight.size());
-      if (!point_rot) m.rot_elem.push_back(e);  // the piece's slot; gradients below
+      if (!point_rot) m.rot_elem.push_back(e), slot_src.push_back(-1);  // the piece's slot; gradients below
       const int slot = static_cast<int>(m.rot_elem.size()) - 1;
       for (int sidx = 0; sidx < P.nsub; ++sidx) {
         const double* sub = P.rst ? P.rst + 12 * sidx : kRefTet;
@@ -140,6 +215,7 @@ void build_elements(Model& m, const Scene& scene) {
           m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
           if (point_rot) {
             m.rot_elem.push_back(e);
+            slot_src.push_back(-1);
             m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
             m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
           }
@@ -172,7 +248,8 @@ void build_elements(Model& m, const Scene& scene) {
 // piece's points (the corotated point stiffness with R = I, book eq. 4.22
 // form). Split elements hold 12-50 sub-element points per piece and twice the
 // DOF nodes of a whole one; rotating K0 per frame costs a tenth of integrating them.
-void build_slot_stiffness(Model& m) {
+// A slot with slot_src >= 0 copies base's matrix of that slot.
+void build_slot_stiffness(Model& m, const Model* base, const std::vector<int>& slot_src) {
   m.rot_K0_ptr.assign(m.nrot + 1, 0);
   m.rot_K0.clear();
   if (!m.has_cuts()) return;
@@ -188,7 +265,11 @@ void build_slot_stiffness(Model& m) {
   const double mu = m.mu, lambda = m.lambda;
   for (int r = 0; r < m.nrot; ++r) {
     const int e = m.rot_elem[r];
-    if (first_q[r] >= 0) {
+    const int src = base ? slot_src[r] : -1;
+    if (first_q[r] >= 0 && src >= 0 && base->rot_K0_ptr[src + 1] > base->rot_K0_ptr[src]) {
+      m.rot_K0.insert(m.rot_K0.end(), base->rot_K0.begin() + base->rot_K0_ptr[src],
+                      base->rot_K0.begin() + base->rot_K0_ptr[src + 1]);
+    } else if (first_q[r] >= 0) {
       const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
       const size_t base = m.rot_K0.size();
       m.rot_K0.resize(base + 9 * static_cast<size_t>(n) * (n + 1) / 2, 0.0);
@@ -670,8 +751,15 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
     m.ndofnode += cuts->n_enriched;
     m.X.resize(3 * static_cast<size_t>(m.ndofnode), 0.0);  // enriched DOF nodes: X = 0 (preprint eq. 64)
   }
-  build_elements(m, scene);
-  build_slot_stiffness(m);
+  // base's per-element data is reusable when it was built for the same mesh and rotation mode.
+  const Model* same = base && base->nelem == m.mesh.ntet() && base->nnode == m.nnode &&
+                              base->material.rotation == m.material.rotation && base->mu == m.mu &&
+                              base->lambda == m.lambda
+                          ? base
+                          : nullptr;
+  std::vector<int> slot_src;
+  build_elements(m, scene, same, slot_src);
+  build_slot_stiffness(m, same, slot_src);
   if (base) m.tet_face_boundary = base->tet_face_boundary;
   else build_boundary_faces(m);
   if (base && base->nnode == m.nnode && base->nelem == m.nelem) build_pattern_from_base(m, *base);
@@ -703,6 +791,8 @@ std::vector<double> rest_stiffness(const Model& m) {
   assemble_internal(m, u.data(), R.data(), f.data(), K0.data());
   return K0;
 }
+
+bool same_element_pieces(const Model& m, const Model& base, int e) { return same_pieces(m, base, e); }
 
 bool model_needs_rest_stiffness(const Model& m) {
   return m.material.model == MaterialModel::Linear || m.solver.policy == SolverPolicy::Warped ||

@@ -283,6 +283,63 @@ void consistent_acceleration(const Model& m, State& s) {
   }
 }
 
+void consistent_acceleration_near(const Model& m, State& s, const std::vector<int>& changed) {
+  if (m.mass_kind != MassKind::Lumped || m.mass_csc.empty()) {
+    consistent_acceleration(m, s);
+    return;
+  }
+  const int nstd = m.nnode, n = m.ndof();
+  // Marked DOF nodes: those of the changed elements (their enriched nodes
+  // enrich their own mesh nodes) and every enriched node of a marked mesh node.
+  std::vector<char> mark(m.ndofnode, 0);
+  for (int e : changed)
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) mark[m.elem_dof_node[k]] = 1;
+  for (int q = nstd; q < m.ndofnode; ++q)
+    if (mark[m.cuts.enr_node[q - nstd]]) mark[q] = 1;
+  std::vector<int> ring;  // elements with a marked node: all forces on marked DOFs
+  for (int e = 0; e < m.nelem; ++e)
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+      if (mark[m.elem_dof_node[k]]) {
+        ring.push_back(e);
+        break;
+      }
+  std::vector<double> f(n, 0.0), Kv(n, 0.0);
+  const bool damp = m.material.rayleigh_stiffness > 0;
+  element_subset_forces(m, s.work.plan, ring, s.u.data(), s.R.data(), f.data(), damp ? s.v.data() : nullptr, Kv.data());
+  // M v and the lumped solve per mesh node (as in consistent_acceleration):
+  // M_uu, M_qq on the diagonal, M_uq = m_q in enriched column q's row u.
+  std::vector<double> Mv(n, 0.0), r(n, 0.0), rsum(3 * static_cast<size_t>(nstd), 0.0), msum(3 * static_cast<size_t>(nstd), 0.0);
+  std::vector<int> home(n, -1);  // enriched DOF -> its mesh node's DOF (the coupling's row)
+  for (int node = 0; node < m.ndofnode; ++node)
+    for (int c = 3 * node; mark[node] && c < 3 * node + 3; ++c) Mv[c] = m.mass_csc[m.diag[c]] * s.v[c];
+  for (int c = 3 * nstd; c < n; ++c) {
+    if (!mark[c / 3]) continue;
+    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+      if (m.Ai[k] < 3 * nstd && m.mass_csc[k] != 0.0) {
+        home[c] = m.Ai[k];
+        Mv[c] += m.mass_csc[k] * s.v[m.Ai[k]];
+        Mv[m.Ai[k]] += m.mass_csc[k] * s.v[c];
+      }
+  }
+  for (int node = 0; node < m.ndofnode; ++node)
+    for (int c = 3 * node; mark[node] && c < 3 * node + 3; ++c)
+      r[c] = m.constrained[c] ? 0.0
+                              : m.f_gravity[c] - f[c] - m.material.rayleigh_mass * Mv[c] - m.material.rayleigh_stiffness * Kv[c];
+  for (int c = 0; c < 3 * nstd; ++c)
+    if (mark[c / 3]) rsum[c] = r[c], msum[c] = m.mass_csc[m.diag[c]];
+  for (int c = 3 * nstd; c < n; ++c)
+    if (home[c] >= 0) {
+      rsum[home[c]] -= r[c];
+      msum[home[c]] -= m.mass_csc[m.diag[c]];
+    }
+  for (int c = 0; c < 3 * nstd; ++c)
+    if (mark[c / 3]) s.a[c] = m.constrained[c] ? 0.0 : rsum[c] / msum[c];
+  for (int c = 3 * nstd; c < n; ++c) {
+    if (!mark[c / 3]) continue;
+    s.a[c] = (m.constrained[c] || home[c] < 0) ? 0.0 : r[c] / m.mass_csc[m.diag[c]] - s.a[home[c]];
+  }
+}
+
 double total_energy(const Model& m, const State& s) {
   std::vector<double> Mv(m.ndof());
   mass_matvec(m, s.v.data(), Mv.data());

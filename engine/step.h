@@ -1,5 +1,7 @@
 #pragma once
 // One fixed time step of the dynamics.
+#include <vector>
+
 #include "engine/model.h"
 #include "engine/state.h"
 
@@ -23,6 +25,13 @@ const double* internal_forces(const Model& model, State& state, const double* x,
 // model's equations, and Newmark's trapezoidal update would turn that
 // mismatch into an energy jump.
 void consistent_acceleration(const Model& model, State& state);
+
+// consistent_acceleration where a cut rebuild changed the equations: on the
+// DOF nodes of the `changed` elements, their mesh nodes' other enriched DOF
+// nodes (the lumped (u, q) blocks couple them), and nothing else; elsewhere
+// state.a keeps its value. Needs only the forces of the elements around those
+// nodes. Lumped mass only: with a consistent mass it is the global version.
+void consistent_acceleration_near(const Model& model, State& state, const std::vector<int>& changed);
 
 // Kinetic + elastic - gravity potential energy (for verification): for the
 // linear model 1/2 v'Mv + 1/2 u'K0u - f'u.
