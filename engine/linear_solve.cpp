@@ -225,16 +225,14 @@ void lagged_warp_rotations(const Model& m, State& s) {
   }
 }
 
-// z = P r with the lagged front factor; after cuts through its DOF map, plus
-// the patch solve (additive Schwarz; Jacobi on the DOFs it does not know if
-// there is no patch). With warp,
-// P = Q F^-1 Q^T: if the body turned rigidly by Q since the factor's frame,
-// A = Q A_lag Q^T (lumped, isotropic mass) and P is exact.
-void lagged_apply(const Model& m, State& s, const double* A, const double* r, double* z) {
+// z = Q F^-1 Q^T r with the lagged front factor F (through its DOF map after
+// cuts; 0 on the DOFs it does not know). With warp, Q = the node rotations
+// since the factor's frame: if the body turned rigidly by Q, A = Q A_lag Q^T
+// (lumped, isotropic mass) and this is exact.
+void factor_apply(const Model& m, State& s, const double* r, double* z) {
   auto& w = s.work;
-  const int k = w.front;
-  CholmodSolver& f = slot_factor(s, k);
-  const std::vector<int>& map = w.slot_map[k];
+  CholmodSolver& f = slot_factor(s, w.front);
+  const std::vector<int>& map = w.slot_map[w.front];
   const bool warp = m.solver.warp;
   const double* rin = r;
   if (warp) {  // r <- Q^T r (into the factor's frame), in z as scratch
@@ -257,16 +255,58 @@ void lagged_apply(const Model& m, State& s, const double* A, const double* r, do
       const Eigen::Vector3d t = Eigen::Map<const Eigen::Vector3d>(z + 3 * n);
       Eigen::Map<Eigen::Vector3d>(z + 3 * n) = Eigen::Map<const Mat3>(&w.Q[9 * n]) * t;
     }
-  if (!map.empty() && !w.patch_dof.empty()) {  // + R_p^T A_p^-1 R_p r
-    const int np = static_cast<int>(w.patch_dof.size());
-    for (int j = 0; j < np; ++j) w.patch_r[j] = r[w.patch_dof[j]];
-    Stopwatch clock;
-    w.patch.solve(w.patch_r.data(), w.patch_r.data());
-    s.timing.solve_kernel_ms += clock.ms();
-    for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += w.patch_r[j];
-  } else if (!map.empty()) {
+}
+
+// z_p (+)= A_p^-1 r_p on the patch DOFs (r, z global).
+void patch_apply(State& s, const double* r, double* z, bool add) {
+  auto& w = s.work;
+  const int np = static_cast<int>(w.patch_dof.size());
+  for (int j = 0; j < np; ++j) w.patch_r[j] = r[w.patch_dof[j]];
+  Stopwatch clock;
+  w.patch.solve(w.patch_r.data(), w.patch_r.data());
+  s.timing.solve_kernel_ms += clock.ms();
+  for (int j = 0; j < np; ++j) z[w.patch_dof[j]] = (add ? z[w.patch_dof[j]] : 0.0) + w.patch_r[j];
+}
+
+// z = P r: the front factor (factor_apply); after cuts, with the patch of the
+// DOFs it does not know (Jacobi on them if there is no patch). Additive:
+// P = F^-1 + E A_p^-1 E^T. Multiplicative (symmetric, patch - factor -
+// patch; Saad, Iterative Methods, sec. 14.3): z1 = E A_p^-1 E^T r, z2 = z1 +
+// F^-1 (r - A z1), z = z2 + E A_p^-1 E^T (r - A z2): one substitution and two
+// patch solves, and the residual products need A's patch rows only.
+void lagged_apply(const Model& m, State& s, const double* A, const double* r, double* z) {
+  auto& w = s.work;
+  const std::vector<int>& map = w.slot_map[w.front];
+  if (map.empty()) {
+    factor_apply(m, s, r, z);
+  } else if (w.patch_dof.empty()) {
+    factor_apply(m, s, r, z);
     for (int d = 0; d < m.ndof(); ++d)
       if (map[d] < 0) z[d] = r[d] / A[m.diag[d]];
+  } else if (!m.solver.multiplicative_patch) {
+    factor_apply(m, s, r, z);
+    patch_apply(s, r, z, /*add=*/true);
+  } else {
+    const int np = static_cast<int>(w.patch_dof.size());
+    double* z1 = w.ms_z.data();  // patch-supported
+    double* r1 = w.ms_r.data();
+    for (int j = 0; j < np; ++j) z1[w.patch_dof[j]] = 0.0;
+    patch_apply(s, r, z1, /*add=*/false);
+    // r1 = r - A z1: z1 lives on the patch, so A z1 = sum over the patch rows (A symmetric).
+    std::copy(r, r + m.ndof(), r1);
+    for (int i = 0; i < np; ++i) {
+      const double zi = z1[w.patch_dof[i]];
+      for (int t = w.patch_row_ptr[i]; t < w.patch_row_ptr[i + 1]; ++t) r1[w.patch_row_col[t]] -= A[w.patch_row_k[t]] * zi;
+    }
+    factor_apply(m, s, r1, z);
+    for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
+    // r2 = r - A z on the patch rows, then z += E A_p^-1 r2.
+    for (int i = 0; i < np; ++i) {
+      double acc = r[w.patch_dof[i]];
+      for (int t = w.patch_row_ptr[i]; t < w.patch_row_ptr[i + 1]; ++t) acc -= A[w.patch_row_k[t]] * z[w.patch_row_col[t]];
+      r1[w.patch_dof[i]] = acc;
+    }
+    patch_apply(s, r1, z, /*add=*/true);
   }
 }
 
@@ -312,6 +352,25 @@ void lagged_patch(const Model& m, State& s, const double* A) {
         }
       Pp.push_back(static_cast<int>(Pi.size()));
     }
+    // A's rows at the patch DOFs: entry (r, c), r <= c, is row r's at column c
+    // and, off the diagonal, row c's at column r.
+    std::vector<int> cnt(np + 1, 0);
+    for (int c = 0; c < m.ndof(); ++c)
+      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
+        const int r = m.Ai[k];
+        if (g2l[r] >= 0) ++cnt[g2l[r] + 1];
+        if (r != c && g2l[c] >= 0) ++cnt[g2l[c] + 1];
+      }
+    for (int i = 0; i < np; ++i) cnt[i + 1] += cnt[i];
+    w.patch_row_ptr = cnt;
+    w.patch_row_col.assign(cnt.back(), 0);
+    w.patch_row_k.assign(cnt.back(), 0);
+    for (int c = 0; c < m.ndof(); ++c)
+      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
+        const int r = m.Ai[k];
+        if (g2l[r] >= 0) w.patch_row_col[cnt[g2l[r]]] = c, w.patch_row_k[cnt[g2l[r]]++] = k;
+        if (r != c && g2l[c] >= 0) w.patch_row_col[cnt[g2l[c]]] = r, w.patch_row_k[cnt[g2l[c]]++] = k;
+      }
     w.patch.configure(FactorMethod::Simplicial, OrderingMethod::Amd);  // no BLAS: the background job owns it
     w.patch.analyze(np, Pp, Pi);
     w.patch_A.assign(Pi.size(), 0.0);
@@ -393,7 +452,7 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
     w.front_frame = w.last_launch = w.job_frame = -1;
     s.factor_current = false;
   }
-  for (auto* v : {&w.r, &w.z, &w.p, &w.q, &w.t}) v->assign(n, 0.0);
+  for (auto* v : {&w.r, &w.z, &w.p, &w.q, &w.t, &w.ms_r, &w.ms_z}) v->assign(n, 0.0);
   // Node -> rotation slot adjacency for the warped policies.
   w.node_rot_ptr.assign(m.ndofnode + 1, 0);
   w.node_rot.clear();

@@ -48,13 +48,19 @@ struct SolverWork {
   std::vector<double> Q;               // (ndofnode, 9) warp: Rn * slot_Rn^T of the front slot, this solve
   // lagged after a cut, until a factor of the new pattern is taken: the DOFs
   // the front factor does not know, with every DOF node of the elements that
-  // touch them, form a patch solved exactly (additive Schwarz, BLAS-free
-  // simplicial CHOLMOD, refactored each frame).
+  // touch them, form a patch solved exactly (BLAS-free simplicial CHOLMOD,
+  // refactored each frame), combined with the factor additively or
+  // multiplicatively (solver.patch_schwarz).
   CholmodSolver patch;
   std::vector<int> patch_dof;          // (np) global DOFs of the patch, sorted
   std::vector<int> patch_src;          // (patch nnz) position in the global A of each patch entry
   std::vector<double> patch_A, patch_r;
   long long patch_key = -1;            // (pattern, front slot, front frame) it was built for
+  // Rows of A at the patch DOFs (every column), for the multiplicative
+  // combination: entry t is A[patch_row_k[t]] at (patch_dof[i], patch_row_col[t]).
+  std::vector<int> patch_row_ptr;      // (np + 1)
+  std::vector<int> patch_row_col, patch_row_k;
+  std::vector<double> ms_r, ms_z;      // (ndof) multiplicative Schwarz work
 
   // warped: DOF node -> rotation slots (weights: the slot's share of element volume).
   std::vector<int> node_rot_ptr, node_rot;  // (ndofnode + 1), slots

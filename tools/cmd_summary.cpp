@@ -38,6 +38,8 @@ void print_model_summary(const Simulation& sim) {
     std::printf(", refresh every %d frame(s)%s%s%s", o.refresh_every, o.background ? " on a background thread" : "",
                 o.warp ? ", warped by the node rotations since" : "", o.single_precision ? ", float factor copy" : "");
   if (o.policy == SolverPolicy::Lagged && o.background && o.skip_late_factor) std::printf(", late factors skipped");
+  if (o.policy == SolverPolicy::Lagged && !sim.scene.cuts.empty())
+    std::printf(", %s patch after cuts", o.multiplicative_patch ? "multiplicative" : "additive");
   if (o.policy == SolverPolicy::Lagged && o.rescue_after > 0)
     std::printf(", rescue after %d CG iterations", o.rescue_after);
   std::printf("\n");

@@ -52,6 +52,7 @@ struct SolverOverrides {
   bool warp = false;
   std::string single_precision;  // "", "true" or "false"
   std::string late_factor;       // "", "wait" or "skip"
+  std::string patch;             // "", "additive" or "multiplicative"
   std::string factorization, ordering;  // empty: the scene's
 };
 // Registers --policy, --tolerance, ... on a sub-command.
