@@ -611,4 +611,11 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
                "solver.rescue_after must be an integer >= 0, got -1");
   expect_error_contains(minimal(R"("solver": {"policy": "lagged", "late_factor": "sometimes"})"),
                         "solver.late_factor must be one of \"wait\", \"skip\"");
+  EXPECT_TRUE(s.solver.multiplicative_patch);  // the default
+  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "patch": "additive"})"), scene_path_);
+  EXPECT_FALSE(s.solver.multiplicative_patch);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "patch": "both"})"),
+                        "solver.patch must be one of \"additive\", \"multiplicative\"");
+  expect_error(minimal(R"("solver": {"patch": "additive"})"),
+               "solver.patch: only used by solver.policy \"lagged\"; solver.policy is \"exact\"");
 }

@@ -235,6 +235,36 @@ TEST_F(Cli, RunWithACutWritesTheOpeningAndReportsTheCutFrame) {
   EXPECT_GT(last.ntet(), first.ntet());  // cut elements are written as their sub-elements
 }
 
+TEST_F(Cli, BenchTraceHasOneRowPerTimedFrameWithTheCutParts) {
+  cantilever_scene(R"(, "cuts": [{"type": "plane", "point": [2.3, 0, 0], "normal": [1, 0, 0], "at_time": 0.1}])");
+  const Result r = incise("bench " + path("scene.json") + " --frames 6 --warmup 1 --trace " + path("t.csv"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("  acceleration"), std::string::npos) << "the cutting stage's parts: " << r.out;
+  std::ifstream is(path("t.csv"));
+  std::string header, line;
+  std::getline(is, header);
+  EXPECT_EQ(header.rfind("frame,frame_ms,cut_frame,cutting_ms,", 0), 0u) << header;
+  EXPECT_NE(header.find("cut_model_ms"), std::string::npos) << header;
+  int rows = 0, cut_rows = 0, first = -1;
+  while (std::getline(is, line)) {
+    ++rows;
+    const int frame = std::stoi(line.substr(0, line.find(',')));
+    if (first < 0) first = frame;
+    std::stringstream ss(line);
+    std::string field;
+    std::getline(ss, field, ',');
+    std::getline(ss, field, ',');
+    std::getline(ss, field, ',');
+    cut_rows += field == "1";
+  }
+  EXPECT_EQ(rows, 6);
+  EXPECT_EQ(first, 2) << "rows are numbered after the warm-up frame";
+  EXPECT_EQ(cut_rows, 1);  // the plane cut at 0.1 s, frame 3 or 4
+  const Result bad = incise("bench " + path("scene.json") + " --frames 1 --trace " + path("no/such/dir/t.csv"));
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.out.find("no/such/dir/t.csv: cannot write the frame trace"), std::string::npos) << bad.out;
+}
+
 TEST_F(Cli, StaticWithACutProbesEachSide) {
   cantilever_scene(R"(, "cuts": [{"type": "polygon", "points": [[2.3,-1,0.5],[2.3,2,0.5],[2.3,2,2],[2.3,-1,2]]}])");
   write("probe.csv", "x,y,z\n2.2999,0.5,0.9\n2.3001,0.5,0.9\n");
