@@ -10,6 +10,8 @@
 # 5 frames in the step, warped, warped_cg) and `incise bench` of lagged with a
 # background factor (k = 1), and writes BUILD/policies/*.json; the table
 # printed at the end is what docs/benchmarks.md quotes.
+# POLICY_TANGENT=consistent runs every case with integrator.tangent "consistent"
+# (default: frozen_rotation, the scene default).
 # Usage: bench-policies.sh [BUILD_DIR] [FRAMES_SMALL] [FRAMES_LARGE]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -17,6 +19,7 @@ build="${1:-build}"
 frames_small="${2:-300}"
 frames_large="${3:-60}"
 incise="$build/tools/incise"
+tangent="${POLICY_TANGENT:-frozen_rotation}"
 out="$build/policies"
 mkdir -p "$out"
 # name kind nx ny nz frames policies (warped_cg needs ~100 iterations on this
@@ -62,7 +65,7 @@ for c in "${cases[@]}"; do
 {"mesh": {"file": "$(realpath --relative-to="$out" "$mesh")", "order": 2},
  "material": {"model": "corotated", "young": $young, "poisson": 0.45, "density": 1000,
               "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
- "mass": "lumped", "gravity": [0, 0, -9.81],
+ "mass": "lumped", "gravity": [0, 0, -9.81], "integrator": {"tangent": "$tangent"},
  $bc}
 JSON
   echo "compare $name ($frames frames) ..." >&2
