@@ -12,7 +12,7 @@
 # for the default), a rescue refactorization after 20 stalled CG iterations
 # (REALTIME_RESCUE) and late background factors skipped instead of waited for
 # (REALTIME_LATE=wait for deterministic runs). incise bench times FRAMES frames
-# too (BENCH_FRAMES to change).
+# too (BENCH_FRAMES to change) and writes its per-frame trace to BUILD/realtime/NAME.trace.csv.
 # Usage: bench-realtime.sh [BUILD_DIR] [FRAMES] [TOL]   (BENCH_ONLY="organ-10k ..." to pick cases)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -86,7 +86,8 @@ PY
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
     echo "  failed: see $out/$name.compare.log" >&2
   # shellcheck disable=SC2086
-  "$incise" bench "$scene" $opts --frames "$bench_frames" --warmup 5 --json "$out/$name.bench.json" >"$out/$name.bench.log" 2>&1 ||
+  "$incise" bench "$scene" $opts --frames "$bench_frames" --warmup 5 --json "$out/$name.bench.json" \
+    --trace "$out/$name.trace.csv" >"$out/$name.bench.log" 2>&1 ||
     echo "  failed: see $out/$name.bench.log" >&2
 done
 python3 - "$out" "$tol" "$tangent" "${cases[@]}" <<'PY'
