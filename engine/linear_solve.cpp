@@ -290,7 +290,6 @@ void lagged_apply(const Model& m, State& s, const double* A, const double* r, do
     const int np = static_cast<int>(w.patch_dof.size());
     double* z1 = w.ms_z.data();  // patch-supported
     double* r1 = w.ms_r.data();
-    for (int j = 0; j < np; ++j) z1[w.patch_dof[j]] = 0.0;
     patch_apply(s, r, z1, /*add=*/false);
     // r1 = r - A z1: z1 lives on the patch, so A z1 = sum over the patch rows (A symmetric).
     std::copy(r, r + m.ndof(), r1);
