@@ -1,6 +1,9 @@
 #include "cutting/cut_apply.h"
 
 #include <algorithm>
+#include <exception>
+#include <memory>
+#include <thread>
 
 #include "engine/linear_solve.h"
 #include "engine/probe.h"
@@ -54,9 +57,26 @@ bool same_layout(const Model& m, const CutLayout& L) {
          O.piece_enr == L.piece_enr && O.subtet_rst == L.subtet_rst && O.elem_face_cut == L.elem_face_cut;
 }
 
-CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t_sweep) {
-  Stopwatch clock;
-  CutUpdate up;
+// The part of a cut update that reads only the model, mesh and scene (so it
+// may run on a helper thread while the current frame steps): the layout of
+// the cut surfaces at t_sweep and the next Model built from it.
+struct PreparedCut {
+  std::vector<double> progress;  // (scene.cuts) what the update applies
+  double t_sweep = 0.0;
+  int base_version = -1;         // Simulation::model_version it was prepared from
+  bool rebuild = false;          // the layout changed: `next` holds the new model
+  CutReport report;
+  std::unique_ptr<Model> next;
+  std::vector<int> changed;      // elements of `next` whose pieces changed
+  std::vector<int> map;          // dofnode_map(base, next)
+  double layout_ms = 0.0, model_ms = 0.0;
+};
+
+PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progress, double t_sweep) {
+  PreparedCut p;
+  p.progress = progress;
+  p.t_sweep = t_sweep;
+  p.base_version = sim.model_version;
   std::vector<std::unique_ptr<CutSurface>> owned;
   std::vector<const CutSurface*> surfaces;
   for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
@@ -66,31 +86,46 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
     surfaces.push_back(s.get());
     owned.push_back(std::move(s));
   }
-  sim.cut_progress = progress;
-  if (surfaces.empty()) return up;
+  if (surfaces.empty()) return p;
   Stopwatch part;
-  CutLayout layout = compute_cut_layout(sim.model, surfaces, &up.report);
-  up.part_ms[kCutLayout] = part.lap();
-  if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && up.report.cut_elements == 0)) {
+  CutLayout layout = compute_cut_layout(sim.model, surfaces, &p.report);
+  p.layout_ms = part.lap();
+  if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && p.report.cut_elements == 0))
+    return p;
+  p.next = std::make_unique<Model>(build_model(sim.mesh, sim.scene, &layout, &sim.model));
+  for (int e = 0; e < p.next->nelem; ++e)
+    if (!same_element_pieces(*p.next, sim.model, e)) p.changed.push_back(e);
+  p.map = dofnode_map(sim.model, *p.next);
+  p.rebuild = true;
+  p.model_ms = part.lap();
+  return p;
+}
+
+// Applies a prepared update: the new model, the kinematics and rotations
+// carried over, the solver set up for the new pattern, the acceleration.
+CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
+  CutUpdate up;
+  up.report = p.report;
+  up.part_ms[kCutLayout] = p.layout_ms;
+  up.part_ms[kCutModel] = p.model_ms;
+  sim.cut_progress = p.progress;
+  if (!p.rebuild) {
     up.ms = clock.ms();
     return up;
   }
-  Model next = build_model(sim.mesh, sim.scene, &layout, &sim.model);
-  up.part_ms[kCutModel] = part.lap();
+  Stopwatch part;
+  Model& next = *p.next;
   Kinematics k = transfer_kinematics(sim.model, {sim.state.u, sim.state.v, sim.state.a}, next);
   const double time = sim.state.time;
   const int frame = sim.state.frame, refactorizations = sim.state.refactorizations;
   const bool carry = solver_carries_over_cuts(next, sim.state);
-  const std::vector<int> map = carry ? dofnode_map(sim.model, next) : std::vector<int>{};
   std::vector<double> R = carried_rotations(sim.model, sim.state.R, next);
-  std::vector<int> changed;  // elements whose pieces the cut changed: the equations changed there only
-  for (int e = 0; e < next.nelem; ++e)
-    if (!same_element_pieces(next, sim.model, e)) changed.push_back(e);
   sim.model = std::move(next);
+  ++sim.model_version;
   up.part_ms[kCutTransfer] = part.lap();
   if (carry) {  // the lagged factors stay; the new pattern is analyzed off this frame
     size_state(sim.model, sim.state);
-    prepare_solver(sim.model, sim.state, &map);
+    prepare_solver(sim.model, sim.state, &p.map);
   } else {
     init_state(sim.model, sim.state, /*consistent_a0=*/false);  // new pattern: symbolic analysis
   }
@@ -101,7 +136,7 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   sim.state.time = time;
   sim.state.frame = frame;
   up.part_ms[kCutSolverSetup] = part.lap();
-  consistent_acceleration_near(sim.model, sim.state, changed);
+  consistent_acceleration_near(sim.model, sim.state, p.changed);
   up.part_ms[kCutAcceleration] = part.lap();
   sim.state.refactorizations = refactorizations;
   up.changed = true;
@@ -109,7 +144,78 @@ CutUpdate rebuild(Simulation& sim, const std::vector<double>& progress, double t
   return up;
 }
 
+// The next frame's cut update, prepared on a helper thread during this
+// frame's step (Simulation::cut_ahead).
+struct CutAhead {
+  std::thread job;
+  PreparedCut result;
+  std::exception_ptr error;
+  std::vector<double> progress;
+  double t_sweep = 0.0;
+  int base_version = -1;
+  ~CutAhead() {
+    if (job.joinable()) job.join();
+  }
+};
+
+// Progress of every cut for a frame at time t whose swept cuts reach t_sweep;
+// *changed when it differs from sim.cut_progress.
+std::vector<double> progress_at(const Simulation& sim, double t, double t_sweep, bool* changed) {
+  std::vector<double> progress = sim.cut_progress;
+  *changed = false;
+  for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
+    const CutSpec& c = sim.scene.cuts[k];
+    double p = -1.0;
+    if (c.at_time <= t) {
+      p = 1.0;
+      if (c.type == CutSpec::Type::Swept && c.duration > 0)
+        p = std::clamp((t_sweep - c.at_time) / c.duration, 0.0, 1.0);
+    }
+    if (p != progress[k]) {
+      progress[k] = p;
+      *changed = true;
+    }
+  }
+  return progress;
+}
+
+// Waits for a helper still running and takes its result when it was prepared
+// for exactly this update; otherwise drops it.
+bool take_ahead(Simulation& sim, const std::vector<double>& progress, double t_sweep, PreparedCut* out) {
+  auto ahead = std::static_pointer_cast<CutAhead>(sim.cut_ahead);
+  if (!ahead) return false;
+  sim.cut_ahead.reset();
+  if (ahead->job.joinable()) ahead->job.join();
+  if (ahead->error) std::rethrow_exception(ahead->error);
+  if (ahead->base_version != sim.model_version || ahead->progress != progress || ahead->t_sweep != t_sweep) return false;
+  *out = std::move(ahead->result);
+  return true;
+}
+
 }  // namespace
+
+void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
+  PreparedCut dropped;
+  take_ahead(sim, {}, 0.0, &dropped);  // at most one helper
+  bool changed = false;
+  std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
+  if (!changed) return;
+  auto ahead = std::make_shared<CutAhead>();
+  ahead->progress = progress;
+  ahead->t_sweep = t_sweep;
+  ahead->base_version = sim.model_version;
+  CutAhead* a = ahead.get();
+  const Simulation* s = &sim;
+  ahead->job = std::thread([a, s] {
+    try {
+      a->result = prepare_cut(*s, a->progress, a->t_sweep);
+    } catch (...) {
+      a->error = std::current_exception();
+    }
+  });
+  sim.cut_ahead = ahead;
+}
+
 
 std::vector<int> dofnode_map(const Model& from, const Model& to) {
   std::vector<int> map(to.ndofnode, -1);
@@ -174,30 +280,26 @@ Kinematics transfer_kinematics(const Model& from, const Kinematics& os, const Mo
 }
 
 CutUpdate update_cuts(Simulation& sim, double t, double t_sweep) {
-  std::vector<double> progress = sim.cut_progress;
+  Stopwatch clock;
   bool changed = false;
-  for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
-    const CutSpec& c = sim.scene.cuts[k];
-    double p = -1.0;
-    if (c.at_time <= t) {
-      p = 1.0;
-      if (c.type == CutSpec::Type::Swept && c.duration > 0)
-        p = std::clamp((t_sweep - c.at_time) / c.duration, 0.0, 1.0);
-    }
-    if (p != progress[k]) {
-      progress[k] = p;
-      changed = true;
-    }
-  }
+  const std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
+  PreparedCut p;
+  const bool ahead = take_ahead(sim, progress, t_sweep, &p);
   if (!changed) return {};
-  return rebuild(sim, progress, t_sweep);
+  if (!ahead) p = prepare_cut(sim, progress, t_sweep);
+  CutUpdate up = commit_cut(sim, std::move(p), clock);
+  up.ahead = ahead;
+  return up;
 }
 
 CutUpdate apply_all_cuts(Simulation& sim) {
   std::vector<double> progress(sim.scene.cuts.size(), 1.0);
   double t_end = 0.0;
   for (const CutSpec& c : sim.scene.cuts) t_end = std::max(t_end, c.at_time + c.duration);
-  return rebuild(sim, progress, t_end);
+  PreparedCut dropped;
+  take_ahead(sim, {}, 0.0, &dropped);
+  Stopwatch clock;
+  return commit_cut(sim, prepare_cut(sim, progress, t_end), clock);
 }
 
 }  // namespace incise

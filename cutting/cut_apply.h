@@ -15,12 +15,23 @@ struct CutUpdate {
   CutReport report;      // of the new layout
   double ms = 0.0;       // time spent (layout, model, analysis, transfer)
   std::array<double, kNumCutParts> part_ms{};  // its parts (engine/timing.h)
+  bool ahead = false;    // layout and model were prepared during the previous frame (start_cut_ahead)
 };
 
 // Cuts with at_time <= t are active; a swept cut covers its sweep up to time
 // t_sweep (pass the end of the coming frame). Rebuilds only when the set of
 // split elements changes (a blade tip moving inside an element changes nothing).
 CutUpdate update_cuts(Simulation& sim, double t, double t_sweep);
+
+// Starts preparing, on a helper thread, the cut update of the frame at time t
+// (swept cuts reaching t_sweep): its layout and next Model, which read only
+// the current model, mesh and scene. Call it after this frame's update_cuts
+// and before its step; the next update_cuts with those times takes the
+// result (waiting for it if needed), so the layout and the model build run
+// beside the step instead of before it. Does nothing when that update would
+// change nothing. The helper holds a reference to `sim`: nothing but the
+// step may change sim.model until the next update_cuts (which joins it).
+void start_cut_ahead(Simulation& sim, double t, double t_sweep);
 
 // Applies every scene cut completely (static solves).
 CutUpdate apply_all_cuts(Simulation& sim);

@@ -17,6 +17,11 @@ struct Simulation {
   Model model;
   State state;
   double setup_ms = 0.0;  // reading the mesh, precomputation, symbolic analysis
+  int model_version = 0;  // counts the models a cut put in place
+  // cutting/cut_apply.cpp: the next frame's cut update being prepared on a
+  // helper thread that reads model, mesh and scene. Last member, so it is
+  // destroyed (its thread joined) before them.
+  std::shared_ptr<void> cut_ahead;
 };
 
 // Reads the scene and its mesh, builds the model, initialises the state.

@@ -25,6 +25,7 @@ struct FrameTiming {
   std::array<double, kNumCutParts> cut_ms{};  // parts of ms[kStageCutting] (cut frames)
   double frame_ms = 0.0;                // whole frame, wall clock
   bool cut_frame = false;               // the DOF set changed this frame (new symbolic analysis)
+  bool cut_ahead = false;               // its layout and model were prepared during the previous frame
   int newton = 0;                       // linearised solves (Newton iterations) this frame
   // Linear solver of the frame (all Newton iterations together).
   int iterations = 0;         // CG iterations (lagged, warped_cg); 0 for direct policies

@@ -34,6 +34,7 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
     over += t.frame_ms > budget_ms;
     for (int k = 0; k < kNumStages; ++k) st[k].push_back(t.ms[k]);
     for (int k = 0; t.cut_frame && k < kNumCutParts; ++k) parts[k].push_back(t.cut_ms[k]);
+    s.cut_ahead += t.cut_frame && t.cut_ahead;
   }
   for (const auto& t : frames) {
     s.newton_mean += t.newton;
@@ -75,6 +76,12 @@ std::string format_summary(const TimingSummary& s) {
   std::snprintf(line, sizeof line, "frames over the %.1f ms budget: %.1f%% of %d (%d cut frames)\n", s.budget_ms,
                 100.0 * s.over_budget, s.frame.count, s.cut_frames.count);
   out += line;
+  if (s.cut_frames.count > 0) {
+    std::snprintf(line, sizeof line,
+                  "cut frames whose layout and model were built during the previous frame's step: %d of %d\n",
+                  s.cut_ahead, s.cut_frames.count);
+    out += line;
+  }
   return out;
 }
 

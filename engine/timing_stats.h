@@ -21,6 +21,7 @@ struct TimingSummary {
   Percentiles cut_frames;    // frames whose DOF set changed (a cut), frame_ms
   Percentiles plain_frames;  // the other frames
   Percentiles cut_parts[kNumCutParts];  // parts of the cutting stage, over the cut frames
+  int cut_ahead = 0;         // cut frames whose layout and model were prepared during the previous frame
   double newton_mean = 0;    // linearised solves per frame
   int newton_max = 0;
   double budget_ms = 1000.0 / 30.0;

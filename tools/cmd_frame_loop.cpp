@@ -9,12 +9,19 @@ namespace incise {
 FrameTiming advance_frame(Simulation& sim) {
   Stopwatch clock;
   CutUpdate cut;
-  if (!sim.scene.cuts.empty()) cut = update_cuts(sim, sim.state.time, sim.state.time + sim.model.dt);
+  if (!sim.scene.cuts.empty()) {
+    cut = update_cuts(sim, sim.state.time, sim.state.time + sim.model.dt);
+    // The next frame's layout and model build run beside this step (the
+    // times as the next frame will compute them: t1 = t + dt, then t1 + dt).
+    const double t1 = sim.state.time + sim.model.dt;
+    start_cut_ahead(sim, t1, t1 + sim.model.dt);
+  }
   step(sim.model, sim.state);
   FrameTiming t = sim.state.timing;
   t.ms[kStageCutting] = cut.ms;
   t.cut_ms = cut.part_ms;
   t.cut_frame = cut.changed;
+  t.cut_ahead = cut.ahead;
   t.frame_ms = clock.ms();
   return t;
 }

@@ -25,6 +25,7 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["newton"] = {{"mean", s.newton_mean}, {"max", s.newton_max}};
   j["cut_frames"] = pct(s.cut_frames);
   j["cut_frames"]["count"] = s.cut_frames.count;
+  j["cut_frames"]["prepared_ahead"] = s.cut_ahead;
   for (int k = 0; k < kNumCutParts; ++k) {
     std::string name = kCutPartNames[k];
     name = name.substr(name.find_first_not_of(' '));

@@ -113,5 +113,32 @@ TEST(CutPolicies, MultiplicativePatchNeedsFewerIterationsThanAdditive) {
   EXPECT_LT(test::rel_diff(mul.u, add.u), 1e-5);
 }
 
+// advance_frame prepares each frame's cut (layout and next Model) on a helper
+// thread during the previous frame's step (start_cut_ahead). That must give
+// exactly the states of the plain sequence update_cuts, then step, and the
+// prepared results must actually be used.
+TEST(CutPolicies, CutsPreparedDuringThePreviousStepGiveTheSameStates) {
+  Scene s = test::block_scene(2);
+  s.material.rayleigh_mass = 0.5;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  s.cuts = {test::swept_blade({Vec3{2.3, -0.1, 1.2}, Vec3{2.45, 1.1, 1.2}}, {Vec3{2.3, -0.1, 0.3}, Vec3{2.45, 1.1, 0.3}}, 0.5)};
+  s.cuts[0].at_time = 0.05;
+  auto ahead = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
+  auto plain = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
+  int cut_frames = 0, prepared = 0;
+  for (int k = 0; k < 25; ++k) {
+    const FrameTiming t = advance_frame(*ahead);
+    cut_frames += t.cut_frame;
+    prepared += t.cut_frame && t.cut_ahead;
+    update_cuts(*plain, plain->state.time, plain->state.time + plain->model.dt);
+    step(plain->model, plain->state);
+    ASSERT_EQ(ahead->model.ndof(), plain->model.ndof()) << "frame " << k;
+    ASSERT_EQ(ahead->state.u, plain->state.u) << "frame " << k;
+    ASSERT_EQ(ahead->state.v, plain->state.v) << "frame " << k;
+  }
+  EXPECT_GE(cut_frames, 3);
+  EXPECT_EQ(prepared, cut_frames) << "every cut frame was prepared during the frame before it";
+}
+
 }  // namespace
 }  // namespace incise
