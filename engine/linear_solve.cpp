@@ -534,6 +534,8 @@ void solve_system(const Model& m, State& s, const double* K, int iteration, Stop
       if (m.solver.warp) lagged_warp_rotations(m, s);
       if (iteration == 0 || s.work.patch_key < 0) lagged_patch(m, s, s.A.data());
       s.timing.ms[kStageFactorization] += clock.lap();
+      s.timing.factor_age = s.frame - s.work.front_frame;
+      s.timing.patch_dofs = static_cast<int>(s.work.patch_dof.size());
       {
         const auto precond = [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); };
         const int rescue = m.solver.rescue_after;

@@ -16,22 +16,20 @@ Eigen::Matrix3d rotation_by_svd(const Eigen::Matrix3d& F) {
   if ((U * V.transpose()).determinant() < 0) U.col(2) *= -1.0;  // singular values sorted: flip smallest
   return U * V.transpose();
 }
-// d = H^-1 g by a hand-written 3x3 Cholesky (H symmetric); false unless H is
-// positive definite. Eigen's LLT took more time than the rest of the iteration.
+// d = H^-1 g for symmetric H by its cofactors (one division, a short
+// dependency chain: the square roots and divisions of a Cholesky took most of
+// the iteration's time); false unless H is positive definite (its leading
+// minors a, ad - b^2 and det H, Sylvester's criterion).
 bool solve_spd3(const Eigen::Matrix3d& H, const Eigen::Vector3d& g, Eigen::Vector3d& d) {
-  const double a = H(0, 0);
-  if (!(a > 0.0)) return false;
-  const double l00 = std::sqrt(a), l10 = H(1, 0) / l00, l20 = H(2, 0) / l00;
-  const double b = H(1, 1) - l10 * l10;
-  if (!(b > 0.0)) return false;
-  const double l11 = std::sqrt(b), l21 = (H(2, 1) - l20 * l10) / l11;
-  const double c = H(2, 2) - l20 * l20 - l21 * l21;
-  if (!(c > 0.0)) return false;
-  const double l22 = std::sqrt(c);
-  const double y0 = g[0] / l00, y1 = (g[1] - l10 * y0) / l11, y2 = (g[2] - l20 * y0 - l21 * y1) / l22;
-  d[2] = y2 / l22;
-  d[1] = (y1 - l21 * d[2]) / l11;
-  d[0] = (y0 - l10 * d[1] - l20 * d[2]) / l00;
+  const double a = H(0, 0), b = H(1, 0), c = H(2, 0), e = H(1, 1), f = H(2, 1), k = H(2, 2);
+  const double c00 = e * k - f * f, c01 = c * f - b * k, c02 = b * f - c * e;
+  const double c11 = a * k - c * c, c12 = b * c - a * f, c22 = a * e - b * b;
+  const double det = a * c00 + b * c01 + c * c02;
+  if (!(a > 0.0 && c22 > 0.0 && det > 0.0)) return false;
+  const double s = 1.0 / det;
+  d[0] = s * (c00 * g[0] + c01 * g[1] + c02 * g[2]);
+  d[1] = s * (c01 * g[0] + c11 * g[1] + c12 * g[2]);
+  d[2] = s * (c02 * g[0] + c12 * g[1] + c22 * g[2]);
   return true;
 }
 
@@ -53,8 +51,9 @@ int extract_rotation(const Eigen::Matrix3d& F, Eigen::Matrix3d& R) {
     // (the step of Mueller et al. 2016). Newton on the same objective: its
     // Hessian is -(tr(B) I - sym(B)) with B = F R^T, positive definite near a
     // maximum, so d = (tr(B) I - sym(B))^-1 g converges quadratically.
-    const Eigen::Vector3d g = Rc.col(0).cross(F.col(0)) + Rc.col(1).cross(F.col(1)) + Rc.col(2).cross(F.col(2));
+    // g = axial(B - B^T) with B = F R^T = sum_k f_k r_k^T.
     const Eigen::Matrix3d B = F * Rc.transpose();
+    const Eigen::Vector3d g(B(2, 1) - B(1, 2), B(0, 2) - B(2, 0), B(1, 0) - B(0, 1));
     const Eigen::Matrix3d H = B.trace() * Eigen::Matrix3d::Identity() - 0.5 * (B + B.transpose());
     Eigen::Vector3d d;
     const bool newton = H.diagonal().minCoeff() > 1e-6 * scale && solve_spd3(H, g, d);
@@ -69,10 +68,23 @@ int extract_rotation(const Eigen::Matrix3d& F, Eigen::Matrix3d& R) {
       R = Rc;
       return it;
     }
-    q = Eigen::Quaterniond(Eigen::AngleAxisd(angle, d / angle)) * q;
+    // Retraction R <- exp([d]) R. Below 0.1 rad the first-order quaternion
+    // update (1, d/2) q, normalized, does: it matches exp to second order, so
+    // Newton keeps its quadratic rate (Absil et al., Optimization on Matrix
+    // Manifolds, sec. 6.3), without the sine and cosine.
+    if (angle < 0.1) {
+      const Eigen::Vector3d h = 0.5 * d;
+      q = Eigen::Quaterniond(q.w() - h.dot(q.vec()), q.x() + q.w() * h[0] + h[1] * q.z() - h[2] * q.y(),
+                             q.y() + q.w() * h[1] + h[2] * q.x() - h[0] * q.z(),
+                             q.z() + q.w() * h[2] + h[0] * q.y() - h[1] * q.x());
+    } else {
+      q = Eigen::Quaterniond(Eigen::AngleAxisd(angle, d / angle)) * q;
+    }
     q.normalize();
-    // Near-quadratic convergence: after a Newton step of 1e-11 the error is at roundoff.
-    if ((newton && angle < 1e-11) || angle < 1e-15) {
+    // Quadratic convergence: after a Newton step of 1e-7 rad the remaining
+    // error is of order 1e-14 (the step squared, times a constant near 1 for
+    // elements that are not nearly flat): stop there.
+    if ((newton && angle < 1e-7) || angle < 1e-15) {
       R = q.toRotationMatrix();
       return it + 1;
     }

@@ -34,6 +34,8 @@ struct FrameTiming {
   double residual = 0;        // last relative residual |A du - b| / |b| of CG (0 when direct)
   bool converged = true;      // CG reached solver.tolerance within solver.max_iterations
   int rescues = 0;            // lagged: synchronous refactorizations after solver.rescue_after CG iterations
+  int factor_age = 0;         // lagged: frames since the matrix of the preconditioning factor (last Newton iteration)
+  int patch_dofs = 0;         // lagged after cuts: DOFs of the exactly solved patch (0: none)
 };
 
 class Stopwatch {

@@ -50,6 +50,29 @@ TEST(Polar, StretchedAndInvertedMatchTheSvdDefinition) {
   }
 }
 
+// Between frames the warm start is off by a few thousandths to hundredths of
+// a radian: Newton (quadratic) must land in 2 steps from 0.003 rad and 3 from
+// 0.03 rad, without the SVD fallback, at roundoff of the SVD definition.
+TEST(Polar, WarmStartedExtractionConvergesInFewNewtonSteps) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(0.7, 1.4);
+  std::normal_distribution<double> N;
+  for (const auto& [angle, max_steps] : {std::pair{0.003, 2}, std::pair{0.03, 3}})
+    for (int k = 0; k < 300; ++k) {
+      const Eigen::Matrix3d Q1 = random_rotation(rng), Q2 = random_rotation(rng);
+      const Eigen::Vector3d s(U(rng), U(rng), U(rng));
+      const Eigen::Matrix3d F = Q1 * s.asDiagonal() * Q2.transpose();
+      const Eigen::Matrix3d Rf = reference_rotation(F);
+      const Eigen::Vector3d axis = Eigen::Vector3d(N(rng), N(rng), N(rng)).normalized();
+      Eigen::Matrix3d R = Eigen::AngleAxisd(angle, axis).toRotationMatrix() * Rf;
+      const int steps = extract_rotation(F, R);
+      EXPECT_GE(steps, 1) << "no SVD fallback; F=\n" << F;
+      EXPECT_LE(steps, max_steps) << "warm start " << angle << " rad; F=\n" << F;
+      EXPECT_LT((R - Rf).norm(), 1e-12) << "F=\n" << F;
+      EXPECT_LT((R.transpose() * R - Eigen::Matrix3d::Identity()).norm(), 1e-13);
+    }
+}
+
 TEST(Polar, DegenerateFlatElementGivesAProperRotation) {
   Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
   F(2, 2) = 0.0;  // squashed flat

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <benchmark/benchmark.h>
 
 #include "engine/assemble.h"
@@ -14,6 +15,7 @@
 #include "engine/cholmod_solver.h"
 #include "engine/mesh_tools.h"
 #include "engine/model.h"
+#include "engine/polar.h"
 
 namespace {
 
@@ -137,6 +139,35 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, bool single) {
   if (single) state.counters["convert_ms"] = (st.single_ms_total - first_convert_ms) / 2;
 }
 
+// extract_rotation warm-started as between frames: F = Rt S with Rt turned
+// from the warm start R0 by `angle` radians about a fixed axis and a 10%
+// stretch S; a pool of 1024 such F (each call starts from its R0).
+void BM_ExtractRotation(benchmark::State& state, double angle) {
+  constexpr int kN = 1024;
+  std::vector<Eigen::Matrix3d> F(kN), R0(kN), R(kN);
+  for (int k = 0; k < kN; ++k) {
+    const Eigen::Vector3d axis = Eigen::Vector3d(std::sin(k), std::cos(1.3 * k), 0.5 + 0.1 * k / kN).normalized();
+    R0[k] = Eigen::AngleAxisd(0.3 + k * 0.002, Eigen::Vector3d(0.2, std::sin(0.7 * k), 1.0).normalized()).toRotationMatrix();
+    const Eigen::Matrix3d Rt = Eigen::AngleAxisd(angle, axis).toRotationMatrix() * R0[k];
+    Eigen::Matrix3d S;
+    S << 1.1, 0.03, -0.02, 0.03, 0.95, 0.04, -0.02, 0.04, 1.02;
+    F[k] = Rt * S;
+  }
+  long iters = 0;
+  for (auto _ : state) {
+    for (int k = 0; k < kN; ++k) {
+      R[k] = R0[k];
+      iters += extract_rotation(F[k], R[k]);
+    }
+    benchmark::DoNotOptimize(R.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(state.iterations() * kN);
+  state.counters["ns_per_call"] = benchmark::Counter(kN, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
+                                                      benchmark::Counter::OneK::kIs1000);
+  state.counters["newton_steps"] = static_cast<double>(iters) / (static_cast<double>(state.iterations()) * kN);
+}
+
 }  // namespace
 
 BENCHMARK_CAPTURE(BM_Reference, tet4, 1, RotationMode::PerPoint)->Unit(benchmark::kMillisecond);
@@ -155,5 +186,9 @@ BENCHMARK_CAPTURE(BM_Substitution, beam10k_double, 20, 4, false)->Unit(benchmark
 BENCHMARK_CAPTURE(BM_Substitution, beam10k_single, 20, 4, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_double, 28, 5, false)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_single, 28, 5, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+BENCHMARK_CAPTURE(BM_ExtractRotation, angle_1e-3, 1e-3);
+BENCHMARK_CAPTURE(BM_ExtractRotation, angle_3e-2, 3e-2);
+BENCHMARK_CAPTURE(BM_ExtractRotation, angle_0_5, 0.5);
 
 BENCHMARK_MAIN();
