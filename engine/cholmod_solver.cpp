@@ -224,27 +224,48 @@ void CholmodSolver::set_single_precision(bool on) {
   }
 }
 
-void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai) {
+void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai, const std::vector<int>* perm) {
   release();
   n_ = n;
   const size_t nnz = Ai.size();
+  if (perm && perm->size() != static_cast<size_t>(n))
+    throw Error("CHOLMOD: a given ordering has " + std::to_string(perm->size()) + " entries for " + std::to_string(n) +
+                " columns");
   A_ = cholmod_allocate_sparse(n, n, nnz, /*sorted=*/1, /*packed=*/1, /*stype=*/1, CHOLMOD_REAL, &c_);
   if (!A_) throw Error("CHOLMOD: out of memory allocating a " + std::to_string(n) + " x " + std::to_string(n) + " matrix");
   std::memcpy(A_->p, Ap.data(), sizeof(int) * (n + 1));
   std::memcpy(A_->i, Ai.data(), sizeof(int) * nnz);
   std::fill(static_cast<double*>(A_->x), static_cast<double*>(A_->x) + nnz, 0.0);
-  L_ = cholmod_analyze(A_, &c_);
+  if (perm) {
+    const int nmethods = c_.nmethods;
+    const auto method0 = c_.method[0];
+    c_.nmethods = 1;
+    c_.method[0].ordering = CHOLMOD_GIVEN;
+    L_ = cholmod_analyze_p(A_, const_cast<int*>(perm->data()), nullptr, 0, &c_);
+    c_.nmethods = nmethods;
+    c_.method[0] = method0;
+  } else {
+    L_ = cholmod_analyze(A_, &c_);
+  }
   if (!L_ || c_.status < CHOLMOD_OK) throw Error("CHOLMOD: symbolic analysis failed (status " + std::to_string(c_.status) + ")");
   stats_.nnz_L = c_.lnz;
   stats_.flops = c_.fl;
   // The method CHOLMOD kept (with nmethods = 0 it tries AMD, then METIS when AMD fills much).
-  stats_.ordering = ordering_name(c_.selected >= 0 && c_.selected <= CHOLMOD_MAXMETHODS ? c_.method[c_.selected].ordering : L_->ordering);
+  stats_.ordering = perm ? ordering_name(CHOLMOD_GIVEN)
+                         : ordering_name(c_.selected >= 0 && c_.selected <= CHOLMOD_MAXMETHODS ? c_.method[c_.selected].ordering
+                                                                                              : L_->ordering);
   stats_.supernodal = L_->is_super;
   stats_.factorizations = 0;
   stats_.factor_ms_total = 0;
   stats_.single_conversions = 0;
   stats_.single_ms_total = 0;
   B_ = cholmod_zeros(n, 1, CHOLMOD_REAL, &c_);
+}
+
+std::vector<int> CholmodSolver::permutation() const {
+  if (!L_) return {};
+  const int* p = static_cast<const int*>(L_->Perm);
+  return std::vector<int>(p, p + n_);
 }
 
 void CholmodSolver::factorize(const double* values) {

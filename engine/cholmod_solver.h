@@ -40,7 +40,12 @@ class CholmodSolver {
   // with the supernodal method.
   void configure(FactorMethod method, OrderingMethod ordering);
   // Symbolic analysis of the pattern (n x n, upper triangle, sorted rows).
-  void analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai);
+  // With `perm` (perm[k] = the column eliminated k-th) that ordering is used
+  // as given (CHOLMOD_GIVEN, still postordered): no ordering search.
+  void analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai, const std::vector<int>* perm = nullptr);
+  // The fill-reducing permutation of the current analysis (perm[k] = the
+  // column eliminated k-th); empty before analyze.
+  std::vector<int> permutation() const;
   // Numeric factorization with these values (nnz). Throws incise::Error if the
   // matrix is not positive definite, naming the failing column (a DOF).
   void factorize(const double* values);

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 
 #include "engine/assemble.h"
+#include "engine/carried_ordering.h"
 #include "engine/error.h"
 #include "engine/polar.h"
 
@@ -117,6 +118,7 @@ void factor_now(const Model& m, State& s, int k) {
   CholmodSolver& f = slot_factor(s, k);
   if (w.slot_pattern[k] != w.pattern) {
     f.analyze(m.ndof(), m.Ap, m.Ai);
+    w.slot_carried[k] = false;
     w.slot_pattern[k] = w.pattern;
     w.slot_n[k] = m.ndof();
   }
@@ -147,12 +149,28 @@ void launch_job(const Model& m, State& s) {
   auto& w = s.work;
   const int k = w.front == 0 ? 1 : 0;  // any slot but the front (none is running)
   w.A_back.assign(s.A.begin(), s.A.end());
-  w.job_analyze = w.slot_pattern[k] != w.pattern;
+  // While an incision goes on (a new pattern this frame or the last), a slot
+  // analyzing the new pattern carries the front factor's ordering over
+  // (solver.cut_ordering "carried"): no METIS in the job, about a quarter of
+  // it at 10k DOF, for 10-20% more flops in the factorization. Once cutting
+  // pauses, a slot with a carried analysis is analyzed again with a search.
+  const bool cutting = s.frame - w.pattern_frame <= 1;
+  w.job_analyze = w.slot_pattern[k] != w.pattern || (w.slot_carried[k] && !cutting);
+  w.job_old_perm.clear();
   if (w.job_analyze) {
     w.job_Ap = m.Ap;
     w.job_Ai = m.Ai;
     w.slot_pattern[k] = w.pattern;
     w.slot_n[k] = m.ndof();
+    const CholmodSolver& front = slot_factor(s, w.front);
+    w.slot_carried[k] = m.solver.carry_ordering && cutting && m.has_cuts() && !w.slot_map[w.front].empty() &&
+                        front.analyzed();
+    if (w.slot_carried[k]) {
+      w.job_map = w.slot_map[w.front];
+      w.job_old_perm = front.permutation();
+      w.job_enr_node = m.cuts.enr_node;
+      w.job_nnode = m.nnode;
+    }
   }
   w.slot_map[k].clear();
   if (m.solver.warp) w.slot_Rn[k] = w.Rn;
@@ -162,7 +180,12 @@ void launch_job(const Model& m, State& s) {
   w.job_done = false;
   w.job = std::thread([f, wp, n] {
     try {
-      if (wp->job_analyze) f->analyze(n, wp->job_Ap, wp->job_Ai);
+      if (wp->job_analyze && !wp->job_old_perm.empty()) {
+        const std::vector<int> perm = carried_ordering(wp->job_nnode, wp->job_enr_node, wp->job_map, wp->job_old_perm);
+        f->analyze(n, wp->job_Ap, wp->job_Ai, &perm);
+      } else if (wp->job_analyze) {
+        f->analyze(n, wp->job_Ap, wp->job_Ai);
+      }
       f->factorize(wp->A_back.data());
     } catch (...) {
       wp->job_error = std::current_exception();
@@ -429,6 +452,7 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
       }
     }
     ++w.pattern;
+    w.pattern_frame = s.frame;
     w.last_launch = std::min(w.last_launch, s.frame - 1000000);  // the next frame starts a job on the new pattern
   } else {
     w.wait_job();
@@ -442,7 +466,9 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
     w.back.set_single_precision(single);
     ++w.pattern;
     s.solver.analyze(n, m.Ap, m.Ai);
+    w.pattern_frame = -1000000;
     for (int k = 0; k < 2; ++k) {
+      w.slot_carried[k] = false;
       w.slot_pattern[k] = k == 0 ? w.pattern : -1;
       w.slot_n[k] = k == 0 ? n : 0;
       w.slot_map[k].clear();

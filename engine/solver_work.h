@@ -36,6 +36,13 @@ struct SolverWork {
   std::vector<int> slot_map[2];        // (ndof) slot DOF of each current DOF, -1 none; empty = identity
   std::vector<double> A_back;          // (nnz of the job's pattern) the job's matrix
   std::vector<int> job_Ap, job_Ai;     // the job's pattern when it must analyze it
+  // solver.cut_ordering "carried": the job derives its ordering from the front
+  // factor's (engine/carried_ordering.h) instead of searching one; inputs copied
+  // at launch (empty job_old_perm: search).
+  std::vector<int> job_map, job_old_perm, job_enr_node;
+  int job_nnode = 0;
+  int pattern_frame = -1000000;        // frame a cut last changed the pattern (cutting goes on while it is this or the last frame)
+  bool slot_carried[2] = {false, false};  // that slot's analysis used a carried ordering: searched again once cutting pauses
   bool job_analyze = false;
   int job_slot = -1;
   std::thread job;

@@ -114,6 +114,9 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
   cmd->add_option("--patch", o.patch,
                   "lagged after cuts: combine the lagged factor with the patch of new DOFs additively or multiplicatively")
       ->check(CLI::IsMember({"additive", "multiplicative"}));
+  cmd->add_option("--cut-ordering", o.cut_ordering,
+                  "lagged, background, while cutting: analyze each new pattern with a carried-over ordering or search one")
+      ->check(CLI::IsMember({"search", "carried"}));
   cmd->add_flag("--warp", o.warp, "lagged: rotate the lagged factor by the node rotations since its frame");
   cmd->add_option("--single-precision", o.single_precision, "lagged: float copy of the factor for the substitutions")
       ->check(CLI::IsMember({"true", "false"}));
@@ -138,6 +141,7 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (o.rescue_after >= 0) s.rescue_after = o.rescue_after;
   if (!o.late_factor.empty()) s.skip_late_factor = o.late_factor == "skip";
   if (!o.patch.empty()) s.multiplicative_patch = o.patch == "multiplicative";
+  if (!o.cut_ordering.empty()) s.carry_ordering = o.cut_ordering == "carried";
   if (o.warp) s.warp = true;
   if (o.single_precision == "true") s.single_precision = true;
   if (o.single_precision == "false") s.single_precision = false;

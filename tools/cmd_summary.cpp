@@ -39,7 +39,8 @@ void print_model_summary(const Simulation& sim) {
                 o.warp ? ", warped by the node rotations since" : "", o.single_precision ? ", float factor copy" : "");
   if (o.policy == SolverPolicy::Lagged && o.background && o.skip_late_factor) std::printf(", late factors skipped");
   if (o.policy == SolverPolicy::Lagged && !sim.scene.cuts.empty())
-    std::printf(", %s patch after cuts", o.multiplicative_patch ? "multiplicative" : "additive");
+    std::printf(", %s patch after cuts, %s ordering while cutting", o.multiplicative_patch ? "multiplicative" : "additive",
+                o.carry_ordering ? "carried" : "searched");
   if (o.policy == SolverPolicy::Lagged && o.rescue_after > 0)
     std::printf(", rescue after %d CG iterations", o.rescue_after);
   std::printf("\n");

@@ -53,6 +53,7 @@ struct SolverOverrides {
   std::string single_precision;  // "", "true" or "false"
   std::string late_factor;       // "", "wait" or "skip"
   std::string patch;             // "", "additive" or "multiplicative"
+  std::string cut_ordering;      // "", "search" or "carried"
   std::string factorization, ordering;  // empty: the scene's
 };
 // Registers --policy, --tolerance, ... on a sub-command.

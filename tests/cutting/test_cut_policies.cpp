@@ -64,6 +64,9 @@ TEST(CutPolicies, ProgressiveCutUnderEveryPolicyMatchesExact) {
   cases.push_back({"lagged background refresh 2", s, true});
   s.warp = true;
   cases.push_back({"lagged background refresh 2 warp", s, true});
+  s.carry_ordering = false;
+  cases.push_back({"lagged background refresh 2 warp, searched ordering while cutting", s, true});
+  s.carry_ordering = true;
   s.multiplicative_patch = false;
   cases.push_back({"lagged background refresh 2 warp, additive patch", s, true});
   SolverSettings w;
@@ -111,6 +114,44 @@ TEST(CutPolicies, MultiplicativePatchNeedsFewerIterationsThanAdditive) {
   EXPECT_EQ(mul.carried_frames, add.carried_frames);
   EXPECT_LT(mul.iterations, 0.8 * add.iterations) << "multiplicative " << mul.iterations << ", additive " << add.iterations;
   EXPECT_LT(test::rel_diff(mul.u, add.u), 1e-5);
+}
+
+// While the blade moves, each background job meets a new pattern and carries
+// the front factor's ordering over (solver.cut_ordering "carried") instead of
+// running METIS; the carried ordering stays close to a searched one in fill,
+// and once cutting pauses the slots are analyzed again with a search.
+TEST(CutPolicies, CarriedOrderingWhileCuttingIsSearchedAgainAfterwards) {
+  Scene s = test::block_scene(2);
+  s.material.rayleigh_mass = 0.5;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  s.cuts = {test::swept_blade({Vec3{2.3, -0.1, 1.2}, Vec3{2.45, 1.1, 1.2}}, {Vec3{2.3, -0.1, 0.3}, Vec3{2.45, 1.1, 0.3}}, 0.5)};
+  s.cuts[0].at_time = 0.05;
+  s.solver.policy = SolverPolicy::Lagged;
+  s.solver.background = true;
+  s.solver.refresh_every = 2;
+  s.solver.ordering = OrderingMethod::Metis;
+  auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
+  int given_fronts = 0, last_cut = -1;
+  for (int k = 0; k < 40; ++k) {
+    const FrameTiming t = advance_frame(*sim);
+    if (t.cut_frame) last_cut = k;
+    SolverWork& w = sim->state.work;
+    CholmodSolver& front = w.front == 0 ? sim->state.solver : w.back;
+    if (front.stats().ordering != "given") continue;
+    ++given_fronts;
+    EXPECT_GT(k, 0);
+    EXPECT_LT(k, last_cut + 8) << "a carried analysis outlived the cut";
+    if (w.slot_map[w.front].empty()) {  // the current pattern: compare with a search on it
+      CholmodSolver searched;
+      searched.configure(FactorMethod::Supernodal, OrderingMethod::Metis);
+      searched.analyze(sim->model.ndof(), sim->model.Ap, sim->model.Ai);
+      EXPECT_LT(front.stats().nnz_L, 1.3 * searched.stats().nnz_L) << "frame " << k;
+    }
+  }
+  ASSERT_GE(last_cut, 5);
+  EXPECT_GE(given_fronts, 3) << "jobs during the cut carried the ordering";
+  for (CholmodSolver* f : {&sim->state.solver, &sim->state.work.back})
+    EXPECT_NE(f->stats().ordering, "given") << "analyzed again after the cut";
 }
 
 // advance_frame prepares each frame's cut (layout and next Model) on a helper
