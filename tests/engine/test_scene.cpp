@@ -618,4 +618,9 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
                         "solver.patch must be one of \"additive\", \"multiplicative\"");
   expect_error(minimal(R"("solver": {"patch": "additive"})"),
                "solver.patch: only used by solver.policy \"lagged\"; solver.policy is \"exact\"");
+  EXPECT_TRUE(s.solver.carry_ordering);  // the default
+  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "cut_ordering": "search"})"), scene_path_);
+  EXPECT_FALSE(s.solver.carry_ordering);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "cut_ordering": "amd"})"),
+                        "solver.cut_ordering must be one of \"search\", \"carried\"");
 }
