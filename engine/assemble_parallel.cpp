@@ -238,14 +238,6 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     return fallbacks;
   }
   const double mu = m.mu, lambda = m.lambda;
-  // Rotation term (rotation_stiffness.h): each point mode's vector
-  // t = sqrt(coef_k) (u_k x h_a)_a is a rank-1 update Kr += t t^T of a dense
-  // row-major element matrix (contiguous rows: the compiler vectorises them),
-  // copied into the blocks at the end.
-  constexpr int D = NN > 0 ? 3 * NN : 1;
-  constexpr int DP = (D + 3) / 4 * 4;  // rows padded to whole 4-double vectors (GCC -O2 vectorises only those)
-  alignas(32) double Kr[D * DP];
-  bool rot_terms = false;
   for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
     const double w = m.qp_weight[q];
     const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
@@ -264,65 +256,62 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
       h[3 * a + 2] = R[2] * g0 + R[5] * g1 + R[8] * g2;
     }
     if (!K) continue;
+    // Rotation term (rotation_stiffness.h), fused into the blocks for the
+    // fixed-size elements: sum_k coef_k (u_k x h_a)(u_k x h_b)^T
+    // = [h_a]x Y [h_b]x^T with Y = sum_k coef_k u_k u_k^T (3x3), so with
+    // G = [h_a]x Y block row i gains h_b x (row i of G): 18 products per block
+    // instead of three rank-1 updates of a dense element matrix.
+    double Y[9];
+    const bool rot = NN > 0 && plan.qp_own_rot[q] && rotation_stiffness_matrix(R, F, mu, lambda, w, Y);
     // K_ab = w (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I)
     const double wl = w * lambda, wm = w * mu;
     double* blk = Kl;
     for (int a = 0; a < n; ++a) {
-      const double la0 = wl * h[3 * a], la1 = wl * h[3 * a + 1], la2 = wl * h[3 * a + 2];
-      const double ma0 = wm * h[3 * a], ma1 = wm * h[3 * a + 1], ma2 = wm * h[3 * a + 2];
+      const double ha0 = h[3 * a], ha1 = h[3 * a + 1], ha2 = h[3 * a + 2];
+      const double la0 = wl * ha0, la1 = wl * ha1, la2 = wl * ha2;
+      const double ma0 = wm * ha0, ma1 = wm * ha1, ma2 = wm * ha2;
       const double ga0 = wm * g[3 * a], ga1 = wm * g[3 * a + 1], ga2 = wm * g[3 * a + 2];
+      if (!rot) {
+        for (int b = a; b < n; ++b, blk += 9) {
+          const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
+          const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
+          blk[0] += la0 * hb0 + hb0 * ma0 + gg;
+          blk[1] += la0 * hb1 + hb0 * ma1;
+          blk[2] += la0 * hb2 + hb0 * ma2;
+          blk[3] += la1 * hb0 + hb1 * ma0;
+          blk[4] += la1 * hb1 + hb1 * ma1 + gg;
+          blk[5] += la1 * hb2 + hb1 * ma2;
+          blk[6] += la2 * hb0 + hb2 * ma0;
+          blk[7] += la2 * hb1 + hb2 * ma1;
+          blk[8] += la2 * hb2 + hb2 * ma2 + gg;
+        }
+        continue;
+      }
+      // G = [h_a]x Y, row-major (Y symmetric, column-major = row-major).
+      double G[9];
+      for (int l = 0; l < 3; ++l) {
+        G[l] = ha1 * Y[3 * l + 2] - ha2 * Y[3 * l + 1];
+        G[3 + l] = ha2 * Y[3 * l] - ha0 * Y[3 * l + 2];
+        G[6 + l] = ha0 * Y[3 * l + 1] - ha1 * Y[3 * l];
+      }
       for (int b = a; b < n; ++b, blk += 9) {
         const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
         const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
-        blk[0] += la0 * hb0 + hb0 * ma0 + gg;
-        blk[1] += la0 * hb1 + hb0 * ma1;
-        blk[2] += la0 * hb2 + hb0 * ma2;
-        blk[3] += la1 * hb0 + hb1 * ma0;
-        blk[4] += la1 * hb1 + hb1 * ma1 + gg;
-        blk[5] += la1 * hb2 + hb1 * ma2;
-        blk[6] += la2 * hb0 + hb2 * ma0;
-        blk[7] += la2 * hb1 + hb2 * ma1;
-        blk[8] += la2 * hb2 + hb2 * ma2 + gg;
+        blk[0] += la0 * hb0 + hb0 * ma0 + gg + (hb1 * G[2] - hb2 * G[1]);
+        blk[1] += la0 * hb1 + hb0 * ma1 + (hb2 * G[0] - hb0 * G[2]);
+        blk[2] += la0 * hb2 + hb0 * ma2 + (hb0 * G[1] - hb1 * G[0]);
+        blk[3] += la1 * hb0 + hb1 * ma0 + (hb1 * G[5] - hb2 * G[4]);
+        blk[4] += la1 * hb1 + hb1 * ma1 + gg + (hb2 * G[3] - hb0 * G[5]);
+        blk[5] += la1 * hb2 + hb1 * ma2 + (hb0 * G[4] - hb1 * G[3]);
+        blk[6] += la2 * hb0 + hb2 * ma0 + (hb1 * G[8] - hb2 * G[7]);
+        blk[7] += la2 * hb1 + hb2 * ma1 + (hb2 * G[6] - hb0 * G[8]);
+        blk[8] += la2 * hb2 + hb2 * ma2 + gg + (hb0 * G[7] - hb1 * G[6]);
       }
     }
-    double uk[9], coef[3];
-    if (!plan.qp_own_rot[q] || !rotation_stiffness_modes(R, F, mu, lambda, w, uk, coef)) continue;
     if constexpr (NN == 0) {
-      add_rotation_stiffness(n, h, uk, coef, Kl, t);
-    } else {
-      for (int k = 0; k < 3; ++k) {
-        if (coef[k] <= 0.0) continue;
-        if (!rot_terms) std::fill(Kr, Kr + D * DP, 0.0);
-        rot_terms = true;
-        const double sc = std::sqrt(coef[k]);
-        const double u0 = sc * uk[3 * k], u1 = sc * uk[3 * k + 1], u2 = sc * uk[3 * k + 2];
-        alignas(32) double tv[DP];
-        for (int c = D; c < DP; ++c) tv[c] = 0.0;
-        for (int a = 0; a < NN; ++a) {
-          const double* ha = h + 3 * a;
-          tv[3 * a] = u1 * ha[2] - u2 * ha[1];
-          tv[3 * a + 1] = u2 * ha[0] - u0 * ha[2];
-          tv[3 * a + 2] = u0 * ha[1] - u1 * ha[0];
-        }
-        // Only the upper part, columns from r's 4-aligned start: the lower
-        // triangle of a diagonal block is then incomplete, which is harmless
-        // because the scatter drops it (the pattern stores the upper triangle).
-        for (int r = 0; r < D; ++r) {
-          const double alpha = tv[r];
-          double* kr = Kr + r * DP;
-          for (int c = r / 4 * 4; c < DP; c += 4)
-            for (int l = 0; l < 4; ++l) kr[c + l] += alpha * tv[c + l];
-        }
-      }
-    }
-  }
-  if constexpr (NN > 0) {
-    if (K && rot_terms) {
-      double* blk = Kl;
-      for (int a = 0; a < NN; ++a)
-        for (int b = a; b < NN; ++b, blk += 9)
-          for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j) blk[3 * i + j] += Kr[(3 * a + i) * DP + 3 * b + j];
+      double uk[9], coef[3];
+      if (plan.qp_own_rot[q] && rotation_stiffness_modes(R, F, mu, lambda, w, uk, coef))
+        add_rotation_stiffness(n, h, uk, coef, Kl, t);
     }
   }
   if (K) {

@@ -1,7 +1,11 @@
 #include "engine/cholmod_solver.h"
 
+#include <dlfcn.h>
+
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <sstream>
 #include <type_traits>
 
@@ -174,9 +178,27 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const do
 #undef INCISE_LOAD4
 #undef INCISE_LOAD_F4
 
+// Debian's CHOLMOD runs parts of the supernodal factorization in OpenMP
+// teams of a size fixed when it was compiled (4 here), whatever
+// OMP_NUM_THREADS says: on a 2-core machine the lagged policy's background
+// factorization then ran four threads, whose futex wake-ups took the stepping
+// thread's core. The engine's threading is explicit (solver.threads, the
+// background job), so OpenMP regions run on the thread that enters them:
+// max-active-levels 0 makes every parallel region inactive. Looked up at run
+// time, so a CHOLMOD built without OpenMP needs nothing.
+void serial_openmp_regions() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    if (std::getenv("INCISE_KEEP_OMP")) return;
+    using SetLevels = void (*)(int);
+    if (auto f = reinterpret_cast<SetLevels>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"))) f(0);
+  });
+}
+
 }  // namespace
 
 CholmodSolver::CholmodSolver() {
+  serial_openmp_regions();
   cholmod_start(&c_);
   c_.supernodal = CHOLMOD_SUPERNODAL;
   c_.print = 0;

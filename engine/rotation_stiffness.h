@@ -100,6 +100,49 @@ inline bool rotation_stiffness_modes(const double* R, const double* F, double mu
   return any;
 }
 
+// The same term as one symmetric 3x3 matrix Y = sum_k coef[k] u_k u_k^T =
+// w/2 R Z+ R^T (column-major), for kernels that fold it into their blocks as
+// [h_a]x Y [h_b]x^T. Positive semi-definite Z (checked by its leading minors,
+// the Cholesky test of rotation_stiffness_modes) needs no factor: Y =
+// w/2 R Z R^T; otherwise the modes' eigen path. Returns whether Y != 0.
+inline bool rotation_stiffness_matrix(const double* R, const double* F, double mu, double lambda, double w,
+                                      double* Y) {
+  const Eigen::Map<const Eigen::Matrix3d> Rm(R), Fm(F);
+  const Eigen::Matrix3d RtF = Rm.transpose() * Fm;
+  const Eigen::Matrix3d S = 0.5 * (RtF + RtF.transpose());
+  const double trS = S.trace();
+  const double c = 2.0 * mu - lambda * (trS - 3.0);
+  Eigen::Matrix3d T = -S;
+  T.diagonal().array() += trS;
+  const double det = T.determinant();
+  const double scale = std::abs(trS) + 1e-300;
+  Eigen::Map<Eigen::Matrix3d> Ym(Y);
+  if (!(T(0, 0) > 1e-6 * scale && T(0, 0) * T(1, 1) - T(0, 1) * T(0, 1) > 1e-12 * scale * scale &&
+        det > 1e-18 * scale * scale * scale)) {
+    Ym.setZero();
+    return false;
+  }
+  Eigen::Matrix3d Z = (-2.0 * c) * T.inverse();
+  Z.diagonal().array() += 2.0 * mu;
+  if (Z.cwiseAbs().maxCoeff() < 1e-2 * mu) {
+    Ym.setZero();
+    return false;
+  }
+  const double m2 = Z(0, 0) * Z(1, 1) - Z(0, 1) * Z(0, 1);
+  if (Z(0, 0) > 0.0 && m2 > 0.0 && Z.determinant() >= 0.0) {
+    Ym = (0.5 * w) * (Rm * Z * Rm.transpose());
+    return true;
+  }
+  double u[9], coef[3];
+  Ym.setZero();
+  if (!rotation_stiffness_modes(R, F, mu, lambda, w, u, coef)) return false;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Map<const Eigen::Vector3d> uk(u + 3 * k);
+    Ym += coef[k] * uk * uk.transpose();
+  }
+  return true;
+}
+
 // Adds sum_k coef[k] (u_k x h_a)(u_k x h_b)^T to the element blocks a <= b
 // (row-major 3x3 each, in the order (0,0), (0,1), ..., (1,1), ...) for n nodes
 // with rotated gradients h (n, 3). t is scratch (3 n, 3).

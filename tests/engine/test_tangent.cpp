@@ -111,5 +111,33 @@ TEST(Tangent, RotationModesAreThePositivePartOfZ) {
   EXPECT_FALSE(rotation_stiffness_modes(R.data(), F.data(), 1.0, 2.0, 2.0, u, coef));
 }
 
+// rotation_stiffness_matrix (the fused kernels' form) is the modes' sum
+// w/2 R Z+ R^T on every path: compressed (none), stretched (Z positive
+// definite, no factor), mixed (eigen path), inverted (none), and on random
+// states around them.
+TEST(Tangent, RotationMatrixIsTheSumOfTheModes) {
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
+  std::vector<std::pair<Eigen::Vector3d, double>> cases = {{{0.5, 0.6, 1.4}, 2.0}, {{1.5, 1.4, 1.3}, 2.0},
+                                                          {{0.5, 0.6, 3.0}, 0.0}, {{-0.5, 0.2, 0.2}, 2.0}};
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(0.3, 2.5), L(0.0, 5.0);
+  for (int k = 0; k < 200; ++k) cases.push_back({{U(rng), U(rng), U(rng)}, L(rng)});
+  int kept = 0, eigen_path = 0;
+  for (const auto& [s, lambda] : cases) {
+    const Eigen::Matrix3d Q = Eigen::AngleAxisd(s[0], Eigen::Vector3d(s[1], -1, s[2]).normalized()).toRotationMatrix();
+    const Eigen::Matrix3d F = R * Q * s.asDiagonal() * Q.transpose();  // R S with S not diagonal
+    double u[9], coef[3], Y[9];
+    const bool modes = rotation_stiffness_modes(R.data(), F.data(), 1.0, lambda, 2.0, u, coef);
+    const bool matrix = rotation_stiffness_matrix(R.data(), F.data(), 1.0, lambda, 2.0, Y);
+    EXPECT_EQ(matrix, modes) << "S eigenvalues " << s.transpose() << ", lambda " << lambda;
+    const Eigen::Matrix3d expect = modes ? mode_sum(u, coef) : Eigen::Matrix3d::Zero();
+    EXPECT_LT((Eigen::Map<const Eigen::Matrix3d>(Y) - expect).norm(), 1e-12 * (1.0 + expect.norm()));
+    kept += modes;
+    eigen_path += modes && (coef[0] != coef[1] || coef[1] != coef[2]);
+  }
+  EXPECT_GT(kept, 20);
+  EXPECT_GT(eigen_path, 5) << "the indefinite (eigen) path is exercised";
+}
+
 }  // namespace
 }  // namespace incise
