@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
-#include <mutex>
 #include <sstream>
 #include <type_traits>
 
@@ -180,25 +179,28 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const do
 
 // Debian's CHOLMOD runs parts of the supernodal factorization in OpenMP
 // teams of a size fixed when it was compiled (4 here), whatever
-// OMP_NUM_THREADS says: on a 2-core machine the lagged policy's background
-// factorization then ran four threads, whose futex wake-ups took the stepping
-// thread's core. The engine's threading is explicit (solver.threads, the
+// OMP_NUM_THREADS says: on a 2-core machine a factorization then ran four
+// threads whose futex wake-ups and waits made it 2.4-3.8x slower (10k DOF:
+// 130 against 53 ms) and took the stepping thread's core when it ran in the
+// background. The engine's threading is explicit (solver.threads, the
 // background job), so OpenMP regions run on the thread that enters them:
-// max-active-levels 0 makes every parallel region inactive. Looked up at run
-// time, so a CHOLMOD built without OpenMP needs nothing.
+// max-active-levels 0 makes every parallel region inactive. The setting is
+// per thread (an OpenMP 5 data-environment ICV), so every thread calling
+// CHOLMOD sets it. Looked up at run time: a CHOLMOD built without OpenMP needs
+// nothing. INCISE_KEEP_OMP=1 in the environment keeps CHOLMOD's teams (to
+// measure the difference).
 void serial_openmp_regions() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    if (std::getenv("INCISE_KEEP_OMP")) return;
-    using SetLevels = void (*)(int);
-    if (auto f = reinterpret_cast<SetLevels>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"))) f(0);
-  });
+  using SetLevels = void (*)(int);
+  static const SetLevels set_levels = [] {
+    if (std::getenv("INCISE_KEEP_OMP")) return SetLevels{nullptr};
+    return reinterpret_cast<SetLevels>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"));
+  }();
+  if (set_levels) set_levels(0);
 }
 
 }  // namespace
 
 CholmodSolver::CholmodSolver() {
-  serial_openmp_regions();
   cholmod_start(&c_);
   c_.supernodal = CHOLMOD_SUPERNODAL;
   c_.print = 0;
@@ -258,6 +260,7 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   std::memcpy(A_->p, Ap.data(), sizeof(int) * (n + 1));
   std::memcpy(A_->i, Ai.data(), sizeof(int) * nnz);
   std::fill(static_cast<double*>(A_->x), static_cast<double*>(A_->x) + nnz, 0.0);
+  serial_openmp_regions();
   if (perm) {
     const int nmethods = c_.nmethods;
     const auto method0 = c_.method[0];
@@ -293,6 +296,7 @@ std::vector<int> CholmodSolver::permutation() const {
 void CholmodSolver::factorize(const double* values) {
   if (!L_) throw Error("CHOLMOD: factorize called before analyze");
   std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
+  serial_openmp_regions();
   Stopwatch clock;
   cholmod_factorize(A_, L_, &c_);
   stats_.factor_ms_total += clock.ms();

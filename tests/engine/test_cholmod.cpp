@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <thread>
 
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
@@ -98,6 +99,15 @@ TEST(Cholmod, SupernodalFactorizationStartsNoThreads) {
   EXPECT_GT(m.ndof(), 2000);
   EXPECT_TRUE(f.stats().supernodal);
   EXPECT_EQ(threads_of_this_process(), before) << "CHOLMOD started threads (OpenMP teams)";
+  // The same on another thread (the setting is per thread): the lagged
+  // policy's background job. Only that thread itself may be added.
+  int during = 0;
+  std::thread job([&] {
+    f.factorize(A.data());
+    during = threads_of_this_process();
+  });
+  job.join();
+  EXPECT_EQ(during, before + 1) << "the background factorization started threads (OpenMP teams)";
 }
 
 }  // namespace
