@@ -11,13 +11,14 @@
 namespace incise {
 
 void write_timing_json(const std::string& path, const Simulation& sim, const TimingSummary& s,
-                       const std::vector<FrameTiming>* frames, double bandwidth_gbs) {
+                       const std::vector<FrameTiming>* frames, double bandwidth_gbs, double pace_hz) {
   auto pct = [](const Percentiles& p) {
     return nlohmann::json{{"median_ms", p.median_ms}, {"p95_ms", p.p95_ms}, {"p99_ms", p.p99_ms}, {"max_ms", p.max_ms}};
   };
   nlohmann::json j;
   j["scene"] = sim.scene.path;
   j["frames"] = s.frame.count;
+  j["pace_hz"] = pace_hz;
   j["frame"] = pct(s.frame);
   j["frame"]["over_budget"] = s.over_budget;
   j["frame"]["budget_ms"] = s.budget_ms;
