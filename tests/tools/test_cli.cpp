@@ -1,5 +1,6 @@
 // The incise command line, run as a user runs it: files in, files and
 // messages out, exit codes.
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -130,6 +131,23 @@ TEST_F(Cli, BenchJsonHasTheDocumentedFields) {
   // a linear scene never refactorizes: factorization is 0 ms after frame 1
   EXPECT_EQ(j["stages"]["factorization"]["median_ms"].get<double>(), 0.0);
   EXPECT_EQ(j["stages"]["render"]["max_ms"].get<double>(), 0.0) << "no --render: nothing is drawn";
+}
+
+// --pace 30 starts a frame every 1/30 s, as the real-time loop does: 6 frames
+// (1 warm-up) take at least 5 periods of wall time, and the JSON says so.
+TEST_F(Cli, BenchPaceStartsFramesAtTheGivenRate) {
+  cantilever_scene();
+  const auto t0 = std::chrono::steady_clock::now();
+  const Result r = incise("bench " + path("scene.json") + " --frames 5 --warmup 1 --pace 30 --json " + path("p.json"));
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("frames started at 30 Hz"), std::string::npos) << r.out;
+  EXPECT_GE(s, 5.0 / 30.0);
+  std::ifstream js(path("p.json"));
+  EXPECT_EQ(nlohmann::json::parse(js)["pace_hz"].get<double>(), 30.0);
+  const Result bad = incise("bench " + path("scene.json") + " --frames 1 --pace -1");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("--pace"), std::string::npos) << bad.out;
 }
 
 TEST_F(Cli, BenchRenderTimesTheRenderStage) {
