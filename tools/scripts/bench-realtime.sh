@@ -12,7 +12,9 @@
 # for the default), a rescue refactorization after 20 stalled CG iterations
 # (REALTIME_RESCUE) and late background factors skipped instead of waited for
 # (REALTIME_LATE=wait for deterministic runs). incise bench times FRAMES frames
-# too (BENCH_FRAMES to change) and writes its per-frame trace to BUILD/realtime/NAME.trace.csv.
+# too (BENCH_FRAMES to change), started at PACE Hz as the real-time loop does
+# (default 30; PACE=0 runs them back to back), and writes its per-frame trace
+# to BUILD/realtime/NAME.trace.csv. incise compare runs back to back.
 # Usage: bench-realtime.sh [BUILD_DIR] [FRAMES] [TOL]   (BENCH_ONLY="organ-10k ..." to pick cases)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -27,15 +29,19 @@ tangent="${REALTIME_TANGENT:-consistent}"  # integrator.tangent of every case (f
 bench_frames="${BENCH_FRAMES:-$frames}"   # frames timed by incise bench (after 5 warm-up frames)
 rescue="${REALTIME_RESCUE:-20}"            # solver.rescue_after (0: off)
 late="${REALTIME_LATE:-skip}"              # solver.late_factor: skip (no stalls) or wait (deterministic)
+pace="${PACE:-30}"                          # incise bench --pace (0: frames back to back)
 # name mesh-or-scene K
+# K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
+# CHOLMOD's OpenMP teams were made serial) is taken about K frames after it
+# starts; measured paced at 30 Hz, fifth session (docs/benchmarks.md).
 cases=(
-  "organ-3k organ_3k 3"
-  "organ-10k organ_10k 8"
-  "organ-20k organ_20k 12"
-  "organ-30k organ_30k 18"
-  "beam-10k beam_20x4x4 6"
-  "beam-20k beam_28x5x5 12"
-  "incision-10k organ_incision 6"
+  "organ-3k organ_3k 1"
+  "organ-10k organ_10k 2"
+  "organ-20k organ_20k 3"
+  "organ-30k organ_30k 4"
+  "beam-10k beam_20x4x4 2"
+  "beam-20k beam_28x5x5 3"
+  "incision-10k organ_incision 2"
 )
 only="${BENCH_ONLY:-}"
 for c in "${cases[@]}"; do
@@ -86,7 +92,7 @@ PY
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
     echo "  failed: see $out/$name.compare.log" >&2
   # shellcheck disable=SC2086
-  "$incise" bench "$scene" $opts --frames "$bench_frames" --warmup 5 --json "$out/$name.bench.json" \
+  "$incise" bench "$scene" $opts --frames "$bench_frames" --warmup 5 --pace "$pace" --json "$out/$name.bench.json" \
     --trace "$out/$name.trace.csv" >"$out/$name.bench.log" 2>&1 ||
     echo "  failed: see $out/$name.bench.log" >&2
 done
@@ -107,7 +113,8 @@ for c in sys.argv[4:]:
     cf = b["cut_frames"]
     cut = f"{cf['count']}, {cf['median_ms']:.1f} / {cf['p99_ms']:.1f} / {cf['max_ms']:.1f}" if cf["count"] else "-"
     it = b["solver"]["iterations"]
-    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp, tangent {tangent} | "
+    paced = f", paced {b['pace_hz']:g} Hz" if b.get("pace_hz") else ""
+    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp, tangent {tangent}{paced} | "
           f"{b['frame']['median_ms']:.1f} | {b['frame']['p99_ms']:.1f} | {b['frame']['max_ms']:.1f} | {cut} | {it['median']:.0f} ({it['max']:.0f}) | "
           f"{b['newton']['mean']:.2f} | {e.get(1, float('nan')):.1e} | {e.get(30, float('nan')):.1e} | {e.get(last, float('nan')):.1e} ({last}) |")
 PY
