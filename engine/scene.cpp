@@ -401,7 +401,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   const std::string at = "solver";
   p.object(v, at);
   p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "rescue_after", "late_factor", "patch",
-                         "cut_ordering", "tolerance", "max_iterations", "threads", "factorization", "ordering"});
+                         "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "factorization", "ordering"});
   SolverSettings& o = s.solver;
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
@@ -417,6 +417,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     o.multiplicative_patch = p.choice(*it, at + ".patch", {"additive", "multiplicative"}) == 1;
   if (auto it = v.find("cut_ordering"); it != v.end())
     o.carry_ordering = p.choice(*it, at + ".cut_ordering", {"search", "carried"}) == 1;
+  if (auto it = v.find("background_priority"); it != v.end())
+    o.idle_background = p.choice(*it, at + ".background_priority", {"normal", "idle"}) == 1;
   if (auto it = v.find("tolerance"); it != v.end()) {
     o.tolerance = p.positive(*it, at + ".tolerance");
     if (!(o.tolerance < 1.0)) p.fail(at + ".tolerance", " must be in (0, 1), got " + show(*it));
@@ -437,7 +439,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
       p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");
   for (const char* k :
-       {"refresh_every", "background", "warp", "single_precision", "rescue_after", "late_factor", "patch", "cut_ordering"})
+       {"refresh_every", "background", "warp", "single_precision", "rescue_after", "late_factor", "patch", "cut_ordering",
+        "background_priority"})
     if (v.contains(k) && o.policy != SolverPolicy::Lagged)
       p.fail(Parser::key(at, k), ": only used by solver.policy \"lagged\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");

@@ -83,6 +83,7 @@ struct SolverSettings {
   bool skip_late_factor = false;  // lagged + background: solver.late_factor "skip" (true) or "wait"
   bool multiplicative_patch = true;  // lagged after cuts: solver.patch "multiplicative" (true) or "additive"
   bool carry_ordering = true;        // lagged after cuts: solver.cut_ordering "carried" (true) or "search"
+  bool idle_background = true;       // lagged, background: solver.background_priority "idle" (true) or "normal"
   double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
   int max_iterations = 50;     // CG iterations per solve (>= 1)
   int threads = 2;             // assembly workers incl. the calling thread (>= 1)

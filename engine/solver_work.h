@@ -48,6 +48,7 @@ struct SolverWork {
   std::thread job;
   bool job_running = false;
   std::atomic<bool> job_done{false};   // set by the job when it has finished (late_factor "skip" polls it)
+  int job_policy = -1;                 // the scheduling policy the last job ran at (SCHED_IDLE, SCHED_OTHER), set by it
   int job_frame = -1;
   std::exception_ptr job_error;
   std::vector<double> t_slot;          // gather buffer of a mapped slot

@@ -117,6 +117,9 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
   cmd->add_option("--cut-ordering", o.cut_ordering,
                   "lagged, background, while cutting: analyze each new pattern with a carried-over ordering or search one")
       ->check(CLI::IsMember({"search", "carried"}));
+  cmd->add_option("--background-priority", o.background_priority,
+                  "lagged, background: run the background factorization at idle priority (the default) or normal")
+      ->check(CLI::IsMember({"idle", "normal"}));
   cmd->add_flag("--warp", o.warp, "lagged: rotate the lagged factor by the node rotations since its frame");
   cmd->add_option("--single-precision", o.single_precision, "lagged: float copy of the factor for the substitutions")
       ->check(CLI::IsMember({"true", "false"}));
@@ -142,6 +145,7 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (!o.late_factor.empty()) s.skip_late_factor = o.late_factor == "skip";
   if (!o.patch.empty()) s.multiplicative_patch = o.patch == "multiplicative";
   if (!o.cut_ordering.empty()) s.carry_ordering = o.cut_ordering == "carried";
+  if (!o.background_priority.empty()) s.idle_background = o.background_priority == "idle";
   if (o.warp) s.warp = true;
   if (o.single_precision == "true") s.single_precision = true;
   if (o.single_precision == "false") s.single_precision = false;

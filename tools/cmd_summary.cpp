@@ -35,7 +35,8 @@ void print_model_summary(const Simulation& sim) {
   if (o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG)
     std::printf(", CG tolerance %.3g, max %d iterations", o.tolerance, o.max_iterations);
   if (o.policy == SolverPolicy::Lagged)
-    std::printf(", refresh every %d frame(s)%s%s%s", o.refresh_every, o.background ? " on a background thread" : "",
+    std::printf(", refresh every %d frame(s)%s%s%s", o.refresh_every,
+                o.background ? (o.idle_background ? " on a background thread at idle priority" : " on a background thread") : "",
                 o.warp ? ", warped by the node rotations since" : "", o.single_precision ? ", float factor copy" : "");
   if (o.policy == SolverPolicy::Lagged && o.background && o.skip_late_factor) std::printf(", late factors skipped");
   if (o.policy == SolverPolicy::Lagged && !sim.scene.cuts.empty())

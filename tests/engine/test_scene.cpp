@@ -623,4 +623,9 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
   EXPECT_FALSE(s.solver.carry_ordering);
   expect_error_contains(minimal(R"("solver": {"policy": "lagged", "cut_ordering": "amd"})"),
                         "solver.cut_ordering must be one of \"search\", \"carried\"");
+  EXPECT_TRUE(s.solver.idle_background);  // the default
+  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "background_priority": "normal"})"), scene_path_);
+  EXPECT_FALSE(s.solver.idle_background);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "background_priority": "high"})"),
+                        "solver.background_priority must be one of \"normal\", \"idle\"");
 }
