@@ -32,6 +32,31 @@
 
 namespace incise {
 
+// Z = 2 mu I - 2 c T^-1 with T = tr(S) I - S, S = sym(R^T F), c = 2 mu -
+// lambda tr(S - I) (the rotation modes' stiffness, eigenvalues kappa_k on the
+// axes of S), and S. False (no rotation term) where T is not positive
+// definite (an inverted or degenerate point: some pair s_i + s_j <= 0) or
+// every |kappa| is below 1% of mu (a nearly unstrained point: not worth the
+// element update).
+inline bool rotation_mode_stiffness(const double* R, const double* F, double mu, double lambda, Eigen::Matrix3d& Z,
+                                    Eigen::Matrix3d& S) {
+  const Eigen::Map<const Eigen::Matrix3d> Rm(R), Fm(F);
+  const Eigen::Matrix3d RtF = Rm.transpose() * Fm;
+  S = 0.5 * (RtF + RtF.transpose());
+  const double trS = S.trace();
+  const double c = 2.0 * mu - lambda * (trS - 3.0);
+  Eigen::Matrix3d T = -S;
+  T.diagonal().array() += trS;
+  const double det = T.determinant();
+  const double scale = std::abs(trS) + 1e-300;  // Sylvester's criterion, scaled
+  if (!(T(0, 0) > 1e-6 * scale && T(0, 0) * T(1, 1) - T(0, 1) * T(0, 1) > 1e-12 * scale * scale &&
+        det > 1e-18 * scale * scale * scale))
+    return false;
+  Z = (-2.0 * c) * T.inverse();  // cofactors for a fixed 3x3
+  Z.diagonal().array() += 2.0 * mu;
+  return Z.cwiseAbs().maxCoeff() >= 1e-2 * mu;
+}
+
 // For a point with rotation R and gradient F (both column-major 3x3) and
 // weight w: three vectors u_k (columns of u (3, 3)) and coef[k] >= 0 with
 //   sum_k coef[k] u_k u_k^T = w/2 R Z+ R^T,  Z = 2 mu I - 2 c (tr(S) I - S)^-1,
@@ -42,28 +67,9 @@ namespace incise {
 // coefficient is positive.
 inline bool rotation_stiffness_modes(const double* R, const double* F, double mu, double lambda, double w, double* u,
                                      double* coef) {
-  const Eigen::Map<const Eigen::Matrix3d> Rm(R), Fm(F);
-  const Eigen::Matrix3d RtF = Rm.transpose() * Fm;
-  const Eigen::Matrix3d S = 0.5 * (RtF + RtF.transpose());
-  const double trS = S.trace();
-  const double c = 2.0 * mu - lambda * (trS - 3.0);
-  // T = tr(S) I - S (symmetric; positive definite while S is): Z = 2 mu I - 2 c T^-1.
-  Eigen::Matrix3d T = -S;
-  T.diagonal().array() += trS;
-  const double det = T.determinant();
-  // T positive definite (Sylvester), i.e. every pair s_i + s_j > 0; else the
-  // point is inverted or degenerate and gets no rotation term.
-  const double scale = std::abs(trS) + 1e-300;
-  if (!(T(0, 0) > 1e-6 * scale && T(0, 0) * T(1, 1) - T(0, 1) * T(0, 1) > 1e-12 * scale * scale &&
-        det > 1e-18 * scale * scale * scale)) {
-    coef[0] = coef[1] = coef[2] = 0.0;
-    return false;
-  }
-  Eigen::Matrix3d Z = (-2.0 * c) * T.inverse();  // cofactors for a fixed 3x3
-  Z.diagonal().array() += 2.0 * mu;
-  // A nearly unstrained point: every |kappa| below 1% of mu changes the
-  // tangent by less than that, not worth the element update.
-  if (Z.cwiseAbs().maxCoeff() < 1e-2 * mu) {
+  const Eigen::Map<const Eigen::Matrix3d> Rm(R);
+  Eigen::Matrix3d Z, S;
+  if (!rotation_mode_stiffness(R, F, mu, lambda, Z, S)) {
     coef[0] = coef[1] = coef[2] = 0.0;
     return false;
   }
@@ -86,6 +92,7 @@ inline bool rotation_stiffness_modes(const double* R, const double* F, double mu
     }
   }
   // Indefinite: project on the eigenvectors v_k of S (those of Z too).
+  const double c = 2.0 * mu - lambda * (S.trace() - 3.0);
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
   es.computeDirect(S);
   const Eigen::Vector3d s = es.eigenvalues();
@@ -107,24 +114,10 @@ inline bool rotation_stiffness_modes(const double* R, const double* F, double mu
 // w/2 R Z R^T; otherwise the modes' eigen path. Returns whether Y != 0.
 inline bool rotation_stiffness_matrix(const double* R, const double* F, double mu, double lambda, double w,
                                       double* Y) {
-  const Eigen::Map<const Eigen::Matrix3d> Rm(R), Fm(F);
-  const Eigen::Matrix3d RtF = Rm.transpose() * Fm;
-  const Eigen::Matrix3d S = 0.5 * (RtF + RtF.transpose());
-  const double trS = S.trace();
-  const double c = 2.0 * mu - lambda * (trS - 3.0);
-  Eigen::Matrix3d T = -S;
-  T.diagonal().array() += trS;
-  const double det = T.determinant();
-  const double scale = std::abs(trS) + 1e-300;
+  const Eigen::Map<const Eigen::Matrix3d> Rm(R);
   Eigen::Map<Eigen::Matrix3d> Ym(Y);
-  if (!(T(0, 0) > 1e-6 * scale && T(0, 0) * T(1, 1) - T(0, 1) * T(0, 1) > 1e-12 * scale * scale &&
-        det > 1e-18 * scale * scale * scale)) {
-    Ym.setZero();
-    return false;
-  }
-  Eigen::Matrix3d Z = (-2.0 * c) * T.inverse();
-  Z.diagonal().array() += 2.0 * mu;
-  if (Z.cwiseAbs().maxCoeff() < 1e-2 * mu) {
+  Eigen::Matrix3d Z, S;
+  if (!rotation_mode_stiffness(R, F, mu, lambda, Z, S)) {
     Ym.setZero();
     return false;
   }

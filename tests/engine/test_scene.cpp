@@ -611,21 +611,25 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
                "solver.rescue_after must be an integer >= 0, got -1");
   expect_error_contains(minimal(R"("solver": {"policy": "lagged", "late_factor": "sometimes"})"),
                         "solver.late_factor must be one of \"wait\", \"skip\"");
-  EXPECT_TRUE(s.solver.multiplicative_patch);  // the default
-  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "patch": "additive"})"), scene_path_);
-  EXPECT_FALSE(s.solver.multiplicative_patch);
-  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "patch": "both"})"),
-                        "solver.patch must be one of \"additive\", \"multiplicative\"");
-  expect_error(minimal(R"("solver": {"patch": "additive"})"),
-               "solver.patch: only used by solver.policy \"lagged\"; solver.policy is \"exact\"");
-  EXPECT_TRUE(s.solver.carry_ordering);  // the default
-  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "cut_ordering": "search"})"), scene_path_);
-  EXPECT_FALSE(s.solver.carry_ordering);
-  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "cut_ordering": "amd"})"),
-                        "solver.cut_ordering must be one of \"search\", \"carried\"");
-  EXPECT_TRUE(s.solver.idle_background);  // the default
-  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "background_priority": "normal"})"), scene_path_);
-  EXPECT_FALSE(s.solver.idle_background);
-  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "background_priority": "high"})"),
-                        "solver.background_priority must be one of \"normal\", \"idle\"");
+  // The lagged policy's two-valued string keys: default (true), the other
+  // value (false), a bad value, and the key under another policy.
+  struct Choice {
+    const char* key;
+    bool incise::SolverSettings::*field;
+    const char* other;
+    const char* allowed;
+  };
+  for (const Choice& c : {Choice{"patch", &incise::SolverSettings::multiplicative_patch, "additive", R"("additive", "multiplicative")"},
+                          Choice{"cut_ordering", &incise::SolverSettings::carry_ordering, "search", R"("search", "carried")"},
+                          Choice{"background_priority", &incise::SolverSettings::idle_background, "normal", R"("normal", "idle")"}}) {
+    const std::string key = c.key;
+    EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.*c.field) << key;
+    const std::string other = "\"" + key + "\": \"" + c.other + "\"";
+    EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged", )" + other + "}"), scene_path_).solver.*c.field)
+        << key;
+    expect_error_contains(minimal(R"("solver": {"policy": "lagged", ")" + key + R"(": "neither"})"),
+                          "solver." + key + " must be one of " + c.allowed);
+    expect_error(minimal(R"("solver": {)" + other + "}"),
+                 "solver." + key + R"(: only used by solver.policy "lagged"; solver.policy is "exact")");
+  }
 }
