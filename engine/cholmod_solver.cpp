@@ -184,19 +184,42 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const do
 // 130 against 53 ms) and took the stepping thread's core when it ran in the
 // background. The engine's threading is explicit (solver.threads, the
 // background job), so OpenMP regions run on the thread that enters them:
-// max-active-levels 0 makes every parallel region inactive. The setting is
-// per thread (an OpenMP 5 data-environment ICV), so every thread calling
-// CHOLMOD sets it. Looked up at run time: a CHOLMOD built without OpenMP needs
-// nothing. INCISE_KEEP_OMP=1 in the environment keeps CHOLMOD's teams (to
-// measure the difference).
-void serial_openmp_regions() {
-  using SetLevels = void (*)(int);
-  static const SetLevels set_levels = [] {
-    if (std::getenv("INCISE_KEEP_OMP")) return SetLevels{nullptr};
-    return reinterpret_cast<SetLevels>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"));
-  }();
-  if (set_levels) set_levels(0);
-}
+// max-active-levels 0 makes every parallel region inactive, for the duration
+// of a CHOLMOD call (restored afterwards, so a host application's own OpenMP
+// on that thread is untouched). The setting is per thread (an OpenMP 5
+// data-environment ICV), so every call sets it. Looked up at run time: a
+// CHOLMOD built without OpenMP needs nothing. INCISE_KEEP_OMP=1 in the
+// environment keeps CHOLMOD's teams (to measure the difference).
+class SerialOpenMpRegions {
+ public:
+  SerialOpenMpRegions() {
+    if (!fns().set) return;
+    saved_ = fns().get();
+    fns().set(0);
+  }
+  ~SerialOpenMpRegions() {
+    if (fns().set) fns().set(saved_);
+  }
+  SerialOpenMpRegions(const SerialOpenMpRegions&) = delete;
+  SerialOpenMpRegions& operator=(const SerialOpenMpRegions&) = delete;
+
+ private:
+  struct Fns {
+    void (*set)(int) = nullptr;
+    int (*get)() = nullptr;
+  };
+  static const Fns& fns() {
+    static const Fns f = [] {
+      Fns r;
+      if (std::getenv("INCISE_KEEP_OMP")) return r;
+      r.get = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "omp_get_max_active_levels"));
+      r.set = r.get ? reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels")) : nullptr;
+      return r;
+    }();
+    return f;
+  }
+  int saved_ = 0;
+};
 
 }  // namespace
 
@@ -260,7 +283,7 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   std::memcpy(A_->p, Ap.data(), sizeof(int) * (n + 1));
   std::memcpy(A_->i, Ai.data(), sizeof(int) * nnz);
   std::fill(static_cast<double*>(A_->x), static_cast<double*>(A_->x) + nnz, 0.0);
-  serial_openmp_regions();
+  const SerialOpenMpRegions serial;
   if (perm) {
     const int nmethods = c_.nmethods;
     const auto method0 = c_.method[0];
@@ -296,9 +319,11 @@ std::vector<int> CholmodSolver::permutation() const {
 void CholmodSolver::factorize(const double* values) {
   if (!L_) throw Error("CHOLMOD: factorize called before analyze");
   std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
-  serial_openmp_regions();
   Stopwatch clock;
-  cholmod_factorize(A_, L_, &c_);
+  {
+    const SerialOpenMpRegions serial;
+    cholmod_factorize(A_, L_, &c_);
+  }
   stats_.factor_ms_total += clock.ms();
   ++stats_.factorizations;
   factorized_ = false;

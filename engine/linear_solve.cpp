@@ -166,8 +166,11 @@ void launch_job(const Model& m, State& s) {
     w.slot_pattern[k] = w.pattern;
     w.slot_n[k] = m.ndof();
     const CholmodSolver& front = slot_factor(s, w.front);
+    // Inputs checked here, so a mismatch falls back to a search instead of
+    // failing the job.
     w.slot_carried[k] = m.solver.carry_ordering && cutting && m.has_cuts() && !w.slot_map[w.front].empty() &&
-                        front.analyzed();
+                        front.analyzed() && front.size() == w.slot_n[w.front] &&
+                        static_cast<int>(m.cuts.enr_node.size()) == m.ndofnode - m.nnode;
     if (w.slot_carried[k]) {
       w.job_map = w.slot_map[w.front];
       w.job_old_perm = front.permutation();
@@ -181,12 +184,15 @@ void launch_job(const Model& m, State& s) {
   SolverWork* wp = &w;
   const int n = m.ndof();
   w.job_done = false;
-  const bool idle = m.solver.idle_background;
+  // solver.background_priority "idle" with late_factor "skip": the job only
+  // takes CPU time nothing else wants, so the stepping thread, the cut-ahead
+  // helper and a haptic thread always come first (measured on the 10k
+  // incision: the cutting stage's p99, mostly the wait for the helper, 11-13
+  // -> 6.5-7.2 ms). Not with "wait": the step then blocks on the job, and an
+  // idle-priority thread gets next to no CPU while every core is busy (an
+  // unprivileged thread cannot raise it back for the wait).
+  const bool idle = m.solver.idle_background && m.solver.skip_late_factor;
   w.job = std::thread([f, wp, n, idle] {
-    // solver.background_priority "idle": the job only takes CPU time nothing
-    // else wants, so the stepping thread, the cut-ahead helper and a haptic
-    // thread always come first (measured on the 10k incision: the cutting
-    // stage's p99, mostly the wait for the helper, 11-13 -> 6.5-7.2 ms).
     if (idle) {
       sched_param sp{};
       pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);

@@ -36,12 +36,14 @@ void print_model_summary(const Simulation& sim) {
     std::printf(", CG tolerance %.3g, max %d iterations", o.tolerance, o.max_iterations);
   if (o.policy == SolverPolicy::Lagged)
     std::printf(", refresh every %d frame(s)%s%s%s", o.refresh_every,
-                o.background ? (o.idle_background ? " on a background thread at idle priority" : " on a background thread") : "",
+                o.background ? (o.idle_background && o.skip_late_factor ? " on a background thread at idle priority"
+                                                                         : " on a background thread")
+                             : "",
                 o.warp ? ", warped by the node rotations since" : "", o.single_precision ? ", float factor copy" : "");
   if (o.policy == SolverPolicy::Lagged && o.background && o.skip_late_factor) std::printf(", late factors skipped");
   if (o.policy == SolverPolicy::Lagged && !sim.scene.cuts.empty())
-    std::printf(", %s patch after cuts, %s ordering while cutting", o.multiplicative_patch ? "multiplicative" : "additive",
-                o.carry_ordering ? "carried" : "searched");
+    std::printf(", %s patch after cuts%s", o.multiplicative_patch ? "multiplicative" : "additive",
+                !o.background ? "" : o.carry_ordering ? ", carried ordering while cutting" : ", searched ordering while cutting");
   if (o.policy == SolverPolicy::Lagged && o.rescue_after > 0)
     std::printf(", rescue after %d CG iterations", o.rescue_after);
   std::printf("\n");

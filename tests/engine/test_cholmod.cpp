@@ -1,5 +1,7 @@
 // CHOLMOD wrapper: solves against a dense reference, reuses the symbolic
 // analysis across values, refuses indefinite matrices with a clear message.
+#include <dlfcn.h>
+
 #include <filesystem>
 #include <random>
 #include <string>
@@ -108,6 +110,14 @@ TEST(Cholmod, SupernodalFactorizationStartsNoThreads) {
   });
   job.join();
   EXPECT_EQ(during, before + 1) << "the background factorization started threads (OpenMP teams)";
+  // The setting holds for CHOLMOD's calls only: the caller's own OpenMP
+  // setting is as it was.
+  if (auto get = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "omp_get_max_active_levels"))) {
+    const int levels = get();
+    f.factorize(A.data());
+    EXPECT_EQ(get(), levels);
+    EXPECT_GT(levels, 0);
+  }
 }
 
 }  // namespace
