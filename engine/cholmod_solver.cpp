@@ -3,6 +3,7 @@
 #include <dlfcn.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <sstream>
@@ -13,6 +14,7 @@
 #endif
 
 #include "engine/error.h"
+#include "engine/half.h"
 #include "engine/timing.h"
 
 namespace incise {
@@ -47,14 +49,40 @@ typedef float F4 __attribute__((vector_size(16)));
     (dst) = __builtin_convertvector(f_, D4);    \
   } while (0)
 #endif
+// Four binary16 values (the half copy) as doubles: vcvtph2ps then vcvtps2pd.
+#if defined(__AVX__) && defined(__F16C__)
+#define INCISE_LOAD_H4(dst, p) (dst) = _mm256_cvtps_pd(_mm_cvtph_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))))
+#else
+#define INCISE_LOAD_H4(dst, p)                                                                          \
+  do {                                                                                                  \
+    (dst) = D4{half_bits_to_float((p)[0]), half_bits_to_float((p)[1]), half_bits_to_float((p)[2]),      \
+               half_bits_to_float((p)[3])};                                                             \
+  } while (0)
+#endif
 #define INCISE_LOAD4(dst, p)                                             \
   do {                                                                   \
     if constexpr (std::is_same_v<T, double>) {                           \
       std::memcpy(&(dst), (p), sizeof(D4));                              \
-    } else {                                                             \
+    } else if constexpr (std::is_same_v<T, float>) {                     \
       INCISE_LOAD_F4(dst, p);                                            \
+    } else {                                                             \
+      INCISE_LOAD_H4(dst, p);                                            \
     }                                                                    \
   } while (0)
+
+// One stored value of L as a double (T = uint16_t: binary16 bits).
+template <class T>
+inline double stored_value(T v) {
+  if constexpr (std::is_same_v<T, uint16_t>) {
+#if defined(__F16C__)
+    return _cvtsh_ss(v);
+#else
+    return half_bits_to_float(v);
+#endif
+  } else {
+    return static_cast<double>(v);
+  }
+}
 
 // Rows i..i+3 of the gathered vector w and of the four columns c0..c3 (both
 // passes of the kernel below read this block).
@@ -71,22 +99,26 @@ __attribute__((always_inline)) inline void load_rows(const double* w, const T* c
 // x = (P^T L L^T P)^-1 b with L supernodal: a dense column-major block of
 // nsrow x nscol per supernode (rows Ls[pi[s]..pi[s+1]), the first nscol being
 // the supernode's own columns), its values at Lx + px[s]. T is the stored
-// precision of L (double, or float for the single-precision copy); y, w and
-// every accumulation are double. y: n, w: the largest nsrow.
+// precision of L (double, float for the float copy, uint16_t for the
+// binary16 copy); y, w and every accumulation are double. y: n, w: the
+// largest nsrow. inv_scale (nsuper, the half copy only, else null): supernode
+// sn stores L_sn / s_sn, and with L_sn = s L' the solves need s only on the
+// supernode's own rows: forward z1 = (L1'^-1 w1) / s with w2 -= L2' (L1'^-1
+// w1), backward z1 = L1'^-T (w1 / s - L2'^T z2).
 // Columns are taken four at a time: the forward pass updates each row of the
 // gathered vector once per four columns, the backward pass runs four dot
 // products (independent dependency chains) over the shared rows, so the loop
 // is limited by reading L rather than by add latency.
 template <class T>
-void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const double* b, double* x, double* y,
-                           double* w) {
+void supernodal_substitute(const cholmod_factor* L, const T* Lx, const double* inv_scale, int n, const double* b,
+                           double* x, double* y, double* w) {
   const int* Perm = static_cast<const int*>(L->Perm);
   const int* super = static_cast<const int*>(L->super);
   const int* pi = static_cast<const int*>(L->pi);
   const int* px = static_cast<const int*>(L->px);
   const int* Ls = static_cast<const int*>(L->s);
   const int nsuper = static_cast<int>(L->nsuper);
-  auto d = [](T v) { return static_cast<double>(v); };
+  auto d = [](T v) { return stored_value(v); };
   for (int k = 0; k < n; ++k) y[k] = b[Perm[k]];
   // Forward: L z = y.
   for (int sn = 0; sn < nsuper; ++sn) {
@@ -123,6 +155,8 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const do
       w[j] = wj;
       for (int i = j + 1; i < nsrow; ++i) w[i] -= d(col[i]) * wj;
     }
+    if (inv_scale)
+      for (int jj = 0; jj < nscol; ++jj) w[jj] *= inv_scale[sn];
     for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
   }
   // Backward: L^T z = y.
@@ -130,6 +164,8 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const do
     const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
     const T* B = Lx + px[sn];
     for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+    if (inv_scale)
+      for (int jj = 0; jj < nscol; ++jj) w[jj] *= inv_scale[sn];
     int j = nscol - 1;
     for (const int top = nscol - nscol % 4; j >= top; --j) {  // the last nscol % 4 columns one by one
       const T* col = B + static_cast<size_t>(j) * nsrow;
@@ -176,6 +212,7 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, int n, const do
 }
 #undef INCISE_LOAD4
 #undef INCISE_LOAD_F4
+#undef INCISE_LOAD_H4
 
 // Debian's CHOLMOD runs parts of the supernodal factorization in OpenMP
 // teams of a size fixed when it was compiled (4 here), whatever
@@ -258,16 +295,18 @@ void CholmodSolver::release() {
   if (Y_) cholmod_free_dense(&Y_, &c_);
   if (E_) cholmod_free_dense(&E_, &c_);
   factorized_ = false;
-  single_valid_ = false;
+  copy_valid_ = false;
   work_y_.clear();
   work_w_.clear();
 }
 
-void CholmodSolver::set_single_precision(bool on) {
-  single_ = on;
-  if (!on) {
-    single_valid_ = false;
-    std::vector<float>().swap(Lx_single_);
+void CholmodSolver::set_factor_copy(FactorCopy copy) {
+  copy_ = copy;
+  copy_valid_ = false;  // the next factorize() converts
+  if (copy != FactorCopy::Float) std::vector<float>().swap(Lx_single_);
+  if (copy != FactorCopy::Half) {
+    std::vector<uint16_t>().swap(Lx_half_);
+    std::vector<double>().swap(half_inv_scale_);
   }
 }
 
@@ -305,8 +344,8 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   stats_.supernodal = L_->is_super;
   stats_.factorizations = 0;
   stats_.factor_ms_total = 0;
-  stats_.single_conversions = 0;
-  stats_.single_ms_total = 0;
+  stats_.copy_conversions = 0;
+  stats_.copy_ms_total = 0;
   B_ = cholmod_zeros(n, 1, CHOLMOD_REAL, &c_);
 }
 
@@ -327,7 +366,7 @@ void CholmodSolver::factorize(const double* values) {
   stats_.factor_ms_total += clock.ms();
   ++stats_.factorizations;
   factorized_ = false;
-  single_valid_ = false;
+  copy_valid_ = false;
   if (c_.status == CHOLMOD_NOT_POSDEF || L_->minor < static_cast<size_t>(n_)) {
     std::ostringstream os;
     os << "CHOLMOD: the system matrix is not positive definite (pivot " << L_->minor << " of " << n_
@@ -339,19 +378,49 @@ void CholmodSolver::factorize(const double* values) {
   if (c_.status < CHOLMOD_OK) throw Error("CHOLMOD: numeric factorization failed (status " + std::to_string(c_.status) + ")");
   factorized_ = true;
   stats_.stored_L = static_cast<double>(L_->is_super ? L_->xsize : L_->nzmax);
-  if (single_ && L_->is_super) convert_to_single();
+  if (copy_ != FactorCopy::None && L_->is_super) convert_copy();
 }
 
-void CholmodSolver::convert_to_single() {
+void CholmodSolver::convert_copy() {
   Stopwatch clock;
   const size_t nx = L_->xsize;
-  Lx_single_.resize(nx);  // same analysis: same xsize, no reallocation after the first
   const double* src = static_cast<const double*>(L_->x);
-  float* dst = Lx_single_.data();
-  for (size_t k = 0; k < nx; ++k) dst[k] = static_cast<float>(src[k]);
-  single_valid_ = true;
-  stats_.single_ms_total += clock.ms();
-  ++stats_.single_conversions;
+  if (copy_ == FactorCopy::Float) {
+    Lx_single_.resize(nx);  // same analysis: same xsize, no reallocation after the first
+    float* dst = Lx_single_.data();
+    for (size_t k = 0; k < nx; ++k) dst[k] = static_cast<float>(src[k]);
+  } else {
+    // Per supernode: s = the block's largest magnitude, values / s to binary16
+    // (|v| <= 1: no overflow in any units; a relative 2^-11 rounding of the
+    // entries that matter, those within a few decades of s).
+    const int* px = static_cast<const int*>(L_->px);
+    const size_t ns = L_->nsuper;
+    Lx_half_.resize(nx);
+    half_inv_scale_.resize(ns);
+    uint16_t* dst = Lx_half_.data();
+    for (size_t sn = 0; sn < ns; ++sn) {
+      const size_t k0 = static_cast<size_t>(px[sn]), k1 = static_cast<size_t>(px[sn + 1]);
+      double mx = 0.0;
+      for (size_t k = k0; k < k1; ++k) mx = std::max(mx, std::fabs(src[k]));
+      if (!(mx > 0.0) || !std::isfinite(mx)) mx = 1.0;  // a factorize() that succeeded has finite values
+      const double inv = 1.0 / mx;
+      half_inv_scale_[sn] = inv;
+      size_t k = k0;
+#if defined(__AVX__) && defined(__F16C__)
+      const __m256d vinv = _mm256_set1_pd(inv);
+      for (; k + 8 <= k1; k += 8) {
+        const __m128 lo = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(src + k), vinv));
+        const __m128 hi = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(src + k + 4), vinv));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + k),
+                         _mm256_cvtps_ph(_mm256_set_m128(hi, lo), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+      }
+#endif
+      for (; k < k1; ++k) dst[k] = float_to_half_bits(static_cast<float>(src[k] * inv));
+    }
+  }
+  copy_valid_ = true;
+  stats_.copy_ms_total += clock.ms();
+  ++stats_.copy_conversions;
 }
 
 void CholmodSolver::prepare_workspace() {
@@ -379,17 +448,20 @@ void CholmodSolver::solve(const double* b, double* x) {
     return;
   }
   prepare_workspace();
-  supernodal_substitute(L_, static_cast<const double*>(L_->x), n_, b, x, work_y_.data(), work_w_.data());
+  supernodal_substitute(L_, static_cast<const double*>(L_->x), nullptr, n_, b, x, work_y_.data(), work_w_.data());
 }
 
-void CholmodSolver::solve_single(const double* b, double* x) {
+void CholmodSolver::solve_copy(const double* b, double* x) {
   if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
-  if (!single_valid_) {  // single precision off, or a simplicial factor
+  if (!copy_valid_) {  // no copy, or a simplicial factor
     solve(b, x);
     return;
   }
   prepare_workspace();
-  supernodal_substitute(L_, Lx_single_.data(), n_, b, x, work_y_.data(), work_w_.data());
+  if (copy_ == FactorCopy::Half)
+    supernodal_substitute(L_, Lx_half_.data(), half_inv_scale_.data(), n_, b, x, work_y_.data(), work_w_.data());
+  else
+    supernodal_substitute(L_, Lx_single_.data(), nullptr, n_, b, x, work_y_.data(), work_w_.data());
 }
 
 }  // namespace incise

@@ -4,6 +4,7 @@
 // ordering, elimination tree, supernodes) is done once per sparsity pattern;
 // numeric factorizations reuse it. Solves reuse their workspace
 // (cholmod_solve2), so a frame allocates nothing here.
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -21,11 +22,11 @@ struct FactorStats {
   bool supernodal = true;
   int factorizations = 0;       // numeric factorizations done with this object
   double factor_ms_total = 0;   // their wall time (on whichever thread ran them)
-  // Conversions of the factor to single precision (set_single_precision) and
+  // Conversions of the factor to its reduced-precision copy (set_factor_copy) and
   // their total wall time, done inside factorize() on the same thread, after
   // factor_ms_total's clock stopped (so not included in it).
-  int single_conversions = 0;
-  double single_ms_total = 0;
+  int copy_conversions = 0;
+  double copy_ms_total = 0;
 };
 
 class CholmodSolver {
@@ -58,31 +59,37 @@ class CholmodSolver {
   // The same through cholmod_solve2 (reference for tests and timing).
   void solve_cholmod(const double* b, double* x);
 
-  // Single-precision copy of the factor, for use as a preconditioner (the
-  // lagged policy's CG): a substitution reads L twice, and a float copy halves
-  // those bytes (measured 1.2-1.4x faster per substitution at 10-20k DOF, see
-  // docs/benchmarks.md, Issue 4). Configure-time (default off; takes effect at
-  // the next factorize()). When on, factorize() also rounds a supernodal
-  // factor's values (L->x) into a float array right after the numeric
-  // factorization, on the thread that runs factorize(), with no BLAS; its time
-  // is FactorStats::single_ms_total (1.7-3% of a factorization). A simplicial
+  // Reduced-precision copy of the factor, for use as a preconditioner (the
+  // lagged policy's CG): a substitution reads L twice, so its bytes set its
+  // time. FactorCopy::Float rounds L's values to float (measured 1.2-1.4x
+  // faster per substitution at 10-20k DOF, docs/benchmarks.md, Issue 4);
+  // FactorCopy::Half to IEEE binary16 after dividing each supernode's block
+  // by its largest magnitude (s, kept per supernode), so the 5-bit exponent
+  // never overflows whatever the units, and entries below 6e-8 s flush to 0
+  // (docs/numerics.md, "Half-precision factor copy"). Configure-time (default
+  // None; takes effect at the next factorize()): factorize() converts a
+  // supernodal factor's values (L->x) right after the numeric factorization,
+  // on the thread that runs factorize(), with no BLAS; its time is
+  // FactorStats::copy_ms_total (1.7-3% of a factorization). A simplicial
   // factor gets no copy. Turning it off frees the copy.
-  void set_single_precision(bool on);
-  bool single_precision() const { return single_; }
-  // x ~= A^-1 b by the same substitution as solve(), reading the float factor
-  // (x and b may alias). Vectors and accumulations stay double; only L's
-  // entries are rounded (relative 2^-24 = 6e-8 each), so the result solves a
-  // perturbed system (A + E) x = b with |E| <~ eps_float |L| |L^T|: a relative
-  // error of at most about eps_float * cond(A). Measured on tet10 beams of 3-7k
-  // DOF (cond 4e4-5e5, tests/engine/test_single_factor.cpp): 8e-9 to 8e-8
-  // relative to solve(), i.e. about eps_float. Meant as a preconditioner (CG
-  // still converges to any tolerance, at worst in a few more iterations), not
-  // as a direct solver for ill-conditioned systems. Without a float copy
-  // (single precision off, or a simplicial factor) it is solve(). Allocates
+  void set_factor_copy(FactorCopy copy);
+  FactorCopy factor_copy() const { return copy_; }
+  void set_single_precision(bool on) { set_factor_copy(on ? FactorCopy::Float : FactorCopy::None); }
+  bool single_precision() const { return copy_ != FactorCopy::None; }
+  // x ~= A^-1 b by the same substitution as solve(), reading the copy (x and
+  // b may alias). Vectors and accumulations stay double; only L's entries
+  // are rounded (relative u = 2^-24 = 6e-8 in float, 2^-11 = 4.9e-4 in half),
+  // so the result solves a perturbed system (A + E) x = b with |E| <~ u |L|
+  // |L^T|: a relative error of at most about u * cond(A). Measured on tet10
+  // beams of 3-7k DOF (cond 4e4-5e5, tests/engine/test_single_factor.cpp):
+  // float 8e-9 to 8e-8 relative to solve(), half 4e-4 to 1e-3 (0.8-2 u). Meant as a
+  // preconditioner (CG still converges to any tolerance, at worst in a few
+  // more iterations), not as a direct solver for ill-conditioned systems.
+  // Without a copy (None, or a simplicial factor) it is solve(). Allocates
   // nothing after the first call.
-  void solve_single(const double* b, double* x);
-  // A float copy of the current factor exists (solve_single reads it).
-  bool has_single_factor() const { return factorized_ && single_valid_; }
+  void solve_copy(const double* b, double* x);
+  // A copy of the current factor exists (solve_copy reads it).
+  bool has_factor_copy() const { return factorized_ && copy_valid_; }
 
   bool analyzed() const { return L_ != nullptr; }
   bool factorized() const { return factorized_; }
@@ -100,11 +107,13 @@ class CholmodSolver {
   int n_ = 0;
   bool factorized_ = false;
   std::vector<double> work_y_, work_w_;  // own substitution: permuted vector, supernode gather
-  bool single_ = false;          // set_single_precision
-  bool single_valid_ = false;    // Lx_single_ holds the current factor's values
-  std::vector<float> Lx_single_; // (L->xsize) float copy of a supernodal L->x
+  FactorCopy copy_ = FactorCopy::None;  // set_factor_copy
+  bool copy_valid_ = false;              // the copy holds the current factor's values
+  std::vector<float> Lx_single_;         // (L->xsize) Float: float copy of a supernodal L->x
+  std::vector<uint16_t> Lx_half_;        // (L->xsize) Half: binary16 of L->x / s, s per supernode
+  std::vector<double> half_inv_scale_;   // (L->nsuper) Half: 1 / s
   void prepare_workspace();
-  void convert_to_single();
+  void convert_copy();
   FactorStats stats_;
   void release();
 };

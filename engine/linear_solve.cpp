@@ -42,10 +42,10 @@ double dot(const std::vector<double>& a, const std::vector<double>& b) {
 }
 
 // One forward + back substitution, counted and timed (from the float copy
-// when the factor has one: lagged with single_precision).
+// when the factor has one: lagged with solver.factor_copy float or half).
 void substitute(State& s, CholmodSolver& f, const double* b, double* x) {
   Stopwatch w;
-  if (f.has_single_factor()) f.solve_single(b, x);
+  if (f.has_factor_copy()) f.solve_copy(b, x);
   else f.solve(b, x);
   s.timing.solves += 1;
   s.timing.solve_kernel_ms += w.ms();
@@ -480,9 +480,9 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
     w.job_slot = -1;
     s.solver.configure(m.solver.factor, m.solver.ordering);
     w.back.configure(m.solver.factor, m.solver.ordering);
-    const bool single = m.solver.policy == SolverPolicy::Lagged && m.solver.single_precision;
-    s.solver.set_single_precision(single);
-    w.back.set_single_precision(single);
+    const FactorCopy copy = m.solver.policy == SolverPolicy::Lagged ? m.solver.factor_copy : FactorCopy::None;
+    s.solver.set_factor_copy(copy);
+    w.back.set_factor_copy(copy);
     ++w.pattern;
     s.solver.analyze(n, m.Ap, m.Ai);
     w.pattern_frame = -1000000;

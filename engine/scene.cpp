@@ -400,8 +400,8 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
 void parse_solver(const Parser& p, const json& v, Scene& s) {
   const std::string at = "solver";
   p.object(v, at);
-  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "rescue_after", "late_factor", "patch",
-                         "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "factorization", "ordering"});
+  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
+                         "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "factorization", "ordering"});
   SolverSettings& o = s.solver;
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
@@ -409,7 +409,13 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     o.refresh_every = p.at_least_one(*it, at + ".refresh_every");
   if (auto it = v.find("background"); it != v.end()) o.background = p.boolean(*it, at + ".background");
   if (auto it = v.find("warp"); it != v.end()) o.warp = p.boolean(*it, at + ".warp");
-  if (auto it = v.find("single_precision"); it != v.end()) o.single_precision = p.boolean(*it, at + ".single_precision");
+  if (auto it = v.find("single_precision"); it != v.end())
+    o.factor_copy = p.boolean(*it, at + ".single_precision") ? FactorCopy::Float : FactorCopy::None;
+  if (auto it = v.find("factor_copy"); it != v.end()) {
+    if (v.contains("single_precision"))
+      p.fail(at + ".factor_copy", ": give either factor_copy or single_precision (the older switch between \"float\" and \"none\"), not both");
+    o.factor_copy = static_cast<FactorCopy>(p.choice(*it, at + ".factor_copy", {"none", "float", "half"}));
+  }
   if (auto it = v.find("rescue_after"); it != v.end()) o.rescue_after = p.nonnegative_int(*it, at + ".rescue_after");
   if (auto it = v.find("late_factor"); it != v.end())
     o.skip_late_factor = p.choice(*it, at + ".late_factor", {"wait", "skip"}) == 1;
@@ -439,8 +445,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
       p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");
   for (const char* k :
-       {"refresh_every", "background", "warp", "single_precision", "rescue_after", "late_factor", "patch", "cut_ordering",
-        "background_priority"})
+       {"refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor", "patch",
+        "cut_ordering", "background_priority"})
     if (v.contains(k) && o.policy != SolverPolicy::Lagged)
       p.fail(Parser::key(at, k), ": only used by solver.policy \"lagged\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");

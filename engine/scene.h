@@ -72,13 +72,16 @@ enum class SolverPolicy {
 };
 enum class FactorMethod { Auto, Supernodal, Simplicial };  // CHOLMOD's choice or forced
 enum class OrderingMethod { Auto, Amd, Metis };            // CHOLMOD's default tries both
+// The lagged preconditioner's copy of the factor: none (CHOLMOD's doubles), float, or
+// binary16 scaled per supernode (CholmodSolver::set_factor_copy).
+enum class FactorCopy { None, Float, Half };
 
 struct SolverSettings {
   SolverPolicy policy = SolverPolicy::Exact;  // solver.policy
   int refresh_every = 1;       // lagged: refactor every k frames (>= 1)
   bool background = false;     // lagged: factorize on a second thread, used from the next refresh on
   bool warp = false;           // lagged: rotate the lagged factor by the node rotations since its frame
-  bool single_precision = true;  // lagged: substitute with a float copy of the factor (a preconditioner)
+  FactorCopy factor_copy = FactorCopy::Float;  // lagged: the preconditioner substitutes with this copy of the factor
   int rescue_after = 0;        // lagged: CG iterations after which the current matrix is factored now (0 = never)
   bool skip_late_factor = false;  // lagged + background: solver.late_factor "skip" (true) or "wait"
   bool multiplicative_patch = true;  // lagged after cuts: solver.patch "multiplicative" (true) or "additive"

@@ -49,7 +49,7 @@ std::string format_solver_report(const SolverReport& r) {
   std::snprintf(buf, sizeof buf,
                 "solver: policy %s, %d assembly thread%s\n"
                 "factor: nnz(L) %.3g, %.3g Mflop, %d factorization%s, mean %.2f ms = %.2f GFLOP/s\n"
-                "solve: %.1f substitutions/frame (median), %.2f ms each = %.2f GB/s (L read twice)\n"
+                "solve: %.1f substitutions/frame (median), %.2f ms each = %.2f GB/s (L read twice, counted as doubles)\n"
                 "frame: median = %.1fx the one-substitution bandwidth limit (%.2f ms at %.1f GB/s)\n",
                 r.policy.c_str(), r.threads, r.threads == 1 ? "" : "s", r.nnz_L, r.flops * 1e-6, r.factorizations,
                 r.factorizations == 1 ? "" : "s", r.factor_ms_mean, r.gflops, r.substitutions_per_frame,
@@ -123,6 +123,10 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
   cmd->add_flag("--warp", o.warp, "lagged: rotate the lagged factor by the node rotations since its frame");
   cmd->add_option("--single-precision", o.single_precision, "lagged: float copy of the factor for the substitutions")
       ->check(CLI::IsMember({"true", "false"}));
+  cmd->add_option("--factor-copy", o.factor_copy,
+                  "lagged: the factor copy the preconditioner substitutes with (none = CHOLMOD's doubles; half = binary16 "
+                  "scaled per supernode)")
+      ->check(CLI::IsMember({"none", "float", "half"}));
   cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
   cmd->add_option("--factorization", o.factorization, "CHOLMOD method")
       ->check(CLI::IsMember({"auto", "supernodal", "simplicial"}));
@@ -147,8 +151,10 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (!o.cut_ordering.empty()) s.carry_ordering = o.cut_ordering == "carried";
   if (!o.background_priority.empty()) s.idle_background = o.background_priority == "idle";
   if (o.warp) s.warp = true;
-  if (o.single_precision == "true") s.single_precision = true;
-  if (o.single_precision == "false") s.single_precision = false;
+  if (o.single_precision == "true") s.factor_copy = FactorCopy::Float;
+  if (o.single_precision == "false") s.factor_copy = FactorCopy::None;
+  if (!o.factor_copy.empty())
+    s.factor_copy = o.factor_copy == "half" ? FactorCopy::Half : o.factor_copy == "float" ? FactorCopy::Float : FactorCopy::None;
   if (o.threads > 0) s.threads = o.threads;
   if (!o.factorization.empty())
     s.factor = o.factorization == "simplicial" ? FactorMethod::Simplicial

@@ -51,6 +51,7 @@ struct SolverOverrides {
   bool background = false;
   bool warp = false;
   std::string single_precision;  // "", "true" or "false"
+  std::string factor_copy;       // "", "none", "float" or "half"
   std::string late_factor;       // "", "wait" or "skip"
   std::string patch;             // "", "additive" or "multiplicative"
   std::string cut_ordering;      // "", "search" or "carried"

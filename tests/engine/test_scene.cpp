@@ -590,6 +590,25 @@ TEST_F(SceneTest, AdaptiveNewtonKeys) {
                "integrator.max_newton_iterations must be an integer >= 1, got 0");
 }
 
+TEST_F(SceneTest, FactorCopyKeyAndItsOlderSwitch) {
+  using incise::FactorCopy;
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.factor_copy, FactorCopy::Float);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half"})"), scene_path_).solver.factor_copy,
+            FactorCopy::Half);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_copy": "none"})"), scene_path_).solver.factor_copy,
+            FactorCopy::None);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "single_precision": false})"), scene_path_).solver.factor_copy,
+            FactorCopy::None);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "single_precision": true})"), scene_path_).solver.factor_copy,
+            FactorCopy::Float);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "factor_copy": "bfloat16"})"),
+                        R"(solver.factor_copy must be one of "none", "float", "half")");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half", "single_precision": true})"),
+               R"(solver.factor_copy: give either factor_copy or single_precision (the older switch between "float" and "none"), not both)");
+  expect_error(minimal(R"("solver": {"factor_copy": "half"})"),
+               R"(solver.factor_copy: only used by solver.policy "lagged"; solver.policy is "exact")");
+}
+
 TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
   Scene s = parse_scene(minimal(R"("integrator": {"tangent": "consistent", "newmark_gamma": 0.6})"), scene_path_);
   EXPECT_TRUE(s.consistent_tangent);

@@ -138,6 +138,9 @@ TEST(SolverPolicies, IterativePoliciesConvergeToExactAsToleranceTightens) {
     s.policy = SolverPolicy::Lagged;
     s.refresh_every = 4;
     cases.push_back({"lagged refresh 4", s});
+    s.factor_copy = FactorCopy::Half;  // the coarser preconditioner converges all the same
+    cases.push_back({"lagged refresh 4, half copy", s});
+    s.factor_copy = FactorCopy::Float;
     s.background = true;
     s.refresh_every = 2;
     cases.push_back({"lagged background refresh 2", s});

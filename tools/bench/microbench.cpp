@@ -2,7 +2,7 @@
 // assembly (not part of ctest). Per element: rotation extraction (warm-started
 // polar), internal force, stiffness blocks and the scatter into the global
 // pattern. Also the supernodal forward+back substitution with the double
-// factor and with its single-precision copy (BM_Substitution).
+// factor and with its float and binary16 copies (BM_Substitution).
 // Run: build/tools/incise_microbench [--benchmark_filter=...]
 #include <cmath>
 #include <vector>
@@ -83,14 +83,15 @@ void BM_Reference(benchmark::State& state, int order, RotationMode rot) {
   state.counters["elements"] = s.m.nelem;
 }
 
-// One forward+back substitution (CholmodSolver::solve, or solve_single with
-// the float copy of L) on the dynamic system matrix K0 + 4/dt^2 M of a tet10
+// One forward+back substitution (CholmodSolver::solve, or solve_copy with
+// the float or binary16 copy of L) on the dynamic system matrix K0 + 4/dt^2 M of a tet10
 // beam of nx x nyz x nyz cells (0.2 x 0.05 x 0.05 m, swing-beam material,
 // clamped at x = 0), as the preconditioner of CG applies it (z = L^-T L^-1 r).
 // GBps counts L's bytes read twice, 2 * nnz(L) * sizeof(value), as `incise
-// bench` does (with sizeof = 8 for double and 4 for float); GBps_stored counts
+// bench` does (with sizeof = 8 for double, 4 for float, 2 for half); GBps_stored counts
 // the supernodal blocks as stored (xsize >= nnz(L)).
-void BM_Substitution(benchmark::State& state, int nx, int nyz, bool single) {
+void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy) {
+  const bool single = copy != FactorCopy::None;
   Scene sc;
   sc.path = "microbench";
   sc.order = 2;
@@ -111,22 +112,22 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, bool single) {
   for (int d = 0; d < n; ++d)
     if (m.constrained[d]) A[m.diag[d]] = 1.0;
   CholmodSolver f;
-  f.set_single_precision(single);
+  f.set_factor_copy(copy);
   f.analyze(n, m.Ap, m.Ai);
   f.factorize(A.data());  // the first conversion also allocates (page faults): not counted below
-  const double first_factor_ms = f.stats().factor_ms_total, first_convert_ms = f.stats().single_ms_total;
+  const double first_factor_ms = f.stats().factor_ms_total, first_convert_ms = f.stats().copy_ms_total;
   for (int k = 0; k < 2; ++k) f.factorize(A.data());
   std::vector<double> b(n), x(n);
   for (int i = 0; i < n; ++i) b[i] = std::sin(0.37 * i);
   for (auto _ : state) {
     if (single)
-      f.solve_single(b.data(), x.data());
+      f.solve_copy(b.data(), x.data());
     else
       f.solve(b.data(), x.data());
     benchmark::DoNotOptimize(x.data());
     benchmark::ClobberMemory();
   }
-  const double value_bytes = single ? 4.0 : 8.0;
+  const double value_bytes = copy == FactorCopy::Half ? 2.0 : single ? 4.0 : 8.0;
   const FactorStats& st = f.stats();
   state.counters["dofs"] = n;
   state.counters["nnz_L"] = st.nnz_L;
@@ -136,7 +137,7 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, bool single) {
                                                      benchmark::Counter::kIsIterationInvariantRate,
                                                      benchmark::Counter::OneK::kIs1000);
   state.counters["factor_ms"] = (st.factor_ms_total - first_factor_ms) / 2;
-  if (single) state.counters["convert_ms"] = (st.single_ms_total - first_convert_ms) / 2;
+  if (single) state.counters["convert_ms"] = (st.copy_ms_total - first_convert_ms) / 2;
 }
 
 // extract_rotation warm-started as between frames: F = Rt S with Rt turned
@@ -182,10 +183,12 @@ BENCHMARK_CAPTURE(BM_Fused, tet10_2threads, 2, RotationMode::PerPoint, 2, true)-
 BENCHMARK_CAPTURE(BM_Fused, tet10SR_1thread, 2, RotationMode::Single, 1, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10_force_only_1thread, 2, RotationMode::PerPoint, 1, false)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-BENCHMARK_CAPTURE(BM_Substitution, beam10k_double, 20, 4, false)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_Substitution, beam10k_single, 20, 4, true)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_Substitution, beam20k_double, 28, 5, false)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_Substitution, beam20k_single, 28, 5, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam10k_double, 20, 4, FactorCopy::None)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam10k_single, 20, 4, FactorCopy::Float)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam10k_half, 20, 4, FactorCopy::Half)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam20k_double, 28, 5, FactorCopy::None)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam20k_single, 28, 5, FactorCopy::Float)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam20k_half, 28, 5, FactorCopy::Half)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_CAPTURE(BM_ExtractRotation, angle_1e-3, 1e-3);
 BENCHMARK_CAPTURE(BM_ExtractRotation, angle_3e-2, 3e-2);
