@@ -109,105 +109,183 @@ __attribute__((always_inline)) inline void load_rows(const double* w, const T* c
 // gathered vector once per four columns, the backward pass runs four dot
 // products (independent dependency chains) over the shared rows, so the loop
 // is limited by reading L rather than by add latency.
+
+// The arrays of a supernodal factor the kernels below read.
+template <class T>
+struct SnFactor {
+  const int* super;  // (nsuper + 1) first column of each supernode
+  const int* pi;     // (nsuper + 1) into Ls
+  const int* px;     // (nsuper + 1) into Lx
+  const int* Ls;     // row indices of each supernode
+  const T* Lx;
+  const double* inv_scale;
+};
+
+template <class T>
+SnFactor<T> sn_factor(const cholmod_factor* L, const T* Lx, const double* inv_scale) {
+  return {static_cast<const int*>(L->super), static_cast<const int*>(L->pi), static_cast<const int*>(L->px),
+          static_cast<const int*>(L->s), Lx, inv_scale};
+}
+
+// Forward step of supernode sn: its columns of L z = y, then the update of the
+// rows below (which belong to its ancestors' columns). w: nsrow scratch.
+template <class T>
+inline void forward_supernode(const SnFactor<T>& F, int sn, double* y, double* w) {
+  auto d = [](T v) { return stored_value(v); };
+  const int k1 = F.super[sn], nscol = F.super[sn + 1] - k1, psi = F.pi[sn], nsrow = F.pi[sn + 1] - psi;
+  (void)k1;
+  const T* B = F.Lx + F.px[sn];
+  const int* Ls = F.Ls;
+  for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+  int j = 0;
+  for (; j + 4 <= nscol; j += 4) {
+    const T* c0 = B + static_cast<size_t>(j) * nsrow;
+    const T* c1 = c0 + nsrow;
+    const T* c2 = c1 + nsrow;
+    const T* c3 = c2 + nsrow;
+    const double w0 = w[j] / d(c0[j]);
+    const double w1 = (w[j + 1] - d(c0[j + 1]) * w0) / d(c1[j + 1]);
+    const double w2 = (w[j + 2] - d(c0[j + 2]) * w0 - d(c1[j + 2]) * w1) / d(c2[j + 2]);
+    const double w3 = (w[j + 3] - d(c0[j + 3]) * w0 - d(c1[j + 3]) * w1 - d(c2[j + 3]) * w2) / d(c3[j + 3]);
+    w[j] = w0;
+    w[j + 1] = w1;
+    w[j + 2] = w2;
+    w[j + 3] = w3;
+    const D4 W0 = {w0, w0, w0, w0}, W1 = {w1, w1, w1, w1}, W2 = {w2, w2, w2, w2}, W3 = {w3, w3, w3, w3};
+    int i = j + 4;
+    for (; i + 4 <= nsrow; i += 4) {
+      D4 v, a0, a1, a2, a3;
+      load_rows(w, c0, c1, c2, c3, i, v, a0, a1, a2, a3);
+      v -= a0 * W0 + a1 * W1 + a2 * W2 + a3 * W3;
+      std::memcpy(w + i, &v, sizeof(D4));
+    }
+    for (; i < nsrow; ++i) w[i] -= d(c0[i]) * w0 + d(c1[i]) * w1 + d(c2[i]) * w2 + d(c3[i]) * w3;
+  }
+  for (; j < nscol; ++j) {
+    const T* col = B + static_cast<size_t>(j) * nsrow;
+    const double wj = w[j] / d(col[j]);
+    w[j] = wj;
+    for (int i = j + 1; i < nsrow; ++i) w[i] -= d(col[i]) * wj;
+  }
+  if (F.inv_scale)
+    for (int jj = 0; jj < nscol; ++jj) w[jj] *= F.inv_scale[sn];
+  for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
+}
+
+// Backward step of supernode sn: its columns of L^T z = y, reading the rows
+// below (its ancestors' columns, already solved) and writing its own columns.
+template <class T>
+inline void backward_supernode(const SnFactor<T>& F, int sn, double* y, double* w) {
+  auto d = [](T v) { return stored_value(v); };
+  const int k1 = F.super[sn], nscol = F.super[sn + 1] - k1, psi = F.pi[sn], nsrow = F.pi[sn + 1] - psi;
+  const T* B = F.Lx + F.px[sn];
+  const int* Ls = F.Ls;
+  for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+  if (F.inv_scale)
+    for (int jj = 0; jj < nscol; ++jj) w[jj] *= F.inv_scale[sn];
+  int j = nscol - 1;
+  for (const int top = nscol - nscol % 4; j >= top; --j) {  // the last nscol % 4 columns one by one
+    const T* col = B + static_cast<size_t>(j) * nsrow;
+    double t = w[j];
+    for (int i = j + 1; i < nsrow; ++i) t -= d(col[i]) * w[i];
+    w[j] = t / d(col[j]);
+  }
+  for (; j >= 3; j -= 4) {  // columns j0..j0+3 = j-3..j
+    const int j0 = j - 3;
+    const T* c0 = B + static_cast<size_t>(j0) * nsrow;
+    const T* c1 = c0 + nsrow;
+    const T* c2 = c1 + nsrow;
+    const T* c3 = c2 + nsrow;
+    D4 A0 = {0, 0, 0, 0}, A1 = A0, A2 = A0, A3 = A0;
+    int i = j + 1;
+    for (; i + 4 <= nsrow; i += 4) {
+      D4 v, a0, a1, a2, a3;
+      load_rows(w, c0, c1, c2, c3, i, v, a0, a1, a2, a3);
+      A0 += a0 * v;
+      A1 += a1 * v;
+      A2 += a2 * v;
+      A3 += a3 * v;
+    }
+    double t0 = (A0[0] + A0[1]) + (A0[2] + A0[3]), t1 = (A1[0] + A1[1]) + (A1[2] + A1[3]);
+    double t2 = (A2[0] + A2[1]) + (A2[2] + A2[3]), t3 = (A3[0] + A3[1]) + (A3[2] + A3[3]);
+    for (; i < nsrow; ++i) {
+      t0 += d(c0[i]) * w[i];
+      t1 += d(c1[i]) * w[i];
+      t2 += d(c2[i]) * w[i];
+      t3 += d(c3[i]) * w[i];
+    }
+    const double x3 = (w[j0 + 3] - t3) / d(c3[j0 + 3]);
+    const double x2 = (w[j0 + 2] - t2 - d(c2[j0 + 3]) * x3) / d(c2[j0 + 2]);
+    const double x1 = (w[j0 + 1] - t1 - d(c1[j0 + 2]) * x2 - d(c1[j0 + 3]) * x3) / d(c1[j0 + 1]);
+    const double x0 = (w[j0] - t0 - d(c0[j0 + 1]) * x1 - d(c0[j0 + 2]) * x2 - d(c0[j0 + 3]) * x3) / d(c0[j0]);
+    w[j0] = x0;
+    w[j0 + 1] = x1;
+    w[j0 + 2] = x2;
+    w[j0 + 3] = x3;
+  }
+  for (int jj = 0; jj < nscol; ++jj) y[k1 + jj] = w[jj];
+}
+
 template <class T>
 void supernodal_substitute(const cholmod_factor* L, const T* Lx, const double* inv_scale, int n, const double* b,
                            double* x, double* y, double* w) {
+  const SnFactor<T> F = sn_factor(L, Lx, inv_scale);
   const int* Perm = static_cast<const int*>(L->Perm);
-  const int* super = static_cast<const int*>(L->super);
-  const int* pi = static_cast<const int*>(L->pi);
-  const int* px = static_cast<const int*>(L->px);
-  const int* Ls = static_cast<const int*>(L->s);
   const int nsuper = static_cast<int>(L->nsuper);
-  auto d = [](T v) { return stored_value(v); };
   for (int k = 0; k < n; ++k) y[k] = b[Perm[k]];
-  // Forward: L z = y.
-  for (int sn = 0; sn < nsuper; ++sn) {
-    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
-    const T* B = Lx + px[sn];
-    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
-    int j = 0;
-    for (; j + 4 <= nscol; j += 4) {
-      const T* c0 = B + static_cast<size_t>(j) * nsrow;
-      const T* c1 = c0 + nsrow;
-      const T* c2 = c1 + nsrow;
-      const T* c3 = c2 + nsrow;
-      const double w0 = w[j] / d(c0[j]);
-      const double w1 = (w[j + 1] - d(c0[j + 1]) * w0) / d(c1[j + 1]);
-      const double w2 = (w[j + 2] - d(c0[j + 2]) * w0 - d(c1[j + 2]) * w1) / d(c2[j + 2]);
-      const double w3 = (w[j + 3] - d(c0[j + 3]) * w0 - d(c1[j + 3]) * w1 - d(c2[j + 3]) * w2) / d(c3[j + 3]);
-      w[j] = w0;
-      w[j + 1] = w1;
-      w[j + 2] = w2;
-      w[j + 3] = w3;
-      const D4 W0 = {w0, w0, w0, w0}, W1 = {w1, w1, w1, w1}, W2 = {w2, w2, w2, w2}, W3 = {w3, w3, w3, w3};
-      int i = j + 4;
-      for (; i + 4 <= nsrow; i += 4) {
-        D4 v, a0, a1, a2, a3;
-        load_rows(w, c0, c1, c2, c3, i, v, a0, a1, a2, a3);
-        v -= a0 * W0 + a1 * W1 + a2 * W2 + a3 * W3;
-        std::memcpy(w + i, &v, sizeof(D4));
-      }
-      for (; i < nsrow; ++i) w[i] -= d(c0[i]) * w0 + d(c1[i]) * w1 + d(c2[i]) * w2 + d(c3[i]) * w3;
-    }
-    for (; j < nscol; ++j) {
-      const T* col = B + static_cast<size_t>(j) * nsrow;
-      const double wj = w[j] / d(col[j]);
-      w[j] = wj;
-      for (int i = j + 1; i < nsrow; ++i) w[i] -= d(col[i]) * wj;
-    }
-    if (inv_scale)
-      for (int jj = 0; jj < nscol; ++jj) w[jj] *= inv_scale[sn];
-    for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
-  }
-  // Backward: L^T z = y.
-  for (int sn = nsuper - 1; sn >= 0; --sn) {
-    const int k1 = super[sn], nscol = super[sn + 1] - k1, psi = pi[sn], nsrow = pi[sn + 1] - psi;
-    const T* B = Lx + px[sn];
-    for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
-    if (inv_scale)
-      for (int jj = 0; jj < nscol; ++jj) w[jj] *= inv_scale[sn];
-    int j = nscol - 1;
-    for (const int top = nscol - nscol % 4; j >= top; --j) {  // the last nscol % 4 columns one by one
-      const T* col = B + static_cast<size_t>(j) * nsrow;
-      double t = w[j];
-      for (int i = j + 1; i < nsrow; ++i) t -= d(col[i]) * w[i];
-      w[j] = t / d(col[j]);
-    }
-    for (; j >= 3; j -= 4) {  // columns j0..j0+3 = j-3..j
-      const int j0 = j - 3;
-      const T* c0 = B + static_cast<size_t>(j0) * nsrow;
-      const T* c1 = c0 + nsrow;
-      const T* c2 = c1 + nsrow;
-      const T* c3 = c2 + nsrow;
-      D4 A0 = {0, 0, 0, 0}, A1 = A0, A2 = A0, A3 = A0;
-      int i = j + 1;
-      for (; i + 4 <= nsrow; i += 4) {
-        D4 v, a0, a1, a2, a3;
-        load_rows(w, c0, c1, c2, c3, i, v, a0, a1, a2, a3);
-        A0 += a0 * v;
-        A1 += a1 * v;
-        A2 += a2 * v;
-        A3 += a3 * v;
-      }
-      double t0 = (A0[0] + A0[1]) + (A0[2] + A0[3]), t1 = (A1[0] + A1[1]) + (A1[2] + A1[3]);
-      double t2 = (A2[0] + A2[1]) + (A2[2] + A2[3]), t3 = (A3[0] + A3[1]) + (A3[2] + A3[3]);
-      for (; i < nsrow; ++i) {
-        t0 += d(c0[i]) * w[i];
-        t1 += d(c1[i]) * w[i];
-        t2 += d(c2[i]) * w[i];
-        t3 += d(c3[i]) * w[i];
-      }
-      const double x3 = (w[j0 + 3] - t3) / d(c3[j0 + 3]);
-      const double x2 = (w[j0 + 2] - t2 - d(c2[j0 + 3]) * x3) / d(c2[j0 + 2]);
-      const double x1 = (w[j0 + 1] - t1 - d(c1[j0 + 2]) * x2 - d(c1[j0 + 3]) * x3) / d(c1[j0 + 1]);
-      const double x0 = (w[j0] - t0 - d(c0[j0 + 1]) * x1 - d(c0[j0 + 2]) * x2 - d(c0[j0 + 3]) * x3) / d(c0[j0]);
-      w[j0] = x0;
-      w[j0 + 1] = x1;
-      w[j0 + 2] = x2;
-      w[j0 + 3] = x3;
-    }
-    for (int jj = 0; jj < nscol; ++jj) y[k1 + jj] = w[jj];
-  }
+  for (int sn = 0; sn < nsuper; ++sn) forward_supernode(F, sn, y, w);  // L z = y
+  for (int sn = nsuper - 1; sn >= 0; --sn) backward_supernode(F, sn, y, w);  // L^T z = y
+  for (int k = 0; k < n; ++k) x[Perm[k]] = y[k];
+}
+
+// The same on two threads (SubstitutionSplit): the two bins of independent
+// subtrees at once, the top supernodes (their common ancestors) alone. Forward:
+// the second thread updates a private copy y2 (both bins subtract from the top
+// supernodes' rows), its own columns are copied back and the top rows merged
+// as y += y2 - y0; then the top. Backward: the top first, then both bins
+// reading it (each writes only its own columns).
+template <class T>
+void split_substitute(const cholmod_factor* L, const T* Lx, const double* inv_scale, int n, const double* b,
+                      double* x, const SubstitutionSplit& sp, SubstitutionWorker& worker, double* y, double* w,
+                      double* y2, double* w2, double* y0_top) {
+  const SnFactor<T> F = sn_factor(L, Lx, inv_scale);
+  const int* Perm = static_cast<const int*>(L->Perm);
+  for (int k = 0; k < n; ++k) y[k] = b[Perm[k]];
+  const size_t ntop = sp.top_cols.size();
+  for (size_t i = 0; i < ntop; ++i) y0_top[i] = y[sp.top_cols[i]];
+  std::memcpy(y2, y, sizeof(double) * n);
+  struct Ctx {
+    const SnFactor<T>* F;
+    const SubstitutionSplit* sp;
+    double *y, *y2, *w2;
+  } ctx{&F, &sp, y, y2, w2};
+  worker.start(
+      [](void* p) {
+        const Ctx& c = *static_cast<const Ctx*>(p);
+        for (const auto& r : c.sp->bins[1])
+          for (int sn = r.first; sn <= r.second; ++sn) forward_supernode(*c.F, sn, c.y2, c.w2);
+        for (const auto& r : c.sp->bins[1]) {
+          const int c0 = c.F->super[r.first], c1 = c.F->super[r.second + 1];
+          std::memcpy(c.y + c0, c.y2 + c0, sizeof(double) * (c1 - c0));
+        }
+      },
+      &ctx);
+  for (const auto& r : sp.bins[0])
+    for (int sn = r.first; sn <= r.second; ++sn) forward_supernode(F, sn, y, w);
+  worker.wait();
+  for (size_t i = 0; i < ntop; ++i) y[sp.top_cols[i]] += y2[sp.top_cols[i]] - y0_top[i];
+  for (int sn : sp.top) forward_supernode(F, sn, y, w);
+  for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
+  worker.start(
+      [](void* p) {
+        const Ctx& c = *static_cast<const Ctx*>(p);
+        for (auto r = c.sp->bins[1].rbegin(); r != c.sp->bins[1].rend(); ++r)
+          for (int sn = r->second; sn >= r->first; --sn) backward_supernode(*c.F, sn, c.y, c.w2);
+      },
+      &ctx);
+  for (auto r = sp.bins[0].rbegin(); r != sp.bins[0].rend(); ++r)
+    for (int sn = r->second; sn >= r->first; --sn) backward_supernode(F, sn, y, w);
+  worker.wait();
   for (int k = 0; k < n; ++k) x[Perm[k]] = y[k];
 }
 #undef INCISE_LOAD4
@@ -298,6 +376,8 @@ void CholmodSolver::release() {
   copy_valid_ = false;
   work_y_.clear();
   work_w_.clear();
+  work_y2_.clear();
+  split_ = SubstitutionSplit{};
 }
 
 void CholmodSolver::set_factor_copy(FactorCopy copy) {
@@ -335,6 +415,7 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
     L_ = cholmod_analyze(A_, &c_);
   }
   if (!L_ || c_.status < CHOLMOD_OK) throw Error("CHOLMOD: symbolic analysis failed (status " + std::to_string(c_.status) + ")");
+  split_ = split_supernodes(L_);  // O(supernodes); used when a worker is set
   stats_.nnz_L = c_.lnz;
   stats_.flops = c_.fl;
   // The method CHOLMOD kept (with nmethods = 0 it tries AMD, then METIS when AMD fills much).
@@ -431,6 +512,21 @@ void CholmodSolver::prepare_workspace() {
     for (size_t sn = 0; sn < L_->nsuper; ++sn) mx = std::max(mx, static_cast<size_t>(pi[sn + 1] - pi[sn]));
     work_w_.assign(mx + 1, 0.0);
   }
+  if (substitutes_on_two_threads() && work_y2_.size() != static_cast<size_t>(n_)) {
+    work_y2_.assign(n_, 0.0);
+    work_w2_.assign(work_w_.size(), 0.0);
+    work_top_.assign(split_.top_cols.size(), 0.0);
+  }
+}
+
+template <class T>
+void CholmodSolver::substitute(const T* Lx, const double* inv_scale, const double* b, double* x) {
+  prepare_workspace();
+  if (substitutes_on_two_threads())
+    split_substitute(L_, Lx, inv_scale, n_, b, x, split_, *worker_, work_y_.data(), work_w_.data(), work_y2_.data(),
+                     work_w2_.data(), work_top_.data());
+  else
+    supernodal_substitute(L_, Lx, inv_scale, n_, b, x, work_y_.data(), work_w_.data());
 }
 
 void CholmodSolver::solve_cholmod(const double* b, double* x) {
@@ -447,8 +543,7 @@ void CholmodSolver::solve(const double* b, double* x) {
     solve_cholmod(b, x);
     return;
   }
-  prepare_workspace();
-  supernodal_substitute(L_, static_cast<const double*>(L_->x), nullptr, n_, b, x, work_y_.data(), work_w_.data());
+  substitute(static_cast<const double*>(L_->x), nullptr, b, x);
 }
 
 void CholmodSolver::solve_copy(const double* b, double* x) {
@@ -457,11 +552,10 @@ void CholmodSolver::solve_copy(const double* b, double* x) {
     solve(b, x);
     return;
   }
-  prepare_workspace();
   if (copy_ == FactorCopy::Half)
-    supernodal_substitute(L_, Lx_half_.data(), half_inv_scale_.data(), n_, b, x, work_y_.data(), work_w_.data());
+    substitute(Lx_half_.data(), half_inv_scale_.data(), b, x);
   else
-    supernodal_substitute(L_, Lx_single_.data(), nullptr, n_, b, x, work_y_.data(), work_w_.data());
+    substitute(Lx_single_.data(), nullptr, b, x);
 }
 
 }  // namespace incise

@@ -11,6 +11,7 @@
 #include <cholmod.h>
 
 #include "engine/scene.h"
+#include "engine/split_substitution.h"
 
 namespace incise {
 
@@ -51,9 +52,9 @@ class CholmodSolver {
   // matrix is not positive definite, naming the failing column (a DOF).
   void factorize(const double* values);
   // x = A^-1 b with the current factor (x and b may alias). A supernodal factor
-  // is solved by our own substitution (no BLAS): Debian's serial OpenBLAS has
-  // no locks, so BLAS must not run on two threads at once, and the lagged
-  // policy's background factorization is BLAS-heavy. A simplicial factor goes
+  // is solved by our own substitution (no BLAS): Debian's serial OpenBLAS is
+  // not safe on two threads at once (measured: docs/numerics.md, "Solver"),
+  // and the lagged policy's background factorization is BLAS-heavy. A simplicial factor goes
   // through cholmod_solve2 (which uses no BLAS for it).
   void solve(const double* b, double* x);
   // The same through cholmod_solve2 (reference for tests and timing).
@@ -91,6 +92,15 @@ class CholmodSolver {
   // A copy of the current factor exists (solve_copy reads it).
   bool has_factor_copy() const { return factorized_ && copy_valid_; }
 
+  // Substitutions (solve, solve_copy) on two threads: this thread and the
+  // worker (not owned; null = one thread), over the split of the current
+  // analysis (engine/split_substitution.h). Results equal the one-thread
+  // substitution's to roundoff (the top rows add the two bins' updates in
+  // another order). A factor whose tree does not split stays on one thread.
+  void set_substitution_worker(SubstitutionWorker* worker) { worker_ = worker; }
+  const SubstitutionSplit& substitution_split() const { return split_; }
+  bool substitutes_on_two_threads() const { return worker_ && split_.valid() && L_ && L_->is_super; }
+
   bool analyzed() const { return L_ != nullptr; }
   bool factorized() const { return factorized_; }
   int size() const { return n_; }
@@ -107,12 +117,17 @@ class CholmodSolver {
   int n_ = 0;
   bool factorized_ = false;
   std::vector<double> work_y_, work_w_;  // own substitution: permuted vector, supernode gather
+  SubstitutionWorker* worker_ = nullptr;   // set_substitution_worker
+  SubstitutionSplit split_;                // of the current analysis
+  std::vector<double> work_y2_, work_w2_, work_top_;  // the worker's y copy and gather, the top rows' start values
   FactorCopy copy_ = FactorCopy::None;  // set_factor_copy
   bool copy_valid_ = false;              // the copy holds the current factor's values
   std::vector<float> Lx_single_;         // (L->xsize) Float: float copy of a supernodal L->x
   std::vector<uint16_t> Lx_half_;        // (L->xsize) Half: binary16 of L->x / s, s per supernode
   std::vector<double> half_inv_scale_;   // (L->nsuper) Half: 1 / s
   void prepare_workspace();
+  template <class T>
+  void substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
   void convert_copy();
   FactorStats stats_;
   void release();

@@ -442,6 +442,11 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   auto& w = s.work;
   const int threads = std::max(1, m.solver.threads);
   if (!w.pool || w.pool->size() != threads) w.pool = std::make_unique<ThreadPool>(threads);
+  if (m.solver.substitution_threads > 1 && !w.substitution_worker)
+    w.substitution_worker = std::make_unique<SubstitutionWorker>();
+  if (m.solver.substitution_threads <= 1) w.substitution_worker.reset();
+  s.solver.set_substitution_worker(w.substitution_worker.get());
+  w.back.set_substitution_worker(w.substitution_worker.get());
   w.plan = make_assembly_plan(m, threads);
   const int n = m.ndof();
   if (dofnode_map && solver_carries_over_cuts(m, s)) {

@@ -401,7 +401,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   const std::string at = "solver";
   p.object(v, at);
   p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
-                         "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "factorization", "ordering"});
+                         "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
+                         "factorization", "ordering"});
   SolverSettings& o = s.solver;
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
@@ -434,6 +435,10 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("threads"); it != v.end()) {
     o.threads = p.at_least_one(*it, at + ".threads");
     if (o.threads > 64) p.fail(at + ".threads", " must be an integer in [1, 64], got " + show(*it));
+  }
+  if (auto it = v.find("substitution_threads"); it != v.end()) {
+    o.substitution_threads = p.at_least_one(*it, at + ".substitution_threads");
+    if (o.substitution_threads > 2) p.fail(at + ".substitution_threads", " must be 1 or 2, got " + show(*it));
   }
   if (auto it = v.find("factorization"); it != v.end())
     o.factor = static_cast<FactorMethod>(p.choice(*it, at + ".factorization", {"auto", "supernodal", "simplicial"}));

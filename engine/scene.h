@@ -90,6 +90,7 @@ struct SolverSettings {
   double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
   int max_iterations = 50;     // CG iterations per solve (>= 1)
   int threads = 2;             // assembly workers incl. the calling thread (>= 1)
+  int substitution_threads = 1;  // 1 or 2: threads of each substitution with a supernodal factor
   FactorMethod factor = FactorMethod::Auto;
   OrderingMethod ordering = OrderingMethod::Auto;
 };

@@ -18,6 +18,9 @@ namespace incise {
 struct SolverWork {
   std::unique_ptr<ThreadPool> pool;
   AssemblyPlan plan;
+  // solver.substitution_threads 2: the second thread of every substitution
+  // (set on both factor slots; engine/split_substitution.h). Null with 1.
+  std::unique_ptr<SubstitutionWorker> substitution_worker;
 
   // lagged: two factor slots (0 = State::solver, 1 = `back`). The
   // front slot preconditions CG; the background job factorizes a copy of an

@@ -128,6 +128,9 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
                   "scaled per supernode)")
       ->check(CLI::IsMember({"none", "float", "half"}));
   cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
+  cmd->add_option("--substitution-threads", o.substitution_threads,
+                  "Threads of each substitution with a supernodal factor (solver.substitution_threads)")
+      ->check(CLI::Range(1, 2));
   cmd->add_option("--factorization", o.factorization, "CHOLMOD method")
       ->check(CLI::IsMember({"auto", "supernodal", "simplicial"}));
   cmd->add_option("--ordering", o.ordering, "Fill-reducing ordering")->check(CLI::IsMember({"auto", "amd", "metis"}));
@@ -156,6 +159,7 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (!o.factor_copy.empty())
     s.factor_copy = o.factor_copy == "half" ? FactorCopy::Half : o.factor_copy == "float" ? FactorCopy::Float : FactorCopy::None;
   if (o.threads > 0) s.threads = o.threads;
+  if (o.substitution_threads > 0) s.substitution_threads = o.substitution_threads;
   if (!o.factorization.empty())
     s.factor = o.factorization == "simplicial" ? FactorMethod::Simplicial
                : o.factorization == "supernodal" ? FactorMethod::Supernodal

@@ -32,6 +32,7 @@ void print_model_summary(const Simulation& sim) {
               sim.setup_ms);
   const SolverSettings& o = m.solver;
   std::printf("  solver.policy %s, %d assembly thread(s)", policy_name(o.policy), o.threads);
+  if (o.substitution_threads > 1) std::printf(", substitutions on %d threads", o.substitution_threads);
   if (o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG)
     std::printf(", CG tolerance %.3g, max %d iterations", o.tolerance, o.max_iterations);
   if (o.policy == SolverPolicy::Lagged)

@@ -46,7 +46,7 @@ namespace incise {
 struct SolverOverrides {
   std::string policy;  // empty: the scene's
   double tolerance = 0;  // 0: the scene's
-  int max_iterations = 0, refresh_every = 0, threads = 0;
+  int max_iterations = 0, refresh_every = 0, threads = 0, substitution_threads = 0;
   int rescue_after = -1;  // -1: the scene's
   bool background = false;
   bool warp = false;

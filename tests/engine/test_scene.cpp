@@ -590,6 +590,14 @@ TEST_F(SceneTest, AdaptiveNewtonKeys) {
                "integrator.max_newton_iterations must be an integer >= 1, got 0");
 }
 
+TEST_F(SceneTest, SubstitutionThreadsKey) {
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.substitution_threads, 1);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"substitution_threads": 2})"), scene_path_).solver.substitution_threads, 2);
+  expect_error(minimal(R"("solver": {"substitution_threads": 3})"), "solver.substitution_threads must be 1 or 2, got 3");
+  expect_error(minimal(R"("solver": {"substitution_threads": 0})"),
+               "solver.substitution_threads must be an integer >= 1, got 0");
+}
+
 TEST_F(SceneTest, FactorCopyKeyAndItsOlderSwitch) {
   using incise::FactorCopy;
   EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.factor_copy, FactorCopy::Float);

@@ -210,13 +210,15 @@ TEST_F(Cli, BenchReportsTheSolverFields) {
   EXPECT_TRUE(j["frame"].contains("median_ms"));
 }
 
-// --factor-copy reaches the solver (the summary names the copy) and a bad
-// value is refused naming the option.
+// --factor-copy and --substitution-threads reach the solver (the summary
+// names them) and a bad value is refused naming the option.
 TEST_F(Cli, BenchFactorCopyOption) {
   cantilever_scene();
-  const Result r = incise("bench " + path("scene.json") + " --frames 3 --policy lagged --factor-copy half");
+  const Result r =
+      incise("bench " + path("scene.json") + " --frames 3 --policy lagged --factor-copy half --substitution-threads 2");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("half-precision factor copy"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("substitutions on 2 threads"), std::string::npos) << r.out;
   const Result bad = incise("bench " + path("scene.json") + " --frames 1 --policy lagged --factor-copy bf16");
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.out.find("--factor-copy"), std::string::npos) << bad.out;

@@ -5,6 +5,7 @@
 // factor and with its float and binary16 copies (BM_Substitution).
 // Run: build/tools/incise_microbench [--benchmark_filter=...]
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -90,7 +91,7 @@ void BM_Reference(benchmark::State& state, int order, RotationMode rot) {
 // GBps counts L's bytes read twice, 2 * nnz(L) * sizeof(value), as `incise
 // bench` does (with sizeof = 8 for double, 4 for float, 2 for half); GBps_stored counts
 // the supernodal blocks as stored (xsize >= nnz(L)).
-void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy) {
+void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, int threads = 1) {
   const bool single = copy != FactorCopy::None;
   Scene sc;
   sc.path = "microbench";
@@ -113,6 +114,9 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy) 
     if (m.constrained[d]) A[m.diag[d]] = 1.0;
   CholmodSolver f;
   f.set_factor_copy(copy);
+  std::unique_ptr<SubstitutionWorker> worker;
+  if (threads > 1) worker = std::make_unique<SubstitutionWorker>();
+  f.set_substitution_worker(worker.get());
   f.analyze(n, m.Ap, m.Ai);
   f.factorize(A.data());  // the first conversion also allocates (page faults): not counted below
   const double first_factor_ms = f.stats().factor_ms_total, first_convert_ms = f.stats().copy_ms_total;
@@ -138,6 +142,10 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy) 
                                                      benchmark::Counter::OneK::kIs1000);
   state.counters["factor_ms"] = (st.factor_ms_total - first_factor_ms) / 2;
   if (single) state.counters["convert_ms"] = (st.copy_ms_total - first_convert_ms) / 2;
+  if (threads > 1) {
+    state.counters["top_share"] = f.substitution_split().top_share;
+    state.counters["balance"] = f.substitution_split().balance;
+  }
 }
 
 // extract_rotation warm-started as between frames: F = Rt S with Rt turned
@@ -189,6 +197,12 @@ BENCHMARK_CAPTURE(BM_Substitution, beam10k_half, 20, 4, FactorCopy::Half)->Unit(
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_double, 28, 5, FactorCopy::None)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_single, 28, 5, FactorCopy::Float)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_half, 28, 5, FactorCopy::Half)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam10k_double_2threads, 20, 4, FactorCopy::None, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam10k_single_2threads, 20, 4, FactorCopy::Float, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam10k_half_2threads, 20, 4, FactorCopy::Half, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam20k_double_2threads, 28, 5, FactorCopy::None, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam20k_single_2threads, 28, 5, FactorCopy::Float, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Substitution, beam20k_half_2threads, 28, 5, FactorCopy::Half, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_CAPTURE(BM_ExtractRotation, angle_1e-3, 1e-3);
 BENCHMARK_CAPTURE(BM_ExtractRotation, angle_3e-2, 3e-2);
