@@ -1,6 +1,7 @@
 #include "cutting/cut_apply.h"
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <memory>
 #include <thread>
@@ -48,6 +49,40 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
               R.begin() + 9 * static_cast<size_t>(new_ptr[e]));
   }
   return R;
+}
+
+// integrator.tangent_reuse across a rebuild: an element whose pieces did not
+// change keeps its tangent blocks (same DOF nodes in the same order, same
+// slots) and the gradients they were made at; K of the new pattern is summed
+// from them. The others get NaN gradients, so their first assembly recomputes
+// them (K += blocks - 0). Without this every cut frame assembled all elements.
+void carry_tangent_cache(const Model& from, const TangentCache& old, const Model& to, const std::vector<int>& changed,
+                         State& s) {
+  if (!old.valid || !(to.tangent_reuse > 0.0) || old.Kl.size() != from.elem_scatter.size()) return;
+  TangentCache& c = s.tangent_cache;
+  c.Kl.assign(to.elem_scatter.size(), 0.0);
+  c.F.assign(9 * static_cast<size_t>(to.nrot), std::nan(""));
+  std::vector<char> fresh(to.nelem, 0);
+  for (int e : changed) fresh[e] = 1;
+  std::vector<int> old_ptr(from.nelem + 1, 0), new_ptr(to.nelem + 1, 0);
+  for (int r = 0; r < from.nrot; ++r) ++old_ptr[from.rot_elem[r] + 1];
+  for (int r = 0; r < to.nrot; ++r) ++new_ptr[to.rot_elem[r] + 1];
+  for (int e = 0; e < from.nelem; ++e) old_ptr[e + 1] += old_ptr[e];
+  for (int e = 0; e < to.nelem; ++e) new_ptr[e + 1] += new_ptr[e];
+  for (int e = 0; e < to.nelem && e < from.nelem; ++e) {
+    const int nb = to.elem_scatter_ptr[e + 1] - to.elem_scatter_ptr[e];
+    if (fresh[e] || nb != from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e] ||
+        new_ptr[e + 1] - new_ptr[e] != old_ptr[e + 1] - old_ptr[e])
+      continue;
+    std::copy_n(old.Kl.begin() + from.elem_scatter_ptr[e], nb, c.Kl.begin() + to.elem_scatter_ptr[e]);
+    std::copy(old.F.begin() + 9 * static_cast<size_t>(old_ptr[e]), old.F.begin() + 9 * static_cast<size_t>(old_ptr[e + 1]),
+              c.F.begin() + 9 * static_cast<size_t>(new_ptr[e]));
+    const int* sc = &to.elem_scatter[to.elem_scatter_ptr[e]];
+    const double* kl = &c.Kl[to.elem_scatter_ptr[e]];
+    for (int k = 0; k < nb; ++k)
+      if (sc[k] >= 0) s.K[sc[k]] += kl[k];
+  }
+  c.valid = true;
 }
 
 bool same_layout(const Model& m, const CutLayout& L) {
@@ -119,6 +154,8 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   const int frame = sim.state.frame, refactorizations = sim.state.refactorizations;
   const bool carry = solver_carries_over_cuts(next, sim.state);
   std::vector<double> R = carried_rotations(sim.model, sim.state.R, next);
+  TangentCache kept = std::move(sim.state.tangent_cache);
+  std::unique_ptr<Model> old_model = std::make_unique<Model>(std::move(sim.model));
   sim.model = std::move(next);
   ++sim.model_version;
   up.part_ms[kCutTransfer] = part.lap();
@@ -128,6 +165,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   } else {
     init_state(sim.model, sim.state, /*consistent_a0=*/false);  // new pattern: symbolic analysis
   }
+  carry_tangent_cache(*old_model, kept, sim.model, p.changed, sim.state);
   sim.state.R.swap(R);
   sim.state.u.swap(k.u);
   sim.state.v.swap(k.v);

@@ -191,9 +191,29 @@ void condensed_slot_stiffness(int n, const double* K0, const double* R, double* 
   }
 }
 
+// K += the element's blocks Kl; with a cache, K += Kl - kept (when `cached`)
+// and Kl is kept.
+inline void scatter_blocks(const Model& m, int e, int nblk, const double* Kl, double* K, TangentCache* cache,
+                           bool cached) {
+  const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+  if (!cache) {
+    for (int k = 0; k < 9 * nblk; ++k)
+      if (sc[k] >= 0) K[sc[k]] += Kl[k];
+    return;
+  }
+  double* kept = &cache->Kl[m.elem_scatter_ptr[e]];
+  for (int k = 0; k < 9 * nblk; ++k) {
+    if (sc[k] >= 0) K[sc[k]] += cached ? Kl[k] - kept[k] : Kl[k];
+    kept[k] = Kl[k];
+  }
+}
+
+// With `cache` (tangent_reuse, valid): the element's blocks are recomputed only
+// when some slot's F moved more than cache->theta from the F they were made
+// at, and K then gains the difference; *updated says whether they were.
 template <int NN>
 int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double* u, double* Rall, double* f, double* K,
-                  double* scratch) {
+                  double* scratch, TangentCache* cache = nullptr, bool* updated = nullptr) {
   const int b0 = m.elem_dof_ptr[e];
   const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
   const int* nodes = &m.elem_dof_node[b0];
@@ -206,7 +226,8 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
   int fallbacks = 0;
   const bool linear = m.material.model == MaterialModel::Linear;
-  if (K) std::fill(Kl, Kl + 9 * nblk, 0.0);
+  const bool cached = K && cache && cache->valid;
+  bool keep = cached;  // every |F - F_then| entry of the element's slots <= theta (a NaN: not kept)
   for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
     const int r = plan.elem_rot[k];
     Eigen::Map<Mat3> Rm(Rall + 9 * r);
@@ -219,9 +240,27 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     Mat3 Rr = Rm;
     if (extract_rotation(Eigen::Map<const Mat3>(F), Rr) < 0) ++fallbacks;
     Rm = Rr;
-    if (K && plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points below)
-      add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
-                                  plan.slot_weight[r], Kl, h, t);
+    if (keep)
+      for (int i = 0; i < 9; ++i)
+        if (!(std::fabs(F[i] - cache->F[9 * static_cast<size_t>(r) + i]) <= cache->theta)) keep = false;
+  }
+  // The element's tangent is (re)computed without a valid cache, or when a
+  // slot moved past theta (or has no kept F: NaN after a cut's rebuild).
+  if (keep) K = nullptr;
+  if (updated) *updated = K != nullptr;
+  if (K) {
+    std::fill(Kl, Kl + 9 * nblk, 0.0);
+    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1] && !linear; ++k) {
+      const int r = plan.elem_rot[k];
+      const bool keep = cache != nullptr;
+      if (!keep && !(plan.slot_weight[r] > 0.0)) continue;
+      double F[9];
+      grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+      if (keep) std::copy(F, F + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
+      if (plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points below)
+        add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
+                                    plan.slot_weight[r], Kl, h, t);
+    }
   }
   if (plan.elem_condensed[e]) {  // a split element: rotate its pieces' rest stiffness
     for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
@@ -231,9 +270,7 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
       if (K) condensed_slot_stiffness(n, K0, Rall + 9 * r, Kl);
     }
     if (K) {
-      const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
-      for (int k = 0; k < 9 * nblk; ++k)
-        if (sc[k] >= 0) K[sc[k]] += Kl[k];
+      scatter_blocks(m, e, nblk, Kl, K, cache, cached);
     }
     return fallbacks;
   }
@@ -315,9 +352,7 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     }
   }
   if (K) {
-    const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
-    for (int k = 0; k < 9 * nblk; ++k)
-      if (sc[k] >= 0) K[sc[k]] += Kl[k];
+    scatter_blocks(m, e, nblk, Kl, K, cache, cached);
   }
   return fallbacks;
 }
@@ -381,18 +416,30 @@ void for_each_element(const AssemblyPlan& plan, ThreadPool& pool, double* zero_a
 }  // namespace
 
 int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, double* R, double* f,
-                       double* K) {
+                       double* K, TangentCache* cache) {
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
-  int fb[64] = {0};
-  for_each_element(plan, pool, f, m.ndof(), K, K ? m.nnz() : 0, [&](int e, int tid) {
+  if (cache && (!K || !(cache->theta > 0.0))) cache = nullptr;
+  if (cache && !cache->valid) {  // a full assembly that fills the cache
+    cache->Kl.assign(m.elem_scatter.size(), 0.0);
+    cache->F.assign(9 * static_cast<size_t>(m.nrot), 0.0);
+  }
+  const bool keep_K = cache && cache->valid;  // K holds the kept blocks' sum: updated, not rebuilt
+  int fb[64] = {0}, up[64] = {0};
+  for_each_element(plan, pool, f, m.ndof(), keep_K ? nullptr : K, keep_K || !K ? 0 : m.nnz(), [&](int e, int tid) {
     double* s = plan.scratch[tid].data();
     const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
-    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s)
-                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s)
-                                : element_terms<0>(m, plan, e, u, R, f, K, s);
+    bool updated = false;
+    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s, cache, &updated)
+                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s, cache, &updated)
+                                : element_terms<0>(m, plan, e, u, R, f, K, s, cache, &updated);
+    up[tid] += updated;
   });
-  int total = 0;
-  for (int t = 0; t < pool.size(); ++t) total += fb[t];
+  int total = 0, updated = 0;
+  for (int t = 0; t < pool.size(); ++t) total += fb[t], updated += up[t];
+  if (cache) {
+    cache->valid = true;
+    cache->updated = updated;
+  }
   return total;
 }
 

@@ -40,11 +40,27 @@ struct AssemblyPlan {
 // The plan for this model and worker count (done once per Model version).
 AssemblyPlan make_assembly_plan(const Model& model, int nthreads);
 
+// integrator.tangent_reuse: each element's tangent blocks as last assembled
+// and the deformation gradients of its rotation slots then. While every slot's
+// F stays within `theta` (largest entry of F - F_then), the element's blocks
+// stay in K untouched; otherwise K gains (new - kept) and the kept blocks are
+// replaced. K must then hold exactly the sum of the kept blocks between calls
+// (the caller leaves it alone); `valid` false (new model, first frame) makes
+// the next call a full assembly that fills the cache.
+struct TangentCache {
+  double theta = 0.0;
+  bool valid = false;
+  std::vector<double> Kl;  // (Model::elem_scatter.size()) blocks of each element, at elem_scatter_ptr
+  std::vector<double> F;   // (nrot, 9) deformation gradient of each slot when its element's blocks were made
+  int updated = 0;         // elements whose blocks the last call recomputed (all, when it was a full assembly)
+};
+
 // R (nrot, 9): warm start in, the rotation of every slot out (identity for the
-// linear model); f_int (ndof) and K (nnz, skipped when null) overwritten.
+// linear model); f_int (ndof) and K (nnz, skipped when null) overwritten, or,
+// with a valid `cache` (theta > 0), updated element by element (TangentCache).
 // Returns the number of SVD fallbacks of the rotation extraction.
 int assemble_corotated(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, double* R,
-                       double* f_int, double* K);
+                       double* f_int, double* K, TangentCache* cache = nullptr);
 
 // Serial, over `elems` only, accumulating (nothing is zeroed): f_int += the
 // elements' internal forces at u (their rotation slots updated in R, warm

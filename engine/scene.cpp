@@ -366,7 +366,7 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
   const std::string at = "integrator";
   p.object(v, at);
   p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance", "newmark_gamma",
-                          "newmark_beta", "tangent"});
+                          "newmark_beta", "tangent", "tangent_reuse"});
   if (auto it = v.find("dt"); it != v.end()) {
     double dt = p.number(*it, at + ".dt");
     if (!(dt > 0.0 && dt <= 1.0))
@@ -381,6 +381,11 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
     s.rotation_tolerance = p.nonnegative(*it, at + ".rotation_tolerance");
   if (auto it = v.find("tangent"); it != v.end())
     s.consistent_tangent = p.choice(*it, at + ".tangent", {"frozen_rotation", "consistent"}) == 1;
+  if (auto it = v.find("tangent_reuse"); it != v.end()) {
+    s.tangent_reuse = p.nonnegative(*it, at + ".tangent_reuse");
+    if (!(s.tangent_reuse < 0.5))
+      p.fail(at + ".tangent_reuse", " must be in [0, 0.5) (a change of the deformation gradient; 0 = off), got " + show(*it));
+  }
   if (auto it = v.find("newmark_gamma"); it != v.end()) {
     const double g = p.number(*it, at + ".newmark_gamma");
     if (!(g >= 0.5 && g <= 1.0)) p.fail(at + ".newmark_gamma", " must be in [0.5, 1] (0.5 = no numerical damping), got " + show(*it));

@@ -136,6 +136,11 @@ struct Scene {
   // integrator.tangent: "frozen_rotation" (R K0 R^T) or "consistent" (plus the
   // dR/dF term of engine/rotation_stiffness.h).
   bool consistent_tangent = false;
+  // integrator.tangent_reuse (>= 0, 0 = off): an element keeps the tangent
+  // blocks it assembled while every deformation gradient of its rotation
+  // slots stays within this (largest entry of F - F_then) of the one they
+  // were computed at; forces are always exact (docs/numerics.md).
+  double tangent_reuse = 0.0;
   SolverSettings solver;                // solver.*
   double static_tolerance = 1e-8;       // static.tolerance: relative residual
   int static_max_iterations = 50;       // static.max_iterations

@@ -3,6 +3,7 @@
 // arrays sized once, the factorization, and the last frame's timings.
 #include <vector>
 
+#include "engine/assemble_parallel.h"
 #include "engine/cholmod_solver.h"
 #include "engine/model.h"
 #include "engine/solver_work.h"
@@ -18,6 +19,7 @@ struct State {
 
   // Work arrays (ndof or nnz), allocated by init_state, reused every frame.
   std::vector<double> f_int, K, A, rhs, delta, du, tmp, tmp2;
+  TangentCache tangent_cache;   // integrator.tangent_reuse: element blocks kept in K between frames
   CholmodSolver solver;
   bool factor_current = false;  // the factor in `solver` is valid for the policy (linear: never changes)
   SolverWork work;              // policies, worker pool, assembly plan (engine/linear_solve.h)

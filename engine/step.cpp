@@ -51,6 +51,8 @@ void size_state(const Model& m, State& s) {
   for (auto* w : {&s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) w->assign(n, 0.0);
   s.K.assign(m.nnz(), 0.0);
   s.A.assign(m.nnz(), 0.0);
+  s.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one
+  s.tangent_cache.theta = m.tangent_reuse;
 }
 
 void init_state(const Model& m, State& s, bool consistent_a0) {
@@ -108,7 +110,8 @@ void step(const Model& m, State& s) {
     // x = u + Delta; internal forces and tangent there.
     double* x = s.tmp.data();
     for (int d = 0; d < n; ++d) x[d] = s.u[d] + s.delta[d];
-    const double* K = internal_forces(m, s, x, policy_needs_tangent(m));
+    const double* K = internal_forces(m, s, x, policy_needs_tangent(m), /*reuse_tangent=*/true);
+    s.timing.tangent_updates += s.tangent_cache.updated;
     s.timing.ms[kStageAssembly] += clock.lap();
 
     // Newmark (eq. 3.58; newmark_coefficients for general beta, gamma):
@@ -194,14 +197,16 @@ void step(const Model& m, State& s) {
   s.timing.newton = s.newton_iterations_done;
 }
 
-const double* internal_forces(const Model& m, State& s, const double* x, bool tangent) {
+const double* internal_forces(const Model& m, State& s, const double* x, bool tangent, bool reuse_tangent) {
   if (m.material.model == MaterialModel::Linear) {
     sym_matvec_parallel(m, s.work.plan, *s.work.pool, m.K0_csc.data(), x, s.f_int.data());
     return m.K0_csc.data();
   }
   // rotations, forces and (when asked) the tangent, on solver.threads workers
+  TangentCache* cache = reuse_tangent && tangent && m.tangent_reuse > 0.0 ? &s.tangent_cache : nullptr;
+  s.tangent_cache.updated = tangent ? m.nelem : 0;  // what a full assembly recomputes (the cache overwrites it)
   s.rotation_fallbacks += assemble_corotated(m, s.work.plan, *s.work.pool, x, s.R.data(), s.f_int.data(),
-                                             tangent ? s.K.data() : nullptr);
+                                             tangent ? s.K.data() : nullptr, cache);
   return s.K.data();
 }
 

@@ -16,7 +16,8 @@ void step(const Model& model, State& state);
 // state.f_int = internal force at displacement x (rotations into state.R),
 // and the tangent into state.K when asked. Returns the tangent's values: the
 // rest stiffness for the linear model, state.K otherwise.
-const double* internal_forces(const Model& model, State& state, const double* x, bool tangent);
+const double* internal_forces(const Model& model, State& state, const double* x, bool tangent,
+                              bool reuse_tangent = false);
 
 // Sets state.a to the acceleration consistent with the current u and v:
 // M a = f_ext - f_int(u) - D v on the free DOFs (0 on constrained ones), by

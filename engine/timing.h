@@ -36,6 +36,7 @@ struct FrameTiming {
   int rescues = 0;            // lagged: synchronous refactorizations after solver.rescue_after CG iterations
   int factor_age = 0;         // lagged: frames since the matrix of the preconditioning factor (last Newton iteration)
   int patch_dofs = 0;         // lagged after cuts: DOFs of the exactly solved patch (0: none)
+  int tangent_updates = 0;    // elements whose tangent blocks were (re)computed (all but the kept ones: integrator.tangent_reuse)
 };
 
 class Stopwatch {

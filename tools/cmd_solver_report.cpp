@@ -128,6 +128,10 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
                   "scaled per supernode)")
       ->check(CLI::IsMember({"none", "float", "half"}));
   cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
+  cmd->add_option("--tangent-reuse", o.tangent_reuse,
+                  "integrator.tangent_reuse of the policy runs: keep an element's tangent while its F moves less than "
+                  "this (compare's exact reference keeps the scene's)")
+      ->check(CLI::Range(0.0, 0.4999));
   cmd->add_option("--substitution-threads", o.substitution_threads,
                   "Threads of each substitution with a supernodal factor (solver.substitution_threads)")
       ->check(CLI::Range(1, 2));
@@ -160,6 +164,7 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
     s.factor_copy = o.factor_copy == "half" ? FactorCopy::Half : o.factor_copy == "float" ? FactorCopy::Float : FactorCopy::None;
   if (o.threads > 0) s.threads = o.threads;
   if (o.substitution_threads > 0) s.substitution_threads = o.substitution_threads;
+  if (o.tangent_reuse >= 0) sim.scene.tangent_reuse = sim.model.tangent_reuse = o.tangent_reuse;
   if (!o.factorization.empty())
     s.factor = o.factorization == "simplicial" ? FactorMethod::Simplicial
                : o.factorization == "supernodal" ? FactorMethod::Supernodal

@@ -33,6 +33,7 @@ void print_model_summary(const Simulation& sim) {
   const SolverSettings& o = m.solver;
   std::printf("  solver.policy %s, %d assembly thread(s)", policy_name(o.policy), o.threads);
   if (o.substitution_threads > 1) std::printf(", substitutions on %d threads", o.substitution_threads);
+  if (m.tangent_reuse > 0) std::printf(", element tangents kept while F moves < %g", m.tangent_reuse);
   if (o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG)
     std::printf(", CG tolerance %.3g, max %d iterations", o.tolerance, o.max_iterations);
   if (o.policy == SolverPolicy::Lagged)

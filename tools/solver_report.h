@@ -48,6 +48,7 @@ struct SolverOverrides {
   double tolerance = 0;  // 0: the scene's
   int max_iterations = 0, refresh_every = 0, threads = 0, substitution_threads = 0;
   int rescue_after = -1;  // -1: the scene's
+  double tangent_reuse = -1;  // integrator.tangent_reuse of the runs under test (-1: the scene's; not the exact reference)
   bool background = false;
   bool warp = false;
   std::string single_precision;  // "", "true" or "false"

@@ -590,6 +590,14 @@ TEST_F(SceneTest, AdaptiveNewtonKeys) {
                "integrator.max_newton_iterations must be an integer >= 1, got 0");
 }
 
+TEST_F(SceneTest, TangentReuseKey) {
+  EXPECT_DOUBLE_EQ(parse_scene(minimal(R"("integrator": {})"), scene_path_).tangent_reuse, 0.0);
+  EXPECT_DOUBLE_EQ(parse_scene(minimal(R"("integrator": {"tangent_reuse": 0.003})"), scene_path_).tangent_reuse, 0.003);
+  expect_error(minimal(R"("integrator": {"tangent_reuse": 0.5})"),
+               "integrator.tangent_reuse must be in [0, 0.5) (a change of the deformation gradient; 0 = off), got 0.5");
+  expect_error(minimal(R"("integrator": {"tangent_reuse": -1})"), "integrator.tangent_reuse must be >= 0, got -1");
+}
+
 TEST_F(SceneTest, SubstitutionThreadsKey) {
   EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.substitution_threads, 1);
   EXPECT_EQ(parse_scene(minimal(R"("solver": {"substitution_threads": 2})"), scene_path_).solver.substitution_threads, 2);
