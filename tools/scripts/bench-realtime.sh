@@ -8,7 +8,9 @@
 # The policy: lagged CG, background factorization taken K frames after it
 # starts (K grows with the factor time), warp, CG tolerance TOL, the binary16
 # factor copy (REALTIME_COPY=float for the earlier one), substitutions on two
-# threads (REALTIME_SUBSTITUTION_THREADS=1 for one), one assembly thread (the
+# threads (REALTIME_SUBSTITUTION_THREADS=1 for one), element tangents kept
+# while F moves less than 3e-3 (REALTIME_TANGENT_REUSE=0 turns it off; compare's
+# exact reference always assembles every element), one assembly thread (the
 # second core runs the factorization at idle priority), and the
 # consistent corotated tangent (integrator.tangent; REALTIME_TANGENT=frozen_rotation
 # for the default), a rescue refactorization after 20 stalled CG iterations
@@ -33,6 +35,7 @@ rescue="${REALTIME_RESCUE:-20}"            # solver.rescue_after (0: off)
 late="${REALTIME_LATE:-skip}"              # solver.late_factor: skip (no stalls) or wait (deterministic)
 pace="${PACE:-30}"                          # incise bench --pace (0: frames back to back)
 copy="${REALTIME_COPY:-half}"               # solver.factor_copy: half, float or none
+reuse="${REALTIME_TANGENT_REUSE:-0.003}"    # integrator.tangent_reuse of the policy runs (0: off; the exact reference never)
 subthreads="${REALTIME_SUBSTITUTION_THREADS:-2}"  # solver.substitution_threads
 # name mesh-or-scene K
 # K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
@@ -90,7 +93,7 @@ json.dump(d, open(dst, "w"), indent=1)
 PY
       ;;
   esac
-  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 --rescue-after $rescue --late-factor $late --factor-copy $copy --substitution-threads $subthreads $extra"
+  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 --rescue-after $rescue --late-factor $late --factor-copy $copy --substitution-threads $subthreads --tangent-reuse $reuse $extra"
   echo "compare $name ($frames frames; $opts) ..." >&2
   # shellcheck disable=SC2086
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
@@ -100,12 +103,12 @@ PY
     --trace "$out/$name.trace.csv" >"$out/$name.bench.log" 2>&1 ||
     echo "  failed: see $out/$name.bench.log" >&2
 done
-python3 - "$out" "$tol" "$tangent" "$copy" "$subthreads" "${cases[@]}" <<'PY'
+python3 - "$out" "$tol" "$tangent" "$copy" "$subthreads" "$reuse" "${cases[@]}" <<'PY'
 import json, sys
-out, tol, tangent, copy, subthreads = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5]
+out, tol, tangent, copy, subthreads, reuse = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5], sys.argv[6]
 print(f"| case | DOF | nnz(L) | exact median ms | policy (CG tol {tol}) | median ms | p99 ms | max ms | cut frames: count, median / p99 / max ms | CG its median (max) | Newton/frame | err @1 | err @30 | err @last |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-for c in sys.argv[6:]:
+for c in sys.argv[7:]:
     name, _, k = c.split()
     try:
         j = json.load(open(f"{out}/{name}.compare.json")); b = json.load(open(f"{out}/{name}.bench.json"))
@@ -118,7 +121,7 @@ for c in sys.argv[6:]:
     cut = f"{cf['count']}, {cf['median_ms']:.1f} / {cf['p99_ms']:.1f} / {cf['max_ms']:.1f}" if cf["count"] else "-"
     it = b["solver"]["iterations"]
     paced = f", paced {b['pace_hz']:g} Hz" if b.get("pace_hz") else ""
-    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp, tangent {tangent}, {copy} copy, {subthreads}-thread subst.{paced} | "
+    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp, tangent {tangent}, {copy} copy, {subthreads}-thread subst., reuse {reuse}{paced} | "
           f"{b['frame']['median_ms']:.1f} | {b['frame']['p99_ms']:.1f} | {b['frame']['max_ms']:.1f} | {cut} | {it['median']:.0f} ({it['max']:.0f}) | "
           f"{b['newton']['mean']:.2f} | {e.get(1, float('nan')):.1e} | {e.get(30, float('nan')):.1e} | {e.get(last, float('nan')):.1e} ({last}) |")
 PY
