@@ -56,12 +56,16 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
 // slots) and the gradients they were made at; K of the new pattern is summed
 // from them. The others get NaN gradients, so their first assembly recomputes
 // them (K += blocks - 0). Without this every cut frame assembled all elements.
-void carry_tangent_cache(const Model& from, const TangentCache& old, const Model& to, const std::vector<int>& changed,
+// The arrays are written element by element into the previous cut's spare
+// buffers (capacity kept: no page faults of a fresh 7 MB block per cut frame).
+void carry_tangent_cache(const Model& from, TangentCache& old, const Model& to, const std::vector<int>& changed,
                          State& s) {
   if (!old.valid || !(to.tangent_reuse > 0.0) || old.Kl.size() != from.elem_scatter.size()) return;
   TangentCache& c = s.tangent_cache;
-  c.Kl.assign(to.elem_scatter.size(), 0.0);
-  c.F.assign(9 * static_cast<size_t>(to.nrot), std::nan(""));
+  c.Kl = std::move(old.spare_Kl);
+  c.F = std::move(old.spare_F);
+  c.Kl.resize(to.elem_scatter.size());
+  c.F.resize(9 * static_cast<size_t>(to.nrot));
   std::vector<char> fresh(to.nelem, 0);
   for (int e : changed) fresh[e] = 1;
   std::vector<int> old_ptr(from.nelem + 1, 0), new_ptr(to.nelem + 1, 0);
@@ -69,11 +73,15 @@ void carry_tangent_cache(const Model& from, const TangentCache& old, const Model
   for (int r = 0; r < to.nrot; ++r) ++new_ptr[to.rot_elem[r] + 1];
   for (int e = 0; e < from.nelem; ++e) old_ptr[e + 1] += old_ptr[e];
   for (int e = 0; e < to.nelem; ++e) new_ptr[e + 1] += new_ptr[e];
-  for (int e = 0; e < to.nelem && e < from.nelem; ++e) {
+  for (int e = 0; e < to.nelem; ++e) {
     const int nb = to.elem_scatter_ptr[e + 1] - to.elem_scatter_ptr[e];
-    if (fresh[e] || nb != from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e] ||
-        new_ptr[e + 1] - new_ptr[e] != old_ptr[e + 1] - old_ptr[e])
+    if (e >= from.nelem || fresh[e] || nb != from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e] ||
+        new_ptr[e + 1] - new_ptr[e] != old_ptr[e + 1] - old_ptr[e]) {  // recomputed at the next assembly
+      std::fill_n(c.Kl.begin() + to.elem_scatter_ptr[e], nb, 0.0);
+      std::fill(c.F.begin() + 9 * static_cast<size_t>(new_ptr[e]), c.F.begin() + 9 * static_cast<size_t>(new_ptr[e + 1]),
+                std::nan(""));
       continue;
+    }
     std::copy_n(old.Kl.begin() + from.elem_scatter_ptr[e], nb, c.Kl.begin() + to.elem_scatter_ptr[e]);
     std::copy(old.F.begin() + 9 * static_cast<size_t>(old_ptr[e]), old.F.begin() + 9 * static_cast<size_t>(old_ptr[e + 1]),
               c.F.begin() + 9 * static_cast<size_t>(new_ptr[e]));
@@ -83,6 +91,8 @@ void carry_tangent_cache(const Model& from, const TangentCache& old, const Model
       if (sc[k] >= 0) s.K[sc[k]] += kl[k];
   }
   c.valid = true;
+  c.spare_Kl = std::move(old.Kl);
+  c.spare_F = std::move(old.F);
 }
 
 bool same_layout(const Model& m, const CutLayout& L) {

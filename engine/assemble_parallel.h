@@ -53,6 +53,7 @@ struct TangentCache {
   std::vector<double> Kl;  // (Model::elem_scatter.size()) blocks of each element, at elem_scatter_ptr
   std::vector<double> F;   // (nrot, 9) deformation gradient of each slot when its element's blocks were made
   int updated = 0;         // elements whose blocks the last call recomputed (all, when it was a full assembly)
+  std::vector<double> spare_Kl, spare_F;  // the previous model's arrays, reused by a cut's carry (cut_apply.cpp)
 };
 
 // R (nrot, 9): warm start in, the rotation of every slot out (identity for the

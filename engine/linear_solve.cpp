@@ -506,8 +506,15 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   w.node_rot_ptr.assign(m.ndofnode + 1, 0);
   w.node_rot.clear();
   w.node_rot_weight.clear();
+  std::vector<double> old_Rn = std::move(w.Rn);
   w.Rn.assign(9 * static_cast<size_t>(m.ndofnode), 0.0);
   for (int node = 0; node < m.ndofnode; ++node) w.Rn[9 * node] = w.Rn[9 * node + 4] = w.Rn[9 * node + 8] = 1.0;
+  if (dofnode_map && solver_carries_over_cuts(m, s))  // a cut: node rotations warm-start from the old node's
+    for (int node = 0; node < m.ndofnode; ++node) {
+      const int o = (*dofnode_map)[node];
+      if (o >= 0 && 9 * static_cast<size_t>(o) + 9 <= old_Rn.size())
+        std::copy_n(old_Rn.begin() + 9 * static_cast<size_t>(o), 9, w.Rn.begin() + 9 * static_cast<size_t>(node));
+    }
   w.node_identity.assign(m.ndofnode, 0);
   // A node with some but not all components constrained keeps R = I so the
   // warped matrix stays projected; a fully constrained node may rotate (its

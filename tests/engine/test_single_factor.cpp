@@ -27,40 +27,15 @@ namespace {
 constexpr double kEpsFloat = 5.96e-8;  // 2^-24, unit roundoff of float
 constexpr double kEpsHalf = 4.88e-4;   // 2^-11, unit roundoff of binary16
 
-// The swing-beam tissue (E = 1e5 Pa, nu = 0.45, rho = 1000, lumped mass) on a
-// 0.2 x 0.05 x 0.05 m tet10 beam of nx x ny x nz cells, clamped at x = 0.
-Model beam_model(int nx, int nyz) {
-  Scene s = test::basic_scene(2);
-  s.material.young = 1e5;
-  s.material.poisson = 0.45;
-  s.material.density = 1000;
-  s.fixed.push_back(test::box_region({-1e-9, -1, -1}, {1e-9, 1, 1}));
-  return build_model(make_beam(0.2, 0.05, 0.05, nx, nyz, nyz, 1), s);
-}
+using test::random_vector;
+using test::system_matrix;
 
-// cK K0 + cM M with the clamped rows and columns replaced by the identity, as
-// the dynamic step forms it (cM = 4/dt^2); cM = 0 gives the static stiffness.
-std::vector<double> system_matrix(const Model& m, double cM) {
-  std::vector<double> A = m.K0_csc;
-  for (int d = 0; d < m.ndof(); ++d) A[m.diag[d]] += cM * m.mass_lumped[d];
-  for (int k : m.constrained_entries) A[k] = 0.0;
-  for (int d = 0; d < m.ndof(); ++d)
-    if (m.constrained[d]) A[m.diag[d]] = 1.0;
-  return A;
-}
+Model beam_model(int nx, int nyz) { return test::tissue_beam(nx, nyz); }
 
 double norm(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x * x;
   return std::sqrt(s);
-}
-
-std::vector<double> random_vector(int n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> U(-1, 1);
-  std::vector<double> v(n);
-  for (double& x : v) x = U(rng);
-  return v;
 }
 
 // 2-norm condition number estimate: power iteration for lambda_max (A x) and
@@ -89,6 +64,26 @@ struct Case {
   double cM;
 };
 
+// Worst relative difference of solve_copy against the double solve over three
+// right-hand sides (also checks the in-place call and that the copy was read:
+// each difference above `floor`).
+double worst_copy_error(CholmodSolver& f, const Model& m, double floor) {
+  const int n = m.ndof();
+  double worst = 0;
+  for (unsigned seed = 1; seed <= 3; ++seed) {
+    const std::vector<double> b = random_vector(n, seed);
+    std::vector<double> xd(n), xs(n), xa = b;
+    f.solve(b.data(), xd.data());
+    f.solve_copy(b.data(), xs.data());
+    f.solve_copy(xa.data(), xa.data());  // aliased in place
+    EXPECT_EQ(xa, xs);
+    const double e = test::rel_diff(xs, xd);
+    worst = std::max(worst, e);
+    EXPECT_GT(e, floor) << "the copy of the factor was not read";
+  }
+  return worst;
+}
+
 TEST(SingleFactor, SolveIsWithinTheFloatBoundOfTheDoubleSolveAndNotIdentical) {
   const double cM = 4.0 * 30.0 * 30.0;  // 4 / dt^2 at 30 Hz
   for (const Case c : {Case{"dynamic 3k", 10, 3, cM}, Case{"static 3k", 10, 3, 0.0}, Case{"dynamic 7k", 14, 4, cM}}) {
@@ -103,20 +98,9 @@ TEST(SingleFactor, SolveIsWithinTheFloatBoundOfTheDoubleSolveAndNotIdentical) {
     ASSERT_TRUE(f.stats().supernodal);
     ASSERT_TRUE(f.has_factor_copy());
     const double kappa = condition_estimate(m, A, f);
-    double worst = 0;
-    for (unsigned seed = 1; seed <= 3; ++seed) {
-      const std::vector<double> b = random_vector(n, seed);
-      std::vector<double> xd(n), xs(n), xa = b;
-      f.solve(b.data(), xd.data());
-      f.solve_copy(b.data(), xs.data());
-      f.solve_copy(xa.data(), xa.data());  // aliased in place
-      EXPECT_EQ(xa, xs);
-      const double e = test::rel_diff(xs, xd);
-      worst = std::max(worst, e);
-      // Not the double result: far above double roundoff (the double
-      // substitution agrees with cholmod_solve2 to ~1e-15).
-      EXPECT_GT(e, 1e-10) << "the float factor was not read";
-    }
+    // Not the double result: far above double roundoff (the double
+    // substitution agrees with cholmod_solve2 to ~1e-15).
+    const double worst = worst_copy_error(f, m, 1e-10);
     // First-order bound: |dx|/|x| <= c eps_float cond(A) (the float L is
     // L + dL, |dL| <= eps_float |L| entrywise): 2e-3 .. 3e-2 here, so loose
     // that it is only a sanity check. Measured worst relative errors (3 random
@@ -256,18 +240,7 @@ TEST(HalfFactor, SolveIsWithinItsBoundOfTheDoubleSolve) {
     f.analyze(n, m.Ap, m.Ai);
     f.factorize(A.data());
     ASSERT_TRUE(f.has_factor_copy());
-    double worst = 0;
-    for (unsigned seed = 1; seed <= 3; ++seed) {
-      const std::vector<double> b = random_vector(n, seed);
-      std::vector<double> xd(n), xh(n), xa = b;
-      f.solve(b.data(), xd.data());
-      f.solve_copy(b.data(), xh.data());
-      f.solve_copy(xa.data(), xa.data());  // aliased in place
-      EXPECT_EQ(xa, xh);
-      const double e = test::rel_diff(xh, xd);
-      worst = std::max(worst, e);
-      EXPECT_GT(e, 1e-7) << "the binary16 factor was not read";
-    }
+    const double worst = worst_copy_error(f, m, 1e-7);
     // eps_half * cond(A) (> 20 here) bounds nothing; measured worst relative
     // errors (3 right-hand sides) 4.0e-4 (dynamic 3k and 7k), 9.6e-4 (static
     // 3k, cond ~5e5): 0.8-2 eps_half. Stated bound 3e-3 (3x the worst).

@@ -94,21 +94,8 @@ namespace {
 // move through a large arc while gravity acts (a miniature of
 // assets/scenes/swing_beam.json).
 Scene swing_scene(SolverSettings solver) {
-  Scene s = test::basic_scene(2);
-  s.material.young = 2e4;
-  s.material.poisson = 0.4;
-  s.material.density = 1.0;
-  s.material.rayleigh_mass = 0.5;
-  s.material.rayleigh_stiffness = 0.002;
-  s.gravity = {0, 0, -9.81};
+  Scene s = test::swing_scene();
   s.rotation_tolerance = 0.0;  // one linearised solve per frame: the counts below are per solve
-  s.fixed.push_back(test::box_region({-1, -1, -1}, {0, 2, 2}));
-  Prescribed p;
-  p.region = test::box_region({2.0, -1, -1}, {3, 2, 2}, "prescribed[0]");
-  p.active = {true, true, true};
-  p.displacement = {-0.8, 0.6, 0.5};
-  p.ramp = 0.5;
-  s.prescribed.push_back(p);
   s.solver = solver;
   return s;
 }

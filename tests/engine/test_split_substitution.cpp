@@ -3,7 +3,6 @@
 // the two-thread solve equals the one-thread solve (double, float and binary16
 // factors) to roundoff, in place too, over many repeated calls.
 #include <atomic>
-#include <random>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -16,32 +15,10 @@
 namespace incise {
 namespace {
 
-Model beam(int nx, int nyz) {
-  Scene s = test::basic_scene(2);
-  s.material.young = 1e5;
-  s.material.poisson = 0.45;
-  s.material.density = 1000;
-  s.fixed.push_back(test::box_region({-1e-9, -1, -1}, {1e-9, 1, 1}));
-  return build_model(make_beam(0.2, 0.05, 0.05, nx, nyz, nyz, 1), s);
-}
+using test::random_vector;
 
-// The dynamic system at 30 Hz with the clamped DOFs projected out.
-std::vector<double> system_matrix(const Model& m) {
-  std::vector<double> A = m.K0_csc;
-  for (int d = 0; d < m.ndof(); ++d) A[m.diag[d]] += 3600.0 * m.mass_lumped[d];
-  for (int k : m.constrained_entries) A[k] = 0.0;
-  for (int d = 0; d < m.ndof(); ++d)
-    if (m.constrained[d]) A[m.diag[d]] = 1.0;
-  return A;
-}
-
-std::vector<double> random_vector(int n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> U(-1, 1);
-  std::vector<double> v(n);
-  for (double& x : v) x = U(rng);
-  return v;
-}
+Model beam(int nx, int nyz) { return test::tissue_beam(nx, nyz); }
+std::vector<double> system_matrix(const Model& m) { return test::system_matrix(m, 3600.0); }
 
 // (The bins' independence shows in TwoThreadSolveEqualsOneThreadSolve: a
 // supernode whose ancestor sat in the other bin would read a stale row.)
