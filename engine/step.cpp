@@ -205,6 +205,7 @@ const double* internal_forces(const Model& m, State& s, const double* x, bool ta
   // rotations, forces and (when asked) the tangent, on solver.threads workers
   TangentCache* cache = reuse_tangent && tangent && m.tangent_reuse > 0.0 ? &s.tangent_cache : nullptr;
   s.tangent_cache.updated = tangent ? m.nelem : 0;  // what a full assembly recomputes (the cache overwrites it)
+  if (tangent && !cache) s.tangent_cache.valid = false;  // K rebuilt without it (a static solve): no longer the kept sum
   s.rotation_fallbacks += assemble_corotated(m, s.work.plan, *s.work.pool, x, s.R.data(), s.f_int.data(),
                                              tangent ? s.K.data() : nullptr, cache);
   return s.K.data();

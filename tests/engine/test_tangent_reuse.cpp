@@ -110,6 +110,11 @@ TEST(TangentReuse, NewModelStartsWithAFullAssembly) {
   EXPECT_EQ(st.timing.tangent_updates, m.nelem);
   step(m, st);
   EXPECT_LT(st.timing.tangent_updates, m.nelem / 2) << "theta 0.4 keeps most elements' blocks";
+  ASSERT_TRUE(st.tangent_cache.valid);
+  internal_forces(m, st, st.u.data(), /*tangent=*/true);  // as a static solve assembles: K rebuilt whole
+  EXPECT_FALSE(st.tangent_cache.valid) << "K is no longer the sum of the kept blocks";
+  step(m, st);
+  EXPECT_EQ(st.timing.tangent_updates, m.nelem) << "so the next step assembles every element";
   size_state(m, st);  // what a cut's rebuild does
   EXPECT_FALSE(st.tangent_cache.valid);
 }
