@@ -57,14 +57,22 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
 // from them. The others get NaN gradients, so their first assembly recomputes
 // them (K += blocks - 0). Without this every cut frame assembled all elements.
 // Cost at 10k DOF: about 4 ms of the cut frame (copying 7 MB of blocks,
-// summing K in the new pattern); skipping it when the previous assembly
-// recomputed most elements does not work during an incision (a full assembly
-// recomputes all, so every later cut would skip it too).
+// summing K in the new pattern), so it is skipped (a full assembly follows)
+// when the last assembly that had kept blocks recomputed more than half of
+// the elements: the body moves more than theta per frame and little would be
+// kept. (Not the last assembly: after a skipped carry it recomputes all.)
+// Every fifth cut in a row carries anyway, so the next assembly measures the
+// motion again.
 // The arrays are written element by element into the previous cut's spare
 // buffers (capacity kept: no page faults of a fresh 7 MB block per cut frame).
 void carry_tangent_cache(const Model& from, TangentCache& old, const Model& to, const std::vector<int>& changed,
                          State& s) {
+  s.tangent_cache.last_partial = old.last_partial;
   if (!old.valid || !(to.tangent_reuse > 0.0) || old.Kl.size() != from.elem_scatter.size()) return;
+  if ((old.last_partial < 0 || 2 * old.last_partial > from.nelem) && old.skipped_carries < 4) {
+    s.tangent_cache.skipped_carries = old.skipped_carries + 1;
+    return;
+  }
   TangentCache& c = s.tangent_cache;
   c.Kl = std::move(old.spare_Kl);
   c.F = std::move(old.spare_F);

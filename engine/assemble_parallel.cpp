@@ -439,6 +439,7 @@ int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, con
   if (cache) {
     cache->valid = true;
     cache->updated = updated;
+    if (keep_K) cache->last_partial = updated;
   }
   return total;
 }

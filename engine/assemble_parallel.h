@@ -53,6 +53,8 @@ struct TangentCache {
   std::vector<double> Kl;  // (Model::elem_scatter.size()) blocks of each element, at elem_scatter_ptr
   std::vector<double> F;   // (nrot, 9) deformation gradient of each slot when its element's blocks were made
   int updated = 0;         // elements whose blocks the last call recomputed (all, when it was a full assembly)
+  int last_partial = -1;   // `updated` of the last call that had a valid cache (-1: none yet); kept across cuts
+  int skipped_carries = 0; // cuts in a row whose carry was skipped (cut_apply.cpp); kept across cuts
   std::vector<double> spare_Kl, spare_F;  // the previous model's arrays, reused by a cut's carry (cut_apply.cpp)
 };
 
