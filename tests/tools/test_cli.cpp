@@ -277,6 +277,7 @@ TEST_F(Cli, BenchTraceHasOneRowPerTimedFrameWithTheCutParts) {
   std::getline(is, header);
   EXPECT_EQ(header.rfind("frame,frame_ms,cut_frame,cutting_ms,", 0), 0u) << header;
   EXPECT_NE(header.find("cut_model_ms"), std::string::npos) << header;
+  EXPECT_NE(header.find(",patch_dofs,tangent_updates"), std::string::npos) << header;
   int rows = 0, cut_rows = 0, first = -1;
   while (std::getline(is, line)) {
     ++rows;
