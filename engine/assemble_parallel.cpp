@@ -252,11 +252,11 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     std::fill(Kl, Kl + 9 * nblk, 0.0);
     for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1] && !linear; ++k) {
       const int r = plan.elem_rot[k];
-      const bool keep = cache != nullptr;
-      if (!keep && !(plan.slot_weight[r] > 0.0)) continue;
+      const bool store_F = cache != nullptr;  // the gradients the new blocks are made at
+      if (!store_F && !(plan.slot_weight[r] > 0.0)) continue;
       double F[9];
       grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
-      if (keep) std::copy(F, F + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
+      if (store_F) std::copy(F, F + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
       if (plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points below)
         add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
                                     plan.slot_weight[r], Kl, h, t);
