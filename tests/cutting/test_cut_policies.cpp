@@ -58,16 +58,22 @@ IncisionRun incision(const SolverSettings& solver, double tangent_reuse = 0.0, d
   return r;
 }
 
+// The lagged policy (synchronous refresh) at a CG tolerance.
+SolverSettings lagged_settings(int refresh_every, double tolerance, int max_iterations) {
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.refresh_every = refresh_every;
+  s.tolerance = tolerance;
+  s.max_iterations = max_iterations;
+  return s;
+}
+
 // integrator.tangent_reuse through cut frames: the kept blocks of elements
 // the cut left alone are carried to the rebuilt model (cut_apply.cpp), K
 // stays their sum, and the trajectory approaches the full assembly's as
 // theta shrinks.
 TEST(CutPolicies, TangentReuseIsCarriedThroughCuts) {
-  SolverSettings lagged;
-  lagged.policy = SolverPolicy::Lagged;
-  lagged.refresh_every = 2;
-  lagged.tolerance = 1e-10;
-  lagged.max_iterations = 2000;
+  const SolverSettings lagged = lagged_settings(2, 1e-10, 2000);
   const IncisionRun full = incision(lagged);
   double mismatch = 0.0, prev = 1e300;
   int carried = 0;
@@ -140,11 +146,7 @@ TEST(CutPolicies, ProgressiveCutUnderEveryPolicyMatchesExact) {
 // additive sum: fewer CG iterations over the frames that carry a mapped
 // factor, for the same tolerance and (within it) the same result.
 TEST(CutPolicies, MultiplicativePatchNeedsFewerIterationsThanAdditive) {
-  SolverSettings s;
-  s.policy = SolverPolicy::Lagged;
-  s.refresh_every = 6;
-  s.tolerance = 1e-8;
-  s.max_iterations = 500;
+  SolverSettings s = lagged_settings(6, 1e-8, 500);
   s.multiplicative_patch = true;
   const IncisionRun mul = incision(s);
   s.multiplicative_patch = false;

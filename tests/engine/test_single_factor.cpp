@@ -65,6 +65,16 @@ struct Case {
 };
 const Case kCases[] = {{"dynamic 3k", 10, 3, 3600.0}, {"static 3k", 10, 3, 0.0}, {"dynamic 7k", 14, 4, 3600.0}};
 
+// The case's beam (returned), its system matrix A, and f factored with `copy`.
+Model factor_case(const Case& c, FactorCopy copy, CholmodSolver& f, std::vector<double>& A) {
+  Model m = beam_model(c.nx, c.nyz);
+  A = system_matrix(m, c.cM);
+  f.set_factor_copy(copy);
+  f.analyze(m.ndof(), m.Ap, m.Ai);
+  f.factorize(A.data());
+  return m;
+}
+
 // Worst relative difference of solve_copy against the double solve over three
 // right-hand sides (also checks the in-place call and that the copy was read:
 // each difference above `floor`).
@@ -88,13 +98,10 @@ double worst_copy_error(CholmodSolver& f, const Model& m, double floor) {
 TEST(SingleFactor, SolveIsWithinTheFloatBoundOfTheDoubleSolveAndNotIdentical) {
   for (const Case& c : kCases) {
     SCOPED_TRACE(c.name);
-    const Model m = beam_model(c.nx, c.nyz);
-    const int n = m.ndof();
-    const std::vector<double> A = system_matrix(m, c.cM);
     CholmodSolver f;
-    f.set_single_precision(true);
-    f.analyze(n, m.Ap, m.Ai);
-    f.factorize(A.data());
+    std::vector<double> A;
+    const Model m = factor_case(c, FactorCopy::Float, f, A);
+    const int n = m.ndof();
     ASSERT_TRUE(f.stats().supernodal);
     ASSERT_TRUE(f.has_factor_copy());
     const double kappa = condition_estimate(m, A, f);
@@ -231,13 +238,9 @@ TEST(SingleFactor, ConversionIsCountedAndOffByDefault) {
 TEST(HalfFactor, SolveIsWithinItsBoundOfTheDoubleSolve) {
   for (const Case& c : kCases) {
     SCOPED_TRACE(c.name);
-    const Model m = beam_model(c.nx, c.nyz);
-    const int n = m.ndof();
-    const std::vector<double> A = system_matrix(m, c.cM);
     CholmodSolver f;
-    f.set_factor_copy(FactorCopy::Half);
-    f.analyze(n, m.Ap, m.Ai);
-    f.factorize(A.data());
+    std::vector<double> A;
+    const Model m = factor_case(c, FactorCopy::Half, f, A);
     ASSERT_TRUE(f.has_factor_copy());
     const double worst = worst_copy_error(f, m, 1e-7);
     // eps_half * cond(A) (> 20 here) bounds nothing; measured worst relative
