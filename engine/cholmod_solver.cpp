@@ -13,6 +13,7 @@
 #include <immintrin.h>
 #endif
 
+#include "engine/block_recycler.h"
 #include "engine/error.h"
 #include "engine/half.h"
 #include "engine/timing.h"
@@ -339,6 +340,7 @@ class SerialOpenMpRegions {
 }  // namespace
 
 CholmodSolver::CholmodSolver() {
+  install_cholmod_block_recycler();  // before CHOLMOD's first allocation (block_recycler.h)
   cholmod_start(&c_);
   c_.supernodal = CHOLMOD_SUPERNODAL;
   c_.print = 0;

@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "engine/block_recycler.h"
 #include "tools/solver_report.h"
 
 namespace incise {
@@ -55,6 +56,13 @@ std::string format_solver_report(const SolverReport& r) {
                 r.factorizations == 1 ? "" : "s", r.factor_ms_mean, r.gflops, r.substitutions_per_frame,
                 r.substitution_ms, r.solve_gbs, r.frame_multiple, r.bandwidth_limit_ms, r.bandwidth_gbs);
   std::string out = buf;
+  const RecyclerStats rs = cholmod_block_recycler_stats();
+  if (rs.reused + rs.grown + rs.fresh > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "memory: CHOLMOD blocks >= 1 MiB since start: %ld reused, %ld grown, %ld newly allocated\n",
+                  rs.reused, rs.grown, rs.fresh);
+    out += buf;
+  }
   if (r.policy == "lagged" || r.policy == "warped_cg") {
     std::snprintf(buf, sizeof buf, "CG: iterations/frame median %.0f, p99 %.0f, max %.0f; %d frame%s not converged (max residual %.2g)\n",
                   r.iterations.median_ms, r.iterations.p99_ms, r.iterations.max_ms, r.not_converged_frames,

@@ -4,8 +4,11 @@
 // pattern. Also the supernodal forward+back substitution with the double
 // factor and with its float and binary16 copies (BM_Substitution).
 // Run: build/tools/incise_microbench [--benchmark_filter=...]
+#include <algorithm>
 #include <cmath>
 #include <memory>
+#include <numeric>
+#include <queue>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -14,6 +17,7 @@
 #include "engine/assemble.h"
 #include "engine/assemble_parallel.h"
 #include "engine/cholmod_solver.h"
+#include "engine/mesh_io.h"
 #include "engine/mesh_tools.h"
 #include "engine/model.h"
 #include "engine/polar.h"
@@ -177,6 +181,79 @@ void BM_ExtractRotation(benchmark::State& state, double angle) {
   state.counters["newton_steps"] = static_cast<double>(iters) / (static_cast<double>(state.iterations()) * kN);
 }
 
+// The organ mesh of the real-time scenes (assets/meshes/organ_10k.msh, 1,832
+// tet10, consistent tangent) as read, and with `renumber` its nodes in
+// breadth-first order from the first node and its elements sorted by their
+// smallest node: how much of the per-element cost is the scatter's cache misses.
+void BM_Organ(benchmark::State& state, bool renumber) {
+  Mesh mesh = read_mesh(INCISE_SOURCE_DIR "/assets/meshes/organ_10k.msh");
+  if (renumber) {
+    const int nn = mesh.nnode(), npe = mesh.npe(), ne = mesh.ntet();
+    std::vector<std::vector<int>> adj(nn);
+    for (int e = 0; e < ne; ++e)
+      for (int a = 0; a < npe; ++a)
+        for (int b = 0; b < npe; ++b)
+          if (a != b) adj[mesh.tet[npe * e + a]].push_back(mesh.tet[npe * e + b]);
+    std::vector<int> order, seen(nn, 0);
+    for (int s0 = 0; s0 < nn; ++s0) {
+      if (seen[s0]) continue;
+      std::queue<int> q;
+      q.push(s0);
+      seen[s0] = 1;
+      while (!q.empty()) {
+        const int v = q.front();
+        q.pop();
+        order.push_back(v);
+        for (int w : adj[v])
+          if (!seen[w]) seen[w] = 1, q.push(w);
+      }
+    }
+    std::vector<int> inv(nn);
+    for (int k = 0; k < nn; ++k) inv[order[k]] = k;
+    Mesh out = mesh;
+    for (int k = 0; k < nn; ++k)
+      for (int d = 0; d < 3; ++d) out.X[3 * k + d] = mesh.X[3 * order[k] + d];
+    std::vector<int> perm(ne);
+    std::iota(perm.begin(), perm.end(), 0);
+    auto key = [&](int e) {
+      int lo = nn;
+      for (int a = 0; a < npe; ++a) lo = std::min(lo, inv[mesh.tet[npe * e + a]]);
+      return lo;
+    };
+    std::sort(perm.begin(), perm.end(), [&](int a, int b) { return key(a) < key(b); });
+    for (int k = 0; k < ne; ++k)
+      for (int a = 0; a < npe; ++a) out.tet[npe * k + a] = inv[mesh.tet[npe * perm[k] + a]];
+    mesh = out;
+  }
+  Scene s;
+  s.path = "microbench";
+  s.order = 2;
+  s.material.young = 3e4;
+  s.material.poisson = 0.45;
+  s.material.density = 1000;
+  s.material.rotation = RotationMode::PerPoint;
+  s.consistent_tangent = true;
+  Model m = build_model(mesh, s);
+  std::vector<double> u(m.ndof(), 0.0), R(9 * m.nrot, 0.0), f(m.ndof()), K(m.nnz());
+  for (int n = 0; n < m.nnode; ++n) {  // a bent state, rotations far from I
+    const double x = m.X[3 * n], y = m.X[3 * n + 1], z = m.X[3 * n + 2];
+    u[3 * n] = -2.0 * x * z;
+    u[3 * n + 1] = 3.0 * x * z;
+    u[3 * n + 2] = 4.0 * x * x - 3.0 * x * y;
+  }
+  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  ThreadPool pool(1);
+  AssemblyPlan plan = make_assembly_plan(m, 1);
+  assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), K.data());
+  for (auto _ : state) {
+    assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), K.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["us_per_elem"] = benchmark::Counter(
+      static_cast<double>(m.nelem), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
+      benchmark::Counter::OneK::kIs1000);
+}
+
 }  // namespace
 
 BENCHMARK_CAPTURE(BM_Reference, tet4, 1, RotationMode::PerPoint)->Unit(benchmark::kMillisecond);
@@ -190,6 +267,9 @@ BENCHMARK_CAPTURE(BM_Fused, tet10_consistent_1thread, 2, RotationMode::PerPoint,
 BENCHMARK_CAPTURE(BM_Fused, tet10_2threads, 2, RotationMode::PerPoint, 2, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10SR_1thread, 2, RotationMode::Single, 1, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Fused, tet10_force_only_1thread, 2, RotationMode::PerPoint, 1, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+BENCHMARK_CAPTURE(BM_Organ, as_read, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Organ, renumbered, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_CAPTURE(BM_Substitution, beam10k_double, 20, 4, FactorCopy::None)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam10k_single, 20, 4, FactorCopy::Float)->Unit(benchmark::kMillisecond)->UseRealTime();
