@@ -337,10 +337,30 @@ class SerialOpenMpRegions {
   int saved_ = 0;
 };
 
+// OpenBLAS's own threads off (one thread per call), once; looked up with
+// dlsym so another BLAS needs nothing.
+void single_thread_blas() {
+  static const bool done = [] {
+    if (auto set = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
+    return true;
+  }();
+  (void)done;
+}
+
 }  // namespace
+
+bool blas_concurrency_safe() {
+  static const bool safe = [] {
+    // openblas_get_parallel: 0 sequential build, 1 pthreads, 2 OpenMP.
+    auto parallel = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "openblas_get_parallel"));
+    return parallel && parallel() > 0;
+  }();
+  return safe;
+}
 
 CholmodSolver::CholmodSolver() {
   install_cholmod_block_recycler();  // before CHOLMOD's first allocation (block_recycler.h)
+  single_thread_blas();
   cholmod_start(&c_);
   c_.supernodal = CHOLMOD_SUPERNODAL;
   c_.print = 0;

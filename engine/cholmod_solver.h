@@ -30,6 +30,17 @@ struct FactorStats {
   double copy_ms_total = 0;
 };
 
+// Whether BLAS may run on two threads at once: true for an OpenBLAS built
+// with threading (Debian's libopenblas0-pthread or -openmp, whose buffer
+// allocator is thread-safe), false for the serial build (measured: two
+// supernodal factorizations on two threads gave wrong factors in 78-94 of
+// 460 rounds, tests/engine/test_cholmod.cpp) and for any BLAS that does not
+// say (no openblas_get_parallel). The first CholmodSolver also sets a
+// threaded OpenBLAS to one thread per call: the engine's own threads already
+// fill the cores, and the background factorization must not take the
+// stepping thread's core.
+bool blas_concurrency_safe();
+
 class CholmodSolver {
  public:
   CholmodSolver();

@@ -412,7 +412,10 @@ void lagged_patch(const Model& m, State& s, const double* A) {
         if (g2l[r] >= 0) w.patch_row_col[cnt[g2l[r]]] = c, w.patch_row_k[cnt[g2l[r]]++] = k;
         if (r != c && g2l[c] >= 0) w.patch_row_col[cnt[g2l[c]]] = r, w.patch_row_k[cnt[g2l[c]]++] = k;
       }
-    w.patch.configure(FactorMethod::Simplicial, OrderingMethod::Amd);  // no BLAS: the background job owns it
+    // Supernodal (BLAS) only where BLAS may run beside the background job
+    // (blas_concurrency_safe); otherwise BLAS-free simplicial.
+    w.patch.configure(blas_concurrency_safe() ? FactorMethod::Supernodal : FactorMethod::Simplicial,
+                      OrderingMethod::Amd);
     w.patch.analyze(np, Pp, Pi);
     w.patch_A.assign(Pi.size(), 0.0);
     w.patch_r.assign(np, 0.0);

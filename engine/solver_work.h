@@ -59,7 +59,8 @@ struct SolverWork {
   std::vector<double> Q;               // (ndofnode, 9) warp: Rn * slot_Rn^T of the front slot, this solve
   // lagged after a cut, until a factor of the new pattern is taken: the DOFs
   // the front factor does not know, with every DOF node of the elements that
-  // touch them, form a patch solved exactly (BLAS-free simplicial CHOLMOD,
+  // touch them, form a patch solved exactly (CHOLMOD, supernodal where BLAS
+  // may run beside the background job, else BLAS-free simplicial;
   // refactored each frame), combined with the factor additively or
   // multiplicatively (solver.patch_schwarz).
   CholmodSolver patch;

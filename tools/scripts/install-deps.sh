@@ -3,7 +3,7 @@
 set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
-  libeigen3-dev libsuitesparse-dev libopenblas0-serial
+  libeigen3-dev libsuitesparse-dev libopenblas0-pthread
   nlohmann-json3-dev libcli11-dev libgtest-dev libbenchmark-dev
   libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0 libpng-dev
 )
