@@ -68,6 +68,7 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
 void carry_tangent_cache(const Model& from, TangentCache& old, const Model& to, const std::vector<int>& changed,
                          State& s) {
   s.tangent_cache.last_partial = old.last_partial;
+  s.tangent_cache.bypass = old.bypass;  // still moving: the new model's assemblies keep no blocks either
   if (!old.valid || !(to.tangent_reuse > 0.0) || old.Kl.size() != from.elem_scatter.size()) return;
   if ((old.last_partial < 0 || 2 * old.last_partial > from.nelem) && old.skipped_carries < 4) {
     s.tangent_cache.skipped_carries = old.skipped_carries + 1;

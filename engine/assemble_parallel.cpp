@@ -213,7 +213,8 @@ inline void scatter_blocks(const Model& m, int e, int nblk, const double* Kl, do
 // at, and K then gains the difference; *updated says whether they were.
 template <int NN>
 int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double* u, double* Rall, double* f, double* K,
-                  double* scratch, TangentCache* cache = nullptr, bool* updated = nullptr) {
+                  double* scratch, TangentCache* cache = nullptr, bool* updated = nullptr,
+                  bool* keepable = nullptr) {
   const int b0 = m.elem_dof_ptr[e];
   const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
   const int* nodes = &m.elem_dof_node[b0];
@@ -226,8 +227,12 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
   int fallbacks = 0;
   const bool linear = m.material.model == MaterialModel::Linear;
-  const bool cached = K && cache && cache->valid;
+  // probe (TangentCache::bypass): blocks recomputed and added to K directly,
+  // F kept per slot only to tell whether the element would have been kept.
+  const bool probe = K && cache && cache->bypass;
+  const bool cached = K && cache && cache->valid && !probe;
   bool keep = cached;  // every |F - F_then| entry of the element's slots <= theta (a NaN: not kept)
+  bool would_keep = probe;
   for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
     const int r = plan.elem_rot[k];
     Eigen::Map<Mat3> Rm(Rall + 9 * r);
@@ -243,7 +248,15 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     if (keep)
       for (int i = 0; i < 9; ++i)
         if (!(std::fabs(F[i] - cache->F[9 * static_cast<size_t>(r) + i]) <= cache->theta)) keep = false;
+    if (probe) {
+      double* Fr = &cache->F[9 * static_cast<size_t>(r)];
+      for (int i = 0; i < 9; ++i)
+        if (!(std::fabs(F[i] - Fr[i]) <= cache->theta)) would_keep = false;
+      std::copy(F, F + 9, Fr);
+    }
   }
+  if (keepable) *keepable = would_keep;
+  if (probe) cache = nullptr;  // from here on a full assembly's element
   // The element's tangent is (re)computed without a valid cache, or when a
   // slot moved past theta (or has no kept F: NaN after a cut's rebuild).
   if (keep) K = nullptr;
@@ -419,27 +432,45 @@ int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, con
                        double* K, TangentCache* cache) {
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
   if (cache && (!K || !(cache->theta > 0.0))) cache = nullptr;
-  if (cache && !cache->valid) {  // a full assembly that fills the cache
+  const bool probe = cache && cache->bypass;
+  if (probe) {
+    if (cache->F.size() != 9 * static_cast<size_t>(m.nrot))  // a new model: no F of the last frame
+      cache->F.assign(9 * static_cast<size_t>(m.nrot), std::nan(""));
+  } else if (cache && !cache->valid) {  // a full assembly that fills the cache
     cache->Kl.assign(m.elem_scatter.size(), 0.0);
     cache->F.assign(9 * static_cast<size_t>(m.nrot), 0.0);
   }
-  const bool keep_K = cache && cache->valid;  // K holds the kept blocks' sum: updated, not rebuilt
-  int fb[64] = {0}, up[64] = {0};
+  const bool keep_K = cache && cache->valid && !probe;  // K holds the kept blocks' sum: updated, not rebuilt
+  int fb[64] = {0}, up[64] = {0}, kp[64] = {0};
   for_each_element(plan, pool, f, m.ndof(), keep_K ? nullptr : K, keep_K || !K ? 0 : m.nnz(), [&](int e, int tid) {
     double* s = plan.scratch[tid].data();
     const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
-    bool updated = false;
-    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s, cache, &updated)
-                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s, cache, &updated)
-                                : element_terms<0>(m, plan, e, u, R, f, K, s, cache, &updated);
+    bool updated = false, keepable = false;
+    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable)
+                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable)
+                                : element_terms<0>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable);
     up[tid] += updated;
+    kp[tid] += keepable;
   });
-  int total = 0, updated = 0;
-  for (int t = 0; t < pool.size(); ++t) total += fb[t], updated += up[t];
+  int total = 0, updated = 0, keepable = 0;
+  for (int t = 0; t < pool.size(); ++t) total += fb[t], updated += up[t], keepable += kp[t];
   if (cache) {
-    cache->valid = true;
     cache->updated = updated;
-    if (keep_K) cache->last_partial = updated;
+    if (probe) {
+      // Back to keeping blocks (a filling assembly next) once a tenth of the
+      // elements would have been kept this frame.
+      cache->would_keep = keepable;
+      if (10 * keepable > m.nelem) cache->bypass = false;
+    } else {
+      cache->valid = true;
+      if (keep_K) {
+        cache->last_partial = updated;
+        // Nine tenths recomputed: keeping blocks costs more than it saves
+        // (reading and writing 4 KB per tet10 element); bypass until the
+        // motion calms.
+        if (10 * updated > 9 * m.nelem) cache->bypass = true, cache->valid = false;
+      }
+    }
   }
   return total;
 }

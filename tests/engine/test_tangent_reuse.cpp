@@ -119,5 +119,59 @@ TEST(TangentReuse, NewModelStartsWithAFullAssembly) {
   EXPECT_FALSE(st.tangent_cache.valid);
 }
 
+// While (nearly) every element moves past theta the cache is bypassed: full
+// assemblies that keep no blocks (K and forces exactly a plain full
+// assembly's), noting F to see when a tenth of the elements would be kept
+// again; then one filling assembly, and blocks are kept as before.
+TEST(TangentReuse, BypassedWhileEveryElementMovesAndBackWhenStill) {
+  const Model m = build_model(beam_mesh(), swing(1e-6));
+  AssemblyPlan plan = make_assembly_plan(m, 1);
+  ThreadPool pool(1);
+  TangentCache cache;
+  cache.theta = 1e-6;
+  std::vector<double> u(m.ndof()), R(9 * static_cast<size_t>(m.nrot), 0.0), Rfull, f(m.ndof()), ffull(m.ndof());
+  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  std::vector<double> K(m.nnz()), Kfull(m.nnz());
+  auto bend = [&](double amount) {  // every element's F changes with `amount`
+    for (int n = 0; n < m.nnode; ++n) {
+      const double x = m.X[3 * n];
+      u[3 * n + 1] = amount * x * x;
+      u[3 * n + 2] = -0.5 * amount * x * x * x;
+    }
+  };
+  auto assemble = [&] {
+    assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), K.data(), &cache);
+    Rfull = R;
+    assemble_corotated(m, plan, pool, u.data(), Rfull.data(), ffull.data(), Kfull.data());
+  };
+  bend(0.01);
+  assemble();  // fills
+  EXPECT_TRUE(cache.valid);
+  EXPECT_FALSE(cache.bypass);
+  bend(0.02);
+  assemble();  // every element recomputed from kept blocks: bypass from the next call
+  EXPECT_EQ(cache.updated, m.nelem);
+  EXPECT_TRUE(cache.bypass);
+  EXPECT_FALSE(cache.valid);
+  bend(0.03);
+  assemble();  // bypassed, still moving
+  EXPECT_TRUE(cache.bypass);
+  EXPECT_EQ(cache.would_keep, 0);
+  EXPECT_EQ(cache.updated, m.nelem);
+  EXPECT_LT(test::rel_diff(K, Kfull), 1e-14);
+  EXPECT_LT(test::rel_diff(f, ffull), 1e-14);
+  assemble();  // the same configuration: every element would have been kept
+  EXPECT_EQ(cache.would_keep, m.nelem);
+  EXPECT_FALSE(cache.bypass);
+  EXPECT_LT(test::rel_diff(K, Kfull), 1e-14);
+  assemble();  // fills again
+  EXPECT_TRUE(cache.valid);
+  EXPECT_EQ(cache.updated, m.nelem);
+  assemble();  // kept: nothing recomputed, K still the full one
+  EXPECT_EQ(cache.updated, 0);
+  EXPECT_TRUE(cache.valid);
+  EXPECT_LT(test::rel_diff(K, Kfull), 1e-12);
+}
+
 }  // namespace
 }  // namespace incise

@@ -185,7 +185,10 @@ void BM_ExtractRotation(benchmark::State& state, double angle) {
 // tet10, consistent tangent) as read, and with `renumber` its nodes in
 // breadth-first order from the first node and its elements sorted by their
 // smallest node: how much of the per-element cost is the scatter's cache misses.
-void BM_Organ(benchmark::State& state, bool renumber) {
+// `cold`: 64 MB streamed through the caches before each assembly (untimed);
+// `reuse`: integrator.tangent_reuse (0.4: every element keeps its blocks,
+// the forces and rotations alone).
+void BM_Organ(benchmark::State& state, bool renumber, bool cold = false, double reuse = 0.0, bool moving = false) {
   Mesh mesh = read_mesh(INCISE_SOURCE_DIR "/assets/meshes/organ_10k.msh");
   if (renumber) {
     const int nn = mesh.nnode(), npe = mesh.npe(), ne = mesh.ntet();
@@ -244,9 +247,22 @@ void BM_Organ(benchmark::State& state, bool renumber) {
   for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
   ThreadPool pool(1);
   AssemblyPlan plan = make_assembly_plan(m, 1);
-  assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), K.data());
+  TangentCache cache;
+  cache.theta = reuse;
+  assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), K.data(), &cache);
+  std::vector<double> evict(cold ? (64 << 20) / sizeof(double) : 0, 1.0);
+  std::vector<double> u_moved = u;
+  for (double& x : u_moved) x *= 1.001;
+  bool flip = false;
   for (auto _ : state) {
-    assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), K.data());
+    if (moving) flip = !flip;  // every slot's F moves by ~1e-3 (more than theta): all blocks recomputed
+    if (cold) {  // as in a frame, where the solves have evicted the model and K from the caches
+      state.PauseTiming();
+      for (double& x : evict) x += 1.0;
+      benchmark::DoNotOptimize(evict.data());
+      state.ResumeTiming();
+    }
+    assemble_corotated(m, plan, pool, flip ? u_moved.data() : u.data(), R.data(), f.data(), K.data(), &cache);
     benchmark::ClobberMemory();
   }
   state.counters["us_per_elem"] = benchmark::Counter(
@@ -270,6 +286,10 @@ BENCHMARK_CAPTURE(BM_Fused, tet10_force_only_1thread, 2, RotationMode::PerPoint,
 
 BENCHMARK_CAPTURE(BM_Organ, as_read, false)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Organ, renumbered, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Organ, cold_cache, false, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Organ, every_tangent_kept, false, true, 0.4)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Organ, moving_no_cache, false, true, 0.0, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Organ, moving_cache_all_recomputed, false, true, 1e-6, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_CAPTURE(BM_Substitution, beam10k_double, 20, 4, FactorCopy::None)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam10k_single, 20, 4, FactorCopy::Float)->Unit(benchmark::kMillisecond)->UseRealTime();
