@@ -180,23 +180,10 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
 
   // Faces: interior pairs, and faces lying exactly on a covered surface.
   struct FacePair { int e, ke, f, kf; };
-  std::vector<FacePair> pairs;
-  {
-    std::vector<std::array<int, 4>> faces;
-    for (int e = 0; e < nt; ++e)
-      for (int k = 0; k < 4; ++k) {
-        std::array<int, 4> f;
-        for (int j = 0, cc = 0; j < 4; ++j)
-          if (j != k) f[cc++] = node(e, j);
-        std::sort(f.begin(), f.begin() + 3);
-        f[3] = 4 * e + k;
-        faces.push_back(f);
-      }
-    std::sort(faces.begin(), faces.end());
-    for (size_t i = 0; i + 1 < faces.size(); ++i)
-      if (std::equal(faces[i].begin(), faces[i].begin() + 3, faces[i + 1].begin()))
-        pairs.push_back({faces[i][3] / 4, faces[i][3] % 4, faces[i + 1][3] / 4, faces[i + 1][3] % 4});
-  }
+  std::vector<FacePair> pairs(base.tet_face_pair.size() / 4);  // the mesh's, found once (Model::tet_face_pair)
+  for (size_t p = 0; p < pairs.size(); ++p)
+    pairs[p] = {base.tet_face_pair[4 * p], base.tet_face_pair[4 * p + 1], base.tet_face_pair[4 * p + 2],
+                base.tet_face_pair[4 * p + 3]};
   CutLayout L;
   L.elem_face_cut.assign(4 * static_cast<size_t>(nt), 0);
   std::vector<char> separated(pairs.size(), 0);
@@ -304,9 +291,6 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
 
   // Regions of each node's support; only nodes touching split elements or
   // separated faces can have more than one.
-  std::vector<std::vector<int>> node_elems(nn);
-  for (int e = 0; e < nt; ++e)
-    for (int a = 0; a < npe; ++a) node_elems[node(e, a)].push_back(e);
   std::vector<char> candidate(nn, 0);
   for (int e = 0; e < nt; ++e)
     if (!cuts_of[e].empty())
@@ -319,8 +303,8 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
   for (int i = 0; i < nn; ++i) {
     if (!candidate[i]) continue;
     std::vector<int> sp;  // pieces of the support
-    for (int e : node_elems[i])
-      for (int P = elem_piece_ptr[e]; P < elem_piece_ptr[e + 1]; ++P) sp.push_back(P);
+    for (int k = base.node_elem_ptr[i]; k < base.node_elem_ptr[i + 1]; ++k)
+      for (int P = elem_piece_ptr[base.node_elem[k]]; P < elem_piece_ptr[base.node_elem[k] + 1]; ++P) sp.push_back(P);
     std::map<int, int> local;
     for (size_t k = 0; k < sp.size(); ++k) local[sp[k]] = static_cast<int>(k);
     UnionFind uf(static_cast<int>(sp.size()));

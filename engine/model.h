@@ -49,6 +49,12 @@ struct Model {
   std::vector<int> elem_qp_ptr;    // (nelem + 1) quadrature points of each element
   std::vector<double> elem_volume; // (nelem) reference volume
   std::vector<unsigned char> tet_face_boundary;  // (nelem, 4) face opposite corner k is on the mesh boundary
+  // Mesh topology (cuts never change it; a rebuild copies it): the interior
+  // faces as pairs (e, k, f, l), face k of element e is face l of f, in the
+  // order of their sorted corners; and each mesh node's elements.
+  std::vector<int> tet_face_pair;  // (npairs, 4)
+  std::vector<int> node_elem_ptr;  // (nnode + 1) into node_elem
+  std::vector<int> node_elem;      // elements of each mesh node, ascending
 
   // Quadrature points
   std::vector<double> qp_weight;   // (nqp) cubature weight * det J: the volume it stands for
