@@ -569,8 +569,19 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
   const bool reuse = base && base->elem_mass.size() == static_cast<size_t>(m.nelem) * npe * npe;
   if (reuse) m.elem_mass = base->elem_mass;
   else m.elem_mass.assign(static_cast<size_t>(m.nelem) * npe * npe, 0.0);
+  const bool lumped = m.mass_kind == MassKind::Lumped;
+  // Lumped: a mesh node's own DOFs get the element's whole HRZ mass (the
+  // pieces' shares sum to it), so they are the uncut mesh's, whatever the
+  // cuts: a rebuild copies them from base and visits only the elements that
+  // carry enrichment (the q DOFs and their couplings). Same sums, in the same
+  // order, as a fresh build.
+  const int nstd = 3 * m.nnode;
+  const bool incremental = lumped && reuse && base->mass_kind == MassKind::Lumped && base->nnode == m.nnode &&
+                           base->mass_lumped.size() >= static_cast<size_t>(nstd);
+  if (incremental) std::copy(base->mass_lumped.begin(), base->mass_lumped.begin() + nstd, m.mass_lumped.begin());
   for (int e = 0; e < m.nelem; ++e) {
     const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
+    if (incremental && m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e] == npe) continue;  // no enrichment
     for (int a = 0; a < npe; ++a)
       for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
     // rho int N_a N_b over a set of sub-tets (null: the whole element)
@@ -613,6 +624,11 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
       const int blk = i * n - i * (i - 1) / 2 + (j - i);  // index of block (i, j), i <= j
       for (int c = 0; c < 3; ++c) m.mass_csc[sc[9 * blk + 4 * c]] += value;
     };
+    if (lumped && !incremental)  // the mesh nodes' own DOFs: the whole element's HRZ mass
+      for (int a = 0; a < npe; ++a) {
+        for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += hrz[a];
+        if (sparse) add(a, a, hrz[a]);
+      }
     for (const PieceView& P : pieces_of(m, e)) {
       const bool whole = P.rst == nullptr;
       double frac = 1.0;
@@ -635,12 +651,12 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
       for (int a = 0; a < npe; ++a) {
         // The lumped masses are kept in both modes (reported, and used by lumped-mass policies).
         const double ma = frac * hrz[a];
-        for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += ma;
+        if (!lumped)
+          for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += ma;
         if (lq[a] >= 0)
           for (int d = 0; d < 3; ++d) m.mass_lumped[3 * P.enr[a] + d] += ma;
-        if (m.mass_kind == MassKind::Lumped) {
+        if (lumped) {
           if (!sparse) continue;
-          add(a, a, ma);
           if (lq[a] >= 0) {
             add(a, lq[a], ma);
             add(lq[a], lq[a], ma);
@@ -662,6 +678,8 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
       }
     }
   }
+  if (incremental && sparse)
+    for (int d = 0; d < nstd; ++d) m.mass_csc[m.diag[d]] = m.mass_lumped[d];
   // Gravity load f = M g with g on the standard DOFs only: the field u = g t^2/2,
   // q = 0 is exact free fall for every piece.
   m.f_gravity.assign(m.ndof(), 0.0);
@@ -678,7 +696,35 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
   }
 }
 
-void build_constraints(Model& m, const Scene& scene) {
+void build_constraints(Model& m, const Scene& scene, const Model* base) {
+  // A rebuild (same mesh, base's standard columns copied by
+  // build_pattern_from_base): the regions select mesh nodes only, so the
+  // standard DOFs' flags, the prescribed list and the constrained entries of
+  // the standard columns are base's; only the enriched columns are scanned.
+  const int nstd = 3 * m.nnode;
+  if (base && base->nnode == m.nnode && base->constrained.size() >= static_cast<size_t>(nstd) &&
+      base->Ap.size() > static_cast<size_t>(nstd) && base->Ap[nstd] == m.Ap[nstd]) {
+    m.constrained.assign(m.ndof(), 0);
+    std::copy(base->constrained.begin(), base->constrained.begin() + nstd, m.constrained.begin());
+    m.prescribed = base->prescribed;
+    m.fixed_dofs.clear();
+    for (int d : base->fixed_dofs)
+      if (d < nstd) m.fixed_dofs.push_back(d);
+    std::vector<char> used(m.ndofnode, 0);
+    for (int node : m.elem_dof_node) used[node] = 1;
+    for (int node = m.nnode; node < m.ndofnode; ++node)
+      if (!used[node])
+        for (int i = 0; i < 3; ++i) m.constrained[3 * node + i] = 1, m.fixed_dofs.push_back(3 * node + i);
+    m.constrained_entries.clear();
+    for (int k : base->constrained_entries) {
+      if (k >= m.Ap[nstd]) break;  // base's list is in column order
+      m.constrained_entries.push_back(k);
+    }
+    for (int c = nstd; c < m.ndof(); ++c)
+      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+        if (m.Ai[k] != c && (m.constrained[m.Ai[k]] || m.constrained[c])) m.constrained_entries.push_back(k);
+    return;
+  }
   m.constrained.assign(m.ndof(), 0);
   std::vector<double> value(m.ndof(), 0.0), ramp(m.ndof(), 0.0);
   std::vector<char> is_prescribed(m.ndof(), 0);
@@ -816,7 +862,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   else build_pattern(m);
   build_mass(m, scene, base);
   if (!base || model_needs_rest_stiffness(m)) m.K0_csc = rest_stiffness(m);
-  build_constraints(m, scene);
+  build_constraints(m, scene, base && base->nnode == m.nnode && base->nelem == m.nelem ? base : nullptr);
   return m;
 }
 

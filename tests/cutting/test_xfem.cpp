@@ -415,6 +415,50 @@ TEST(Xfem, RebuildFromTheBaseModelEqualsAFreshBuild) {
   EXPECT_FALSE(rebuilt2.rot_K0.empty()) << "split elements carry their pieces' rest stiffness";
 }
 
+// With lumped mass a rebuild copies the mesh nodes' masses, flags and
+// constrained entries from its base and visits only the enriched elements
+// and columns: bit for bit what a fresh build computes, through two cuts.
+TEST(Xfem, LumpedRebuildCopiesMassesAndConstraintsExactly) {
+  Scene s = test::block_scene(2);
+  s.mass = MassKind::Lumped;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  Prescribed p;
+  p.region = test::box({3.9, -1, -1}, {5, 2, 2}, "prescribed[0]");
+  p.active = {false, true, false};
+  p.displacement = {0, 0.1, 0};
+  s.prescribed.push_back(p);
+  const Mesh mesh = make_beam(4, 1, 1, 8, 2, 2, 1);
+  const Model uncut = build_model(mesh, s);
+  const auto plane = make_cut_surface(test::plane_cut({2.3, 0, 0}, {1, 0.2, 0.1}), 0.0);
+  const auto plane2 = make_cut_surface(test::plane_cut({0, 0, 0.55}, {0.1, 0, 1}, "cuts[1]"), 0.0);
+  const CutLayout layout = compute_cut_layout(uncut, {plane.get()}, nullptr);
+  const CutLayout layout2 = compute_cut_layout(uncut, {plane.get(), plane2.get()}, nullptr);
+  const Model rebuilt = build_model(mesh, s, &layout, &uncut);
+  for (const auto& [lay, base] : {std::pair<const CutLayout*, const Model*>{&layout, &uncut}, {&layout2, &rebuilt}}) {
+    const Model fresh = build_model(mesh, s, lay), next = build_model(mesh, s, lay, base);
+    ASSERT_GT(fresh.ndofnode, fresh.nnode);
+    EXPECT_EQ(fresh.mass_lumped, next.mass_lumped);
+    EXPECT_EQ(fresh.mass_csc, next.mass_csc);
+    EXPECT_EQ(fresh.f_gravity, next.f_gravity);
+    EXPECT_EQ(fresh.constrained, next.constrained);
+    EXPECT_EQ(fresh.fixed_dofs, next.fixed_dofs);
+    EXPECT_EQ(fresh.constrained_entries, next.constrained_entries);
+    ASSERT_EQ(fresh.prescribed.size(), next.prescribed.size());
+    EXPECT_GT(next.prescribed.size(), 0u);
+    for (size_t k = 0; k < fresh.prescribed.size(); ++k) EXPECT_EQ(fresh.prescribed[k].dof, next.prescribed[k].dof);
+    // The mesh nodes' u DOFs carry the whole body (M g summed over them is
+    // the uncut body's weight); the q DOFs the pieces away from each node's
+    // home, a part of it.
+    double weight = 0, weight_q = 0, weight_uncut = 0;
+    for (int d = 2; d < 3 * next.nnode; d += 3) weight += next.f_gravity[d];
+    for (int d = 3 * next.nnode + 2; d < next.ndof(); d += 3) weight_q += next.f_gravity[d];
+    for (int d = 2; d < uncut.ndof(); d += 3) weight_uncut += uncut.f_gravity[d];
+    EXPECT_NEAR(weight, weight_uncut, 1e-13 * std::abs(weight_uncut));
+    EXPECT_LT(weight_q, 0.0);
+    EXPECT_GT(weight_q, weight_uncut);
+  }
+}
+
 TEST(Xfem, ConsistentTangentOfACutModelParallelEqualsSerialAndStepsStably) {
   // A slanted plane cut through a tet10 block under integrator.tangent
   // "consistent": uncut points get the point rotation term, cut pieces (one
