@@ -63,9 +63,10 @@ class CholmodSolver {
   // matrix is not positive definite, naming the failing column (a DOF).
   void factorize(const double* values);
   // x = A^-1 b with the current factor (x and b may alias). A supernodal factor
-  // is solved by our own substitution (no BLAS): Debian's serial OpenBLAS is
-  // not safe on two threads at once (measured: docs/numerics.md, "Solver"),
-  // and the lagged policy's background factorization is BLAS-heavy. A simplicial factor goes
+  // is solved by our own substitution (no BLAS): a serial OpenBLAS is not
+  // safe on two threads at once (measured: docs/numerics.md, "Solver"), the
+  // lagged policy's background factorization is BLAS-heavy, and our loop
+  // splits over two threads and reads a float copy. A simplicial factor goes
   // through cholmod_solve2 (which uses no BLAS for it).
   void solve(const double* b, double* x);
   // The same through cholmod_solve2 (reference for tests and timing).

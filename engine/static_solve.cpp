@@ -25,7 +25,8 @@ StaticResult solve_static(const Model& m, State& s, double tolerance, int max_it
   StaticResult res;
   double ref = 0.0;
   // State::solver must hold this pattern, and no background factorization may
-  // run beside ours (serial OpenBLAS): a lagged dynamics state is reset.
+  // run beside ours (unsafe with a serial OpenBLAS, blas_concurrency_safe): a
+  // lagged dynamics state is reset.
   if (s.work.job_running || s.work.slot_pattern[0] != s.work.pattern) prepare_solver(m, s);
   for (int it = 0; it <= max_iterations; ++it) {
     const double* K = internal_forces(m, s, s.u.data(), true);

@@ -52,8 +52,8 @@ void compare(const CompareOptions& o) {
   apply_solver_overrides(*ref, exact);
   print_model_summary(*ref);
   // The reference runs first, then each policy: never two at once, because a
-  // lagged background factorization must be the only BLAS user (Debian's
-  // serial OpenBLAS has no locks).
+  // lagged background factorization must be the only BLAS user with a serial
+  // OpenBLAS (no locks; blas_concurrency_safe), and the timings stay apart.
   std::vector<FrameTiming> t_ref;
   std::vector<std::vector<double>> u_ref;
   for (int k = 1; k <= checkpoints.back(); ++k) {
