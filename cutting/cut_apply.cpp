@@ -53,22 +53,45 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
 
 // integrator.tangent_reuse across a rebuild: an element whose pieces did not
 // change keeps its tangent blocks (same DOF nodes in the same order, same
-// slots) and the gradients they were made at; K of the new pattern is summed
-// from them. The others get NaN gradients, so their first assembly recomputes
-// them (K += blocks - 0). Without this every cut frame assembled all elements.
-// Cost at 10k DOF: about 4 ms of the cut frame (copying 7 MB of blocks,
-// summing K in the new pattern), so it is skipped (a full assembly follows)
-// when the last assembly that had kept blocks recomputed more than half of
-// the elements: the body moves more than theta per frame and little would be
-// kept. (Not the last assembly: after a skipped carry it recomputes all.)
-// Every fifth cut in a row carries anyway, so the next assembly measures the
-// motion again.
+// slots) and the gradients they were made at, and K of the new pattern is
+// their sum. The others get NaN gradients, so their first assembly
+// recomputes them (K += blocks - 0). Without this every cut frame assembled
+// all elements.
+// K is not re-summed from the blocks (3.5 ms at 10k DOF, the scatter's cache
+// misses): the mesh nodes' columns of the pattern are the old model's
+// (build_pattern_from_base), so they start as the old K (old_K, the sum of
+// the old blocks) less the old blocks of the elements that changed; the
+// enriched columns, renumbered, get the carried blocks that fall in them.
+// Skipped (a full assembly follows) when the last assembly that had kept
+// blocks recomputed more than half of the elements: the body moves more than
+// theta per frame and little would be kept. (Not the last assembly: after a
+// skipped carry it recomputes all.) Every fifth cut in a row carries anyway,
+// so the next assembly measures the motion again.
 // The arrays are written element by element into the previous cut's spare
 // buffers (capacity kept: no page faults of a fresh 7 MB block per cut frame).
-void carry_tangent_cache(const Model& from, TangentCache& old, const Model& to, const std::vector<int>& changed,
-                         State& s) {
+void carry_tangent_cache(const Model& from, TangentCache& old, const std::vector<double>& old_K, const Model& to,
+                         const std::vector<int>& changed, State& s) {
   s.tangent_cache.last_partial = old.last_partial;
   s.tangent_cache.bypass = old.bypass;  // still moving: the new model's assemblies keep no blocks either
+  if (old.bypass && old.F.size() == 9 * static_cast<size_t>(from.nrot) && from.nelem == to.nelem) {
+    // The bypass's F of the slots the cut left alone, so the next assembly
+    // can tell whether the body calmed (during an incision every frame is a
+    // cut frame: without them the bypass would never end).
+    std::vector<char> fresh(to.nelem, 0);
+    for (int e : changed) fresh[e] = 1;
+    std::vector<int> old_ptr(from.nelem + 1, 0), new_ptr(to.nelem + 1, 0);
+    for (int r = 0; r < from.nrot; ++r) ++old_ptr[from.rot_elem[r] + 1];
+    for (int r = 0; r < to.nrot; ++r) ++new_ptr[to.rot_elem[r] + 1];
+    for (int e = 0; e < from.nelem; ++e) old_ptr[e + 1] += old_ptr[e];
+    for (int e = 0; e < to.nelem; ++e) new_ptr[e + 1] += new_ptr[e];
+    std::vector<double>& F = s.tangent_cache.F;
+    F.assign(9 * static_cast<size_t>(to.nrot), std::nan(""));
+    for (int e = 0; e < to.nelem; ++e)
+      if (!fresh[e] && new_ptr[e + 1] - new_ptr[e] == old_ptr[e + 1] - old_ptr[e])
+        std::copy(old.F.begin() + 9 * static_cast<size_t>(old_ptr[e]),
+                  old.F.begin() + 9 * static_cast<size_t>(old_ptr[e + 1]), F.begin() + 9 * static_cast<size_t>(new_ptr[e]));
+    return;
+  }
   if (!old.valid || !(to.tangent_reuse > 0.0) || old.Kl.size() != from.elem_scatter.size()) return;
   if ((old.last_partial < 0 || 2 * old.last_partial > from.nelem) && old.skipped_carries < 4) {
     s.tangent_cache.skipped_carries = old.skipped_carries + 1;
@@ -86,6 +109,13 @@ void carry_tangent_cache(const Model& from, TangentCache& old, const Model& to, 
   for (int r = 0; r < to.nrot; ++r) ++new_ptr[to.rot_elem[r] + 1];
   for (int e = 0; e < from.nelem; ++e) old_ptr[e + 1] += old_ptr[e];
   for (int e = 0; e < to.nelem; ++e) new_ptr[e + 1] += new_ptr[e];
+  // The mesh nodes' columns: positions [0, split) the same in both patterns.
+  const int cstd = 3 * to.nnode;
+  const bool same_std = from.nnode == to.nnode && from.nelem == to.nelem && old_K.size() == static_cast<size_t>(from.Ap.back()) &&
+                        from.Ap.size() > static_cast<size_t>(cstd) && to.Ap.size() > static_cast<size_t>(cstd) &&
+                        std::equal(from.Ap.begin(), from.Ap.begin() + cstd + 1, to.Ap.begin());
+  const int split = same_std ? to.Ap[cstd] : 0;
+  std::copy_n(old_K.begin(), split, s.K.begin());
   for (int e = 0; e < to.nelem; ++e) {
     const int nb = to.elem_scatter_ptr[e + 1] - to.elem_scatter_ptr[e];
     if (e >= from.nelem || fresh[e] || nb != from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e] ||
@@ -93,6 +123,13 @@ void carry_tangent_cache(const Model& from, TangentCache& old, const Model& to, 
       std::fill_n(c.Kl.begin() + to.elem_scatter_ptr[e], nb, 0.0);
       std::fill(c.F.begin() + 9 * static_cast<size_t>(new_ptr[e]), c.F.begin() + 9 * static_cast<size_t>(new_ptr[e + 1]),
                 std::nan(""));
+      if (split > 0 && e < from.nelem) {  // its old blocks leave the copied columns
+        const int* sc = &from.elem_scatter[from.elem_scatter_ptr[e]];
+        const double* kl = &old.Kl[from.elem_scatter_ptr[e]];
+        const int ob = from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e];
+        for (int k = 0; k < ob; ++k)
+          if (sc[k] >= 0 && sc[k] < split) s.K[sc[k]] -= kl[k];
+      }
       continue;
     }
     std::copy_n(old.Kl.begin() + from.elem_scatter_ptr[e], nb, c.Kl.begin() + to.elem_scatter_ptr[e]);
@@ -100,8 +137,9 @@ void carry_tangent_cache(const Model& from, TangentCache& old, const Model& to, 
               c.F.begin() + 9 * static_cast<size_t>(new_ptr[e]));
     const int* sc = &to.elem_scatter[to.elem_scatter_ptr[e]];
     const double* kl = &c.Kl[to.elem_scatter_ptr[e]];
+    if (split > 0 && to.elem_dof_ptr[e + 1] - to.elem_dof_ptr[e] == to.mesh.npe()) continue;  // all in copied columns
     for (int k = 0; k < nb; ++k)
-      if (sc[k] >= 0) s.K[sc[k]] += kl[k];
+      if (sc[k] >= split) s.K[sc[k]] += kl[k];
   }
   c.valid = true;
   c.spare_Kl = std::move(old.Kl);
@@ -178,6 +216,8 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   const bool carry = solver_carries_over_cuts(next, sim.state);
   std::vector<double> R = carried_rotations(sim.model, sim.state.R, next);
   TangentCache kept = std::move(sim.state.tangent_cache);
+  std::vector<double> old_K = std::move(sim.state.K);  // the sum of kept's blocks; its buffer is the next spare
+  sim.state.K = std::move(kept.spare_K);
   std::unique_ptr<Model> old_model = std::make_unique<Model>(std::move(sim.model));
   sim.model = std::move(next);
   ++sim.model_version;
@@ -188,7 +228,8 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   } else {
     init_state(sim.model, sim.state, /*consistent_a0=*/false);  // new pattern: symbolic analysis
   }
-  carry_tangent_cache(*old_model, kept, sim.model, p.changed, sim.state);
+  carry_tangent_cache(*old_model, kept, old_K, sim.model, p.changed, sim.state);
+  sim.state.tangent_cache.spare_K = std::move(old_K);
   sim.state.R.swap(R);
   sim.state.u.swap(k.u);
   sim.state.v.swap(k.v);

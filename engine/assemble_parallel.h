@@ -65,6 +65,7 @@ struct TangentCache {
   bool bypass = false;
   int would_keep = 0;
   std::vector<double> spare_Kl, spare_F;  // the previous model's arrays, reused by a cut's carry (cut_apply.cpp)
+  std::vector<double> spare_K;            // the previous model's K, reused as the next one's (cut_apply.cpp)
 };
 
 // R (nrot, 9): warm start in, the rotation of every slot out (identity for the
