@@ -474,7 +474,12 @@ int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, con
       // Back to keeping blocks (a filling assembly next) once a tenth of the
       // elements would have been kept this frame.
       cache->would_keep = keepable;
-      if (10 * keepable > m.nelem) cache->bypass = false;
+      if (10 * keepable > m.nelem) {
+        cache->bypass = false;
+        // What a keeping assembly would have recomputed: a cut's carry
+        // (cut_apply.cpp) reads it to tell whether the body still moves.
+        cache->last_partial = m.nelem - keepable;
+      }
     } else {
       cache->valid = true;
       if (keep_K) {
