@@ -97,8 +97,9 @@ void* allocate(size_t size) {
     }
   }
   if (grow) {
-    // realloc of a block this large moves its pages (mremap) instead of
-    // copying them: only the growth is new memory.
+    // realloc keeps the pages already touched where it can: a mapped block
+    // (above glibc's mmap threshold) moves by mremap, a heap block grows in
+    // place when the space after it is free, and is copied otherwise.
     if (auto* h = static_cast<Header*>(std::realloc(grow, sizeof(Header) + capacity))) {
       h->capacity = capacity;
       p.grown.fetch_add(1, std::memory_order_relaxed);
