@@ -29,19 +29,23 @@ void old_piece_values(const Model& m, const Kinematics& s, int e, int P, int a, 
     for (int c = 0; c < 3; ++c) out[3 * k + c] = (*f[k])[3 * i + c] + (q >= 0 ? (*f[k])[3 * q + c] : 0.0);
 }
 
+// First rotation slot of each element (nelem + 1): slots are numbered element by element.
+std::vector<int> slot_ptr(const Model& m) {
+  std::vector<int> ptr(m.nelem + 1, 0);
+  for (int r = 0; r < m.nrot; ++r) ++ptr[m.rot_elem[r] + 1];
+  for (int e = 0; e < m.nelem; ++e) ptr[e + 1] += ptr[e];
+  return ptr;
+}
+
 // Warm starts for the new model's rotation slots: an element with as many
 // slots as before keeps its old rotations (uncut elements, and cut ones whose
 // pieces did not change), the others start from the identity. Saves the polar
 // iterations of a cold start in the rebuild's force evaluation and the next step.
 std::vector<double> carried_rotations(const Model& from, const std::vector<double>& R_from, const Model& to) {
-  std::vector<int> old_ptr(from.nelem + 1, 0), new_ptr(to.nelem + 1, 0);
-  for (int r = 0; r < from.nrot; ++r) ++old_ptr[from.rot_elem[r] + 1];
-  for (int r = 0; r < to.nrot; ++r) ++new_ptr[to.rot_elem[r] + 1];
-  for (int e = 0; e < from.nelem; ++e) old_ptr[e + 1] += old_ptr[e];
-  for (int e = 0; e < to.nelem; ++e) new_ptr[e + 1] += new_ptr[e];
+  const std::vector<int> old_ptr = slot_ptr(from), new_ptr = slot_ptr(to);
   std::vector<double> R(9 * static_cast<size_t>(to.nrot), 0.0);
   for (int r = 0; r < to.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
-  // Slots are numbered element by element (model_build.cpp), so slot k of e is ptr[e] + k.
+  // Slot k of e is ptr[e] + k (model_build.cpp numbers them element by element).
   for (int e = 0; e < to.nelem && e < from.nelem; ++e) {
     const int n_old = old_ptr[e + 1] - old_ptr[e], n_new = new_ptr[e + 1] - new_ptr[e];
     if (n_old != n_new) continue;
@@ -79,11 +83,7 @@ void carry_tangent_cache(const Model& from, TangentCache& old, const std::vector
     // cut frame: without them the bypass would never end).
     std::vector<char> fresh(to.nelem, 0);
     for (int e : changed) fresh[e] = 1;
-    std::vector<int> old_ptr(from.nelem + 1, 0), new_ptr(to.nelem + 1, 0);
-    for (int r = 0; r < from.nrot; ++r) ++old_ptr[from.rot_elem[r] + 1];
-    for (int r = 0; r < to.nrot; ++r) ++new_ptr[to.rot_elem[r] + 1];
-    for (int e = 0; e < from.nelem; ++e) old_ptr[e + 1] += old_ptr[e];
-    for (int e = 0; e < to.nelem; ++e) new_ptr[e + 1] += new_ptr[e];
+    const std::vector<int> old_ptr = slot_ptr(from), new_ptr = slot_ptr(to);
     std::vector<double>& F = s.tangent_cache.F;
     F.assign(9 * static_cast<size_t>(to.nrot), std::nan(""));
     for (int e = 0; e < to.nelem; ++e)
@@ -104,11 +104,7 @@ void carry_tangent_cache(const Model& from, TangentCache& old, const std::vector
   c.F.resize(9 * static_cast<size_t>(to.nrot));
   std::vector<char> fresh(to.nelem, 0);
   for (int e : changed) fresh[e] = 1;
-  std::vector<int> old_ptr(from.nelem + 1, 0), new_ptr(to.nelem + 1, 0);
-  for (int r = 0; r < from.nrot; ++r) ++old_ptr[from.rot_elem[r] + 1];
-  for (int r = 0; r < to.nrot; ++r) ++new_ptr[to.rot_elem[r] + 1];
-  for (int e = 0; e < from.nelem; ++e) old_ptr[e + 1] += old_ptr[e];
-  for (int e = 0; e < to.nelem; ++e) new_ptr[e + 1] += new_ptr[e];
+  const std::vector<int> old_ptr = slot_ptr(from), new_ptr = slot_ptr(to);
   // The mesh nodes' columns: positions [0, split) the same in both patterns.
   const int cstd = 3 * to.nnode;
   const bool same_std = from.nnode == to.nnode && from.nelem == to.nelem && old_K.size() == static_cast<size_t>(from.Ap.back()) &&

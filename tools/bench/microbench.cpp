@@ -30,16 +30,30 @@ namespace {
 
 using namespace incise;
 
+// The tissue of these benchmarks: tet10, nu 0.45, rho 1000, Young's modulus E.
+Scene tissue_scene(double young) {
+  Scene s;
+  s.path = "microbench";
+  s.order = 2;
+  s.material.young = young;
+  s.material.poisson = 0.45;
+  s.material.density = 1000;
+  return s;
+}
+
+// us_per_elem: wall time per element of one iteration (nelem elements).
+void count_per_element(benchmark::State& state, int nelem) {
+  state.counters["us_per_elem"] = benchmark::Counter(
+      static_cast<double>(nelem), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
+      benchmark::Counter::OneK::kIs1000);
+}
+
 struct Setup {
   Model m;
   std::vector<double> u, R, f, K;
   Setup(int order, RotationMode rot, int nx, int ny, int nz, bool consistent = false) {
-    Scene s;
-    s.path = "microbench";
+    Scene s = tissue_scene(1e5);
     s.order = order;
-    s.material.young = 1e5;
-    s.material.poisson = 0.45;
-    s.material.density = 1000;
     s.material.rotation = rot;
     s.consistent_tangent = consistent;
     m = build_model(make_beam(0.2, 0.05, 0.05, nx, ny, nz, 1), s);
@@ -71,9 +85,7 @@ void BM_Fused(benchmark::State& state, int order, RotationMode rot, int threads,
     benchmark::ClobberMemory();
   }
   state.SetItemsProcessed(state.iterations() * s.m.nelem);
-  state.counters["us_per_elem"] = benchmark::Counter(
-      static_cast<double>(s.m.nelem), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
-      benchmark::Counter::OneK::kIs1000);
+  count_per_element(state, s.m.nelem);
   state.counters["elements"] = s.m.nelem;
 }
 
@@ -86,9 +98,7 @@ void BM_Reference(benchmark::State& state, int order, RotationMode rot) {
     assemble_internal(s.m, s.u.data(), s.R.data(), s.f.data(), s.K.data());
     benchmark::ClobberMemory();
   }
-  state.counters["us_per_elem"] = benchmark::Counter(
-      static_cast<double>(s.m.nelem), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
-      benchmark::Counter::OneK::kIs1000);
+  count_per_element(state, s.m.nelem);
   state.counters["elements"] = s.m.nelem;
 }
 
@@ -101,12 +111,7 @@ void BM_Reference(benchmark::State& state, int order, RotationMode rot) {
 // the supernodal blocks as stored (xsize >= nnz(L)).
 void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, int threads = 1) {
   const bool single = copy != FactorCopy::None;
-  Scene sc;
-  sc.path = "microbench";
-  sc.order = 2;
-  sc.material.young = 1e5;
-  sc.material.poisson = 0.45;
-  sc.material.density = 1000;
+  Scene sc = tissue_scene(1e5);
   Region clamp;
   clamp.kind = Region::Kind::Box;
   clamp.lo = {-1e-9, -1, -1};
@@ -232,12 +237,7 @@ void BM_Organ(benchmark::State& state, bool renumber, bool cold = false, double 
       for (int a = 0; a < npe; ++a) out.tet[npe * k + a] = inv[mesh.tet[npe * perm[k] + a]];
     mesh = out;
   }
-  Scene s;
-  s.path = "microbench";
-  s.order = 2;
-  s.material.young = 3e4;
-  s.material.poisson = 0.45;
-  s.material.density = 1000;
+  Scene s = tissue_scene(3e4);
   s.material.rotation = RotationMode::PerPoint;
   s.consistent_tangent = true;
   Model m = build_model(mesh, s);
@@ -269,9 +269,7 @@ void BM_Organ(benchmark::State& state, bool renumber, bool cold = false, double 
     assemble_corotated(m, plan, pool, flip ? u_moved.data() : u.data(), R.data(), f.data(), K.data(), &cache);
     benchmark::ClobberMemory();
   }
-  state.counters["us_per_elem"] = benchmark::Counter(
-      static_cast<double>(m.nelem), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
-      benchmark::Counter::OneK::kIs1000);
+  count_per_element(state, m.nelem);
 }
 
 // The cut-ahead helper's work in one incision frame (cutting/cut_apply.cpp,
