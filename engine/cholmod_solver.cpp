@@ -396,13 +396,24 @@ void CholmodSolver::release() {
   if (E_) cholmod_free_dense(&E_, &c_);
   factorized_ = false;
   copy_valid_ = false;
+  single_current_ = false;
+  single_.reset();
   work_y_.clear();
   work_w_.clear();
   work_y2_.clear();
   split_ = SubstitutionSplit{};
 }
 
+void CholmodSolver::set_single_factorization(bool on) {
+  if (on && copy_ != FactorCopy::Float)
+    throw Error("single-precision factorization: needs the float factor copy (set_factor_copy(Float) first)");
+  single_numeric_ = on;
+  stats_.single_precision = on;
+}
+
 void CholmodSolver::set_factor_copy(FactorCopy copy) {
+  if (single_numeric_ && copy != FactorCopy::Float)
+    throw Error("single-precision factorization: the factor is the float copy; turn it off before another copy");
   copy_ = copy;
   copy_valid_ = false;  // the next factorize() converts
   if (copy != FactorCopy::Float) std::vector<float>().swap(Lx_single_);
@@ -449,6 +460,8 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   stats_.factor_ms_total = 0;
   stats_.copy_conversions = 0;
   stats_.copy_ms_total = 0;
+  stats_.single_fallbacks = 0;
+  stats_.single_factorizations = 0;
   B_ = cholmod_zeros(n, 1, CHOLMOD_REAL, &c_);
 }
 
@@ -460,6 +473,24 @@ std::vector<int> CholmodSolver::permutation() const {
 
 void CholmodSolver::factorize(const double* values) {
   if (!L_) throw Error("CHOLMOD: factorize called before analyze");
+  factorized_ = false;
+  copy_valid_ = false;
+  single_current_ = false;
+  if (single_numeric_ && L_->is_super) {
+    Stopwatch clock;
+    if (!single_.analyzed()) single_.analyze(L_, n_, static_cast<const int*>(A_->p), static_cast<const int*>(A_->i));
+    Lx_single_.resize(L_->xsize);  // same analysis: no reallocation after the first
+    const long bad = single_.factorize(values, Lx_single_.data());
+    stats_.factor_ms_total += clock.ms();
+    ++stats_.factorizations;
+    if (bad < 0) {
+      ++stats_.single_factorizations;
+      factorized_ = copy_valid_ = single_current_ = true;
+      stats_.stored_L = static_cast<double>(L_->xsize);
+      return;
+    }
+    ++stats_.single_fallbacks;  // a pivot not positive in float: CHOLMOD in double decides
+  }
   std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
   Stopwatch clock;
   {
@@ -553,6 +584,7 @@ void CholmodSolver::substitute(const T* Lx, const double* inv_scale, const doubl
 
 void CholmodSolver::solve_cholmod(const double* b, double* x) {
   if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (single_current_) throw Error("CHOLMOD: the current factor is single precision only (set_single_factorization); use solve()");
   std::memcpy(B_->x, b, sizeof(double) * n_);
   if (!cholmod_solve2(CHOLMOD_A, L_, B_, nullptr, &X_, nullptr, &Y_, &E_, &c_))
     throw Error("CHOLMOD: solve failed (status " + std::to_string(c_.status) + ")");
@@ -563,6 +595,10 @@ void CholmodSolver::solve(const double* b, double* x) {
   if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
   if (!L_->is_super) {
     solve_cholmod(b, x);
+    return;
+  }
+  if (single_current_) {  // no double factor exists
+    substitute(Lx_single_.data(), nullptr, b, x);
     return;
   }
   substitute(static_cast<const double*>(L_->x), nullptr, b, x);

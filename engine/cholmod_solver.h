@@ -11,6 +11,7 @@
 #include <cholmod.h>
 
 #include "engine/scene.h"
+#include "engine/single_factor.h"
 #include "engine/split_substitution.h"
 
 namespace incise {
@@ -28,6 +29,11 @@ struct FactorStats {
   // factor_ms_total's clock stopped (so not included in it).
   int copy_conversions = 0;
   double copy_ms_total = 0;
+  // set_single_factorization: numeric factorizations done in float, and those
+  // that met a non-positive pivot in float and were redone by CHOLMOD in double.
+  bool single_precision = false;
+  int single_factorizations = 0;  // done in float (of `factorizations`)
+  int single_fallbacks = 0;
 };
 
 // Whether BLAS may run on two threads at once: true for an OpenBLAS built
@@ -89,6 +95,17 @@ class CholmodSolver {
   FactorCopy factor_copy() const { return copy_; }
   void set_single_precision(bool on) { set_factor_copy(on ? FactorCopy::Float : FactorCopy::None); }
   bool single_precision() const { return copy_ != FactorCopy::None; }
+  // Numeric factorizations in single precision (engine/single_factor.h) on
+  // CHOLMOD's supernodal analysis, straight into the float copy: no double
+  // factor exists, solve() reads the float one. For a preconditioner only
+  // (the lagged policy's solver.factor_precision "single"). Needs the float
+  // copy (set_factor_copy(Float) first; throws otherwise) and a supernodal
+  // analysis (a simplicial one factors in double as before). A pivot that is
+  // not positive in float is retried by CHOLMOD in double (counted in
+  // FactorStats::single_fallbacks), so only a matrix that is not positive
+  // definite in double throws. Takes effect at the next factorize().
+  void set_single_factorization(bool on);
+  bool single_factorization() const { return single_numeric_; }
   // x ~= A^-1 b by the same substitution as solve(), reading the copy (x and
   // b may alias). Vectors and accumulations stay double; only L's entries
   // are rounded (relative u = 2^-24 = 6e-8 in float, 2^-11 = 4.9e-4 in half),
@@ -137,6 +154,9 @@ class CholmodSolver {
   std::vector<float> Lx_single_;         // (L->xsize) Float: float copy of a supernodal L->x
   std::vector<uint16_t> Lx_half_;        // (L->xsize) Half: binary16 of L->x / s, s per supernode
   std::vector<double> half_inv_scale_;   // (L->nsuper) Half: 1 / s
+  bool single_numeric_ = false;          // set_single_factorization
+  bool single_current_ = false;          // the current factor exists in float only (Lx_single_)
+  SingleFactorization single_;           // its scatter map and workspace, per analysis
   void prepare_workspace();
   template <class T>
   void substitute(const T* Lx, const double* inv_scale, const double* b, double* x);

@@ -488,9 +488,13 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
     w.job_slot = -1;
     s.solver.configure(m.solver.factor, m.solver.ordering);
     w.back.configure(m.solver.factor, m.solver.ordering);
-    const FactorCopy copy = m.solver.policy == SolverPolicy::Lagged ? m.solver.factor_copy : FactorCopy::None;
-    s.solver.set_factor_copy(copy);
-    w.back.set_factor_copy(copy);
+    const bool lagged = m.solver.policy == SolverPolicy::Lagged;
+    const FactorCopy copy = lagged ? m.solver.factor_copy : FactorCopy::None;
+    for (CholmodSolver* f : {&s.solver, &w.back}) {  // single needs the float copy: off first, on last
+      f->set_single_factorization(false);
+      f->set_factor_copy(copy);
+      f->set_single_factorization(lagged && m.solver.single_factorization);
+    }
     ++w.pattern;
     s.solver.analyze(n, m.Ap, m.Ai);
     w.pattern_frame = -1000000;

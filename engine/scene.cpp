@@ -407,7 +407,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   p.object(v, at);
   p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
-                         "factorization", "ordering"});
+                         "factorization", "ordering", "factor_precision"});
   SolverSettings& o = s.solver;
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
@@ -421,6 +421,13 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     if (v.contains("single_precision"))
       p.fail(at + ".factor_copy", ": give either factor_copy or single_precision (the older switch between \"float\" and \"none\"), not both");
     o.factor_copy = static_cast<FactorCopy>(p.choice(*it, at + ".factor_copy", {"none", "float", "half"}));
+  }
+  if (auto it = v.find("factor_precision"); it != v.end()) {
+    o.single_factorization = p.choice(*it, at + ".factor_precision", {"double", "single"}) == 1;
+    if (o.single_factorization && o.factor_copy != FactorCopy::Float)
+      p.fail(at + ".factor_precision", ": \"single\" factors straight into the float copy, so solver.factor_copy must be "
+                                       "\"float\" (the default), not \"" +
+                                           std::string(o.factor_copy == FactorCopy::Half ? "half" : "none") + "\"");
   }
   if (auto it = v.find("rescue_after"); it != v.end()) o.rescue_after = p.nonnegative_int(*it, at + ".rescue_after");
   if (auto it = v.find("late_factor"); it != v.end())
@@ -455,8 +462,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
       p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");
   for (const char* k :
-       {"refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor", "patch",
-        "cut_ordering", "background_priority"})
+       {"refresh_every", "background", "warp", "single_precision", "factor_copy", "factor_precision", "rescue_after",
+        "late_factor", "patch", "cut_ordering", "background_priority"})
     if (v.contains(k) && o.policy != SolverPolicy::Lagged)
       p.fail(Parser::key(at, k), ": only used by solver.policy \"lagged\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");

@@ -82,6 +82,7 @@ struct SolverSettings {
   bool background = false;     // lagged: factorize on a second thread, used from the next refresh on
   bool warp = false;           // lagged: rotate the lagged factor by the node rotations since its frame
   FactorCopy factor_copy = FactorCopy::Float;  // lagged: the preconditioner substitutes with this copy of the factor
+  bool single_factorization = false;  // lagged: solver.factor_precision "single" (engine/single_factor.h) or "double"
   int rescue_after = 0;        // lagged: CG iterations after which the current matrix is factored now (0 = never)
   bool skip_late_factor = false;  // lagged + background: solver.late_factor "skip" (true) or "wait"
   bool multiplicative_patch = true;  // lagged after cuts: solver.patch "multiplicative" (true) or "additive"

@@ -22,6 +22,8 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
   const double total_ms = f0.factor_ms_total + st.work.back.stats().factor_ms_total;
   if (r.factorizations > 0) r.factor_ms_mean = total_ms / r.factorizations;
   if (r.factor_ms_mean > 0) r.gflops = r.flops / (r.factor_ms_mean * 1e-3) * 1e-9;
+  r.single_precision = f.single_precision;
+  r.single_fallbacks = f0.single_fallbacks + st.work.back.stats().single_fallbacks;
   std::vector<double> subs, its;
   double sub_ms = 0;
   long long nsub = 0;
@@ -49,13 +51,18 @@ std::string format_solver_report(const SolverReport& r) {
   char buf[1024];
   std::snprintf(buf, sizeof buf,
                 "solver: policy %s, %d assembly thread%s\n"
-                "factor: nnz(L) %.3g, %.3g Mflop, %d factorization%s, mean %.2f ms = %.2f GFLOP/s\n"
+                "factor: nnz(L) %.3g, %.3g Mflop, %d factorization%s%s, mean %.2f ms = %.2f GFLOP/s\n"
                 "solve: %.1f substitutions/frame (median), %.2f ms each = %.2f GB/s (L read twice, counted as doubles)\n"
                 "frame: median = %.1fx the one-substitution bandwidth limit (%.2f ms at %.1f GB/s)\n",
                 r.policy.c_str(), r.threads, r.threads == 1 ? "" : "s", r.nnz_L, r.flops * 1e-6, r.factorizations,
-                r.factorizations == 1 ? "" : "s", r.factor_ms_mean, r.gflops, r.substitutions_per_frame,
+                r.factorizations == 1 ? "" : "s", r.single_precision ? " in single precision" : "", r.factor_ms_mean, r.gflops, r.substitutions_per_frame,
                 r.substitution_ms, r.solve_gbs, r.frame_multiple, r.bandwidth_limit_ms, r.bandwidth_gbs);
   std::string out = buf;
+  if (r.single_fallbacks > 0) {
+    std::snprintf(buf, sizeof buf, "factor: %d single-precision factorization%s met a pivot that was not positive and %s redone by CHOLMOD in double\n",
+                  r.single_fallbacks, r.single_fallbacks == 1 ? "" : "s", r.single_fallbacks == 1 ? "was" : "were");
+    out += buf;
+  }
   const RecyclerStats rs = cholmod_block_recycler_stats();
   if (rs.reused + rs.grown + rs.fresh > 0) {
     std::snprintf(buf, sizeof buf,
@@ -90,6 +97,8 @@ nlohmann::json solver_report_json(const SolverReport& r) {
           {"factorizations", r.factorizations},
           {"factor_ms_mean", r.factor_ms_mean},
           {"gflops", r.gflops},
+          {"single_precision_factorization", r.single_precision},
+          {"single_precision_fallbacks", r.single_fallbacks},
           {"bandwidth_gbs", r.bandwidth_gbs},
           {"bandwidth_limit_ms", r.bandwidth_limit_ms},
           {"frame_bandwidth_multiple", r.frame_multiple}};
@@ -135,6 +144,10 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
                   "lagged: the factor copy the preconditioner substitutes with (none = CHOLMOD's doubles; half = binary16 "
                   "scaled per supernode)")
       ->check(CLI::IsMember({"none", "float", "half"}));
+  cmd->add_option("--factor-precision", o.factor_precision,
+                  "lagged: factor in double (CHOLMOD, then the copy) or in single precision straight into the float "
+                  "copy (solver.factor_precision)")
+      ->check(CLI::IsMember({"double", "single"}));
   cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
   cmd->add_option("--tangent-reuse", o.tangent_reuse,
                   "integrator.tangent_reuse of the policy runs: keep an element's tangent while its F moves less than "
@@ -170,6 +183,9 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (o.single_precision == "false") s.factor_copy = FactorCopy::None;
   if (!o.factor_copy.empty())
     s.factor_copy = o.factor_copy == "half" ? FactorCopy::Half : o.factor_copy == "float" ? FactorCopy::Float : FactorCopy::None;
+  if (!o.factor_precision.empty()) s.single_factorization = o.factor_precision == "single";
+  if (s.single_factorization && s.factor_copy != FactorCopy::Float)
+    throw Error("--factor-precision single factors straight into the float copy: it needs --factor-copy float");
   if (o.threads > 0) s.threads = o.threads;
   if (o.substitution_threads > 0) s.substitution_threads = o.substitution_threads;
   if (o.tangent_reuse >= 0) sim.scene.tangent_reuse = sim.model.tangent_reuse = o.tangent_reuse;

@@ -41,7 +41,10 @@ void print_model_summary(const Simulation& sim) {
                 o.background ? (o.idle_background && o.skip_late_factor ? " on a background thread at idle priority"
                                                                          : " on a background thread")
                              : "",
-                o.warp ? ", warped by the node rotations since" : "", o.factor_copy == FactorCopy::Float ? ", float factor copy" : o.factor_copy == FactorCopy::Half ? ", half-precision factor copy" : "");
+                o.warp ? ", warped by the node rotations since" : "", o.single_factorization            ? ", factored in single precision"
+                : o.factor_copy == FactorCopy::Float ? ", float factor copy"
+                : o.factor_copy == FactorCopy::Half  ? ", half-precision factor copy"
+                                                     : "");
   if (o.policy == SolverPolicy::Lagged && o.background && o.skip_late_factor) std::printf(", late factors skipped");
   if (o.policy == SolverPolicy::Lagged && !sim.scene.cuts.empty())
     std::printf(", %s patch after cuts%s", o.multiplicative_patch ? "multiplicative" : "additive",

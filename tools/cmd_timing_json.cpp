@@ -49,6 +49,8 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
     j["factor"]["gflops"] = r.gflops;
     j["factor"]["factorizations"] = r.factorizations;
     j["factor"]["mean_ms"] = r.factor_ms_mean;
+    j["factor"]["single_precision_factorization"] = r.single_precision;
+    j["factor"]["single_precision_fallbacks"] = r.single_fallbacks;
     j["solve"] = {{"gbs", r.solve_gbs}, {"substitution_ms", r.substitution_ms},
                   {"substitutions_per_frame", r.substitutions_per_frame}};
     j["frame"]["bandwidth_limit_ms"] = r.bandwidth_limit_ms;

@@ -21,6 +21,8 @@ struct SolverReport {
   int factorizations = 0;          // numeric factorizations in the run (all threads)
   double factor_ms_mean = 0;       // their mean wall time
   double gflops = 0;               // flops / factor_ms_mean
+  bool single_precision = false;   // solver.factor_precision "single"
+  int single_fallbacks = 0;        // of those: float pivots that failed, redone by CHOLMOD in double
   double substitutions_per_frame = 0;  // median
   double substitution_ms = 0;      // mean time of one forward+back substitution
   double solve_gbs = 0;            // 2 * 8 bytes * nnz_L / substitution_ms (L read twice)
@@ -53,6 +55,7 @@ struct SolverOverrides {
   bool warp = false;
   std::string single_precision;  // "", "true" or "false"
   std::string factor_copy;       // "", "none", "float" or "half"
+  std::string factor_precision;  // "", "double" or "single"
   std::string late_factor;       // "", "wait" or "skip"
   std::string patch;             // "", "additive" or "multiplicative"
   std::string cut_ordering;      // "", "search" or "carried"

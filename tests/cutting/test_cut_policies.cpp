@@ -21,6 +21,7 @@ struct IncisionRun {
   int carried_frames = 0;    // frames whose front factor was mapped onto a grown DOF set
   int cut_frames = 0;
   int iterations = 0;        // CG iterations over the frames whose factor was mapped
+  int single_factorizations = 0;  // of the final slots (solver.factor_precision "single")
 };
 
 // Beam [0,4]x[0,1]x[0,1] (8x2x2 tet10 cells) clamped at x = 0, a blade sweeping
@@ -55,6 +56,7 @@ IncisionRun incision(const SolverSettings& solver, double tangent_reuse = 0.0, d
     }
   }
   r.u = sim->state.u;
+  r.single_factorizations = sim->state.solver.stats().single_factorizations + sim->state.work.back.stats().single_factorizations;
   return r;
 }
 
@@ -114,6 +116,9 @@ TEST(CutPolicies, ProgressiveCutUnderEveryPolicyMatchesExact) {
   s.carry_ordering = true;
   s.multiplicative_patch = false;
   cases.push_back({"lagged background refresh 2 warp, additive patch", s, true});
+  s.multiplicative_patch = true;
+  s.single_factorization = true;
+  cases.push_back({"lagged background refresh 2 warp, single-precision factorization", s, true});
   SolverSettings w;
   w.policy = SolverPolicy::WarpedCG;
   cases.push_back({"warped_cg", w, false});
@@ -137,6 +142,7 @@ TEST(CutPolicies, ProgressiveCutUnderEveryPolicyMatchesExact) {
       if (c.carries) {
         EXPECT_GT(r.carried_frames, 0) << c.name << ": the old factor was kept through a cut";
       }
+      EXPECT_EQ(r.single_factorizations > 0, c.s.single_factorization) << c.name;
     }
   }
 }

@@ -625,6 +625,20 @@ TEST_F(SceneTest, FactorCopyKeyAndItsOlderSwitch) {
                R"(solver.factor_copy: only used by solver.policy "lagged"; solver.policy is "exact")");
 }
 
+TEST_F(SceneTest, FactorPrecisionKey) {
+  EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.single_factorization);
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_precision": "single"})"), scene_path_)
+                  .solver.single_factorization);
+  EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_precision": "double"})"), scene_path_)
+                   .solver.single_factorization);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "factor_precision": "half"})"),
+                        R"(solver.factor_precision must be one of "double", "single")");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half", "factor_precision": "single"})"),
+               R"(solver.factor_precision: "single" factors straight into the float copy, so solver.factor_copy must be "float" (the default), not "half")");
+  expect_error(minimal(R"("solver": {"factor_precision": "single"})"),
+               R"(solver.factor_precision: only used by solver.policy "lagged"; solver.policy is "exact")");
+}
+
 TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
   Scene s = parse_scene(minimal(R"("integrator": {"tangent": "consistent", "newmark_gamma": 0.6})"), scene_path_);
   EXPECT_TRUE(s.consistent_tangent);

@@ -131,6 +131,8 @@ TEST(SolverPolicies, IterativePoliciesConvergeToExactAsToleranceTightens) {
     s.background = true;
     s.refresh_every = 2;
     cases.push_back({"lagged background refresh 2", s});
+    s.single_factorization = true;  // factored in float (engine/single_factor.h)
+    cases.push_back({"lagged background refresh 2, single-precision factorization", s});
     SolverSettings w;
     w.policy = SolverPolicy::WarpedCG;
     cases.push_back({"warped_cg", w});

@@ -224,6 +224,27 @@ TEST_F(Cli, BenchFactorCopyOption) {
   EXPECT_NE(bad.out.find("--factor-copy"), std::string::npos) << bad.out;
 }
 
+// --factor-precision single reaches the solver: the summary and the factor
+// line say so, the JSON counts no fallback; with --factor-copy half it is
+// refused naming both options.
+TEST_F(Cli, BenchFactorPrecisionOption) {
+  cantilever_scene();
+  const Result r = incise("bench " + path("scene.json") + " --frames 3 --policy lagged --factor-precision single --json " +
+                          path("s.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("factored in single precision"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("factorizations in single precision"), std::string::npos) << r.out;
+  std::ifstream js(path("s.json"));
+  const auto j = nlohmann::json::parse(js);
+  EXPECT_TRUE(j["factor"]["single_precision_factorization"].get<bool>());
+  EXPECT_EQ(j["factor"]["single_precision_fallbacks"].get<int>(), 0);
+  const Result bad =
+      incise("bench " + path("scene.json") + " --frames 1 --policy lagged --factor-precision single --factor-copy half");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("--factor-precision single"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("--factor-copy float"), std::string::npos) << bad.out;
+}
+
 TEST_F(Cli, ComparePrintsTheErrorAtEachFrame) {
   cantilever_scene();
   const Result r = incise("compare " + path("scene.json") + " --policy warped,lagged --frames 1,3 --json " + path("c.json"));

@@ -109,8 +109,9 @@ void BM_Reference(benchmark::State& state, int order, RotationMode rot) {
 // GBps counts L's bytes read twice, 2 * nnz(L) * sizeof(value), as `incise
 // bench` does (with sizeof = 8 for double, 4 for float, 2 for half); GBps_stored counts
 // the supernodal blocks as stored (xsize >= nnz(L)).
-void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, int threads = 1) {
-  const bool single = copy != FactorCopy::None;
+// The dynamic system matrix K0 + 4/dt^2 M (projected) of a tet10 beam of nx x
+// nyz x nyz cells (0.2 x 0.05 x 0.05 m, swing-beam material, clamped at x = 0).
+Model dynamic_beam(int nx, int nyz, std::vector<double>& A) {
   Scene sc = tissue_scene(1e5);
   Region clamp;
   clamp.kind = Region::Kind::Box;
@@ -118,13 +119,21 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, 
   clamp.hi = {1e-9, 1, 1};
   clamp.json_path = "fixed[0]";
   sc.fixed.push_back(clamp);
-  const Model m = build_model(make_beam(0.2, 0.05, 0.05, nx, nyz, nyz, 1), sc);
+  Model m = build_model(make_beam(0.2, 0.05, 0.05, nx, nyz, nyz, 1), sc);
   const int n = m.ndof();
-  std::vector<double> A = m.K0_csc;
+  A = m.K0_csc;
   for (int d = 0; d < n; ++d) A[m.diag[d]] += 4.0 / (m.dt * m.dt) * m.mass_lumped[d];
   for (int k : m.constrained_entries) A[k] = 0.0;
   for (int d = 0; d < n; ++d)
     if (m.constrained[d]) A[m.diag[d]] = 1.0;
+  return m;
+}
+
+void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, int threads = 1) {
+  const bool single = copy != FactorCopy::None;
+  std::vector<double> A;
+  const Model m = dynamic_beam(nx, nyz, A);
+  const int n = m.ndof();
   CholmodSolver f;
   f.set_factor_copy(copy);
   std::unique_ptr<SubstitutionWorker> worker;
@@ -159,6 +168,30 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, 
     state.counters["top_share"] = f.substitution_split().top_share;
     state.counters["balance"] = f.substitution_split().balance;
   }
+}
+
+// One numeric factorization of the dynamic beam system (see dynamic_beam):
+// CHOLMOD in double plus the float copy the lagged policy substitutes with
+// (`cholmod`), or the single-precision factorization straight into that copy
+// (`single`, engine/single_factor.h), both on CHOLMOD's METIS/AMD analysis.
+// GFLOPs: CHOLMOD's flop count of the factorization per second.
+void BM_Factorization(benchmark::State& state, int nx, int nyz, bool single) {
+  std::vector<double> A;
+  const Model m = dynamic_beam(nx, nyz, A);
+  CholmodSolver f;
+  f.set_factor_copy(FactorCopy::Float);
+  f.set_single_factorization(single);
+  f.analyze(m.ndof(), m.Ap, m.Ai);
+  f.factorize(A.data());  // first call allocates
+  for (auto _ : state) {
+    f.factorize(A.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["dofs"] = m.ndof();
+  state.counters["nnz_L"] = f.stats().nnz_L;
+  state.counters["GFLOPs"] = benchmark::Counter(f.stats().flops, benchmark::Counter::kIsIterationInvariantRate,
+                                                benchmark::Counter::OneK::kIs1000);
+  if (f.stats().single_fallbacks) state.SkipWithError("a float pivot was not positive");
 }
 
 // extract_rotation warm-started as between frames: F = Rt S with Rt turned
@@ -333,6 +366,11 @@ BENCHMARK_CAPTURE(BM_Substitution, beam10k_half_2threads, 20, 4, FactorCopy::Hal
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_double_2threads, 28, 5, FactorCopy::None, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_single_2threads, 28, 5, FactorCopy::Float, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_half_2threads, 28, 5, FactorCopy::Half, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+BENCHMARK_CAPTURE(BM_Factorization, beam10k_cholmod, 20, 4, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Factorization, beam10k_single, 20, 4, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Factorization, beam20k_cholmod, 28, 5, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Factorization, beam20k_single, 28, 5, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_CAPTURE(BM_CutRebuild, incision_1s, 1.0)->Unit(benchmark::kMillisecond)->UseRealTime();
 
