@@ -394,9 +394,23 @@ void lagged_patch(const Model& m, State& s, const double* A) {
       Pp.push_back(static_cast<int>(Pi.size()));
     }
     // A's rows at the patch DOFs: entry (r, c), r <= c, is row r's at column c
-    // and, off the diagonal, row c's at column r.
-    std::vector<int> cnt(np + 1, 0);
+    // and, off the diagonal, row c's at column r. Only columns of elements
+    // with a patch node can hold such an entry: scanning those (in column
+    // order, as a scan of every column would) instead of all of A took
+    // about 1 ms of each cut frame at 10k DOF.
+    std::vector<char> col_in(m.ndof(), 0);
+    for (int e = 0; e < m.nelem; ++e) {
+      bool touch = false;
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = node_in[m.elem_dof_node[k]] || unknown[m.elem_dof_node[k]];
+      if (touch)
+        for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+          for (int c = 0; c < 3; ++c) col_in[3 * m.elem_dof_node[k] + c] = 1;
+    }
+    std::vector<int> cols;
     for (int c = 0; c < m.ndof(); ++c)
+      if (col_in[c]) cols.push_back(c);
+    std::vector<int> cnt(np + 1, 0);
+    for (int c : cols)
       for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
         const int r = m.Ai[k];
         if (g2l[r] >= 0) ++cnt[g2l[r] + 1];
@@ -406,7 +420,7 @@ void lagged_patch(const Model& m, State& s, const double* A) {
     w.patch_row_ptr = cnt;
     w.patch_row_col.assign(cnt.back(), 0);
     w.patch_row_k.assign(cnt.back(), 0);
-    for (int c = 0; c < m.ndof(); ++c)
+    for (int c : cols)
       for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
         const int r = m.Ai[k];
         if (g2l[r] >= 0) w.patch_row_col[cnt[g2l[r]]] = c, w.patch_row_k[cnt[g2l[r]]++] = k;

@@ -8,7 +8,9 @@
 # The policy: lagged CG, background factorization taken K frames after it
 # starts (K grows with the factor time), warp, CG tolerance TOL, the float
 # factor copy (REALTIME_COPY=half for binary16: on the incision it let the
-# error against exact reach 8.5e-2 at frame 100, docs/numerics.md), substitutions on two
+# error against exact reach 8.5e-2 at frame 100, docs/numerics.md), factored
+# in single precision straight into that copy (REALTIME_FACTOR_PRECISION=double
+# for CHOLMOD's double factor rounded to float), substitutions on two
 # threads (REALTIME_SUBSTITUTION_THREADS=1 for one), element tangents kept
 # while F moves less than 1e-2 (REALTIME_TANGENT_REUSE=0 turns it off; compare's
 # exact reference always assembles every element), one assembly thread (the
@@ -38,10 +40,12 @@ pace="${PACE:-30}"                          # incise bench --pace (0: frames bac
 copy="${REALTIME_COPY:-float}"              # solver.factor_copy: float, half or none
 reuse="${REALTIME_TANGENT_REUSE:-0.01}"     # integrator.tangent_reuse of the policy runs (0: off; the exact reference never)
 subthreads="${REALTIME_SUBSTITUTION_THREADS:-2}"  # solver.substitution_threads
+precision="${REALTIME_FACTOR_PRECISION:-single}"  # solver.factor_precision (single needs the float copy)
 # name mesh-or-scene K
 # K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
-# CHOLMOD's OpenMP teams were made serial) is taken about K frames after it
-# starts; measured paced at 30 Hz, fifth session (docs/benchmarks.md).
+# CHOLMOD's OpenMP teams were made serial; single precision, eighth session:
+# 32 ms at 10k, 75 ms at 20k, BM_Factorization) is taken about K frames after
+# it starts; measured paced at 30 Hz, fifth session (docs/benchmarks.md).
 cases=(
   "organ-3k organ_3k 1"
   "organ-10k organ_10k 2"
@@ -94,7 +98,7 @@ json.dump(d, open(dst, "w"), indent=1)
 PY
       ;;
   esac
-  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 --rescue-after $rescue --late-factor $late --factor-copy $copy --substitution-threads $subthreads --tangent-reuse $reuse $extra"
+  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 --rescue-after $rescue --late-factor $late --factor-copy $copy --substitution-threads $subthreads --tangent-reuse $reuse --factor-precision $precision $extra"
   echo "compare $name ($frames frames; $opts) ..." >&2
   # shellcheck disable=SC2086
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
@@ -104,7 +108,7 @@ PY
     --trace "$out/$name.trace.csv" >"$out/$name.bench.log" 2>&1 ||
     echo "  failed: see $out/$name.bench.log" >&2
 done
-python3 - "$out" "$tol" "$tangent" "$copy" "$subthreads" "$reuse" "${cases[@]}" <<'PY'
+python3 - "$out" "$tol" "$tangent" "$copy copy, $precision-precision factor" "$subthreads" "$reuse" "${cases[@]}" <<'PY'
 import json, sys
 out, tol, tangent, copy, subthreads, reuse = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5], sys.argv[6]
 print(f"| case | DOF | nnz(L) | exact median ms | policy (CG tol {tol}) | median ms | p99 ms | max ms | cut frames: count, median / p99 / max ms | CG its median (max) | Newton/frame | err @1 | err @30 | err @last |")
@@ -122,7 +126,7 @@ for c in sys.argv[7:]:
     cut = f"{cf['count']}, {cf['median_ms']:.1f} / {cf['p99_ms']:.1f} / {cf['max_ms']:.1f}" if cf["count"] else "-"
     it = b["solver"]["iterations"]
     paced = f", paced {b['pace_hz']:g} Hz" if b.get("pace_hz") else ""
-    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp, tangent {tangent}, {copy} copy, {subthreads}-thread subst., reuse {reuse}{paced} | "
+    print(f"| {name} | {b['dof']} | {j['exact']['nnz_L']:.3g} | {j['exact']['frame_median_ms']:.1f} | lagged k={k}, background, warp, tangent {tangent}, {copy}, {subthreads}-thread subst., reuse {reuse}{paced} | "
           f"{b['frame']['median_ms']:.1f} | {b['frame']['p99_ms']:.1f} | {b['frame']['max_ms']:.1f} | {cut} | {it['median']:.0f} ({it['max']:.0f}) | "
           f"{b['newton']['mean']:.2f} | {e.get(1, float('nan')):.1e} | {e.get(30, float('nan')):.1e} | {e.get(last, float('nan')):.1e} ({last}) |")
 PY
