@@ -66,11 +66,14 @@ void warped_apply(const Model& m, State& s, const double* b, double* x) {
   }
 }
 
-// Preconditioned CG on A x = b from x = 0 to |r| <= tol |b|. Records iterations,
-// residual and convergence in state.timing.
+// Preconditioned CG on A x = b to |r| <= tol |b|, from x = 0 or, with x0
+// (solver.initial_guess "previous"), from x = alpha x0 with the alpha that
+// minimises |b - alpha A x0| (one product more; never a larger residual than
+// x = 0). Records iterations, the starting and final residual and
+// convergence in state.timing.
 template <class Precond>
 void pcg(const Model& m, State& s, const double* A, const double* b, double* x, const Precond& precond,
-         int max_iterations) {
+         int max_iterations, const double* x0 = nullptr) {
   auto& w = s.work;
   const int n = m.ndof();
   std::vector<double>& r = w.r;
@@ -83,6 +86,30 @@ void pcg(const Model& m, State& s, const double* A, const double* b, double* x, 
   s.timing.residual = 0.0;
   s.timing.converged = true;
   if (bnorm == 0.0) return;
+  if (x0) {
+    // min over alpha of |b - alpha q|^2, q = A x0: alpha = (b.q)/(q.q), |r|^2 = |b|^2 - alpha (b.q).
+    sym_matvec_parallel(m, w.plan, *w.pool, A, x0, q.data());
+    double bq = 0.0, qq = 0.0;
+    for (int i = 0; i < n; ++i) bq += b[i] * q[i], qq += q[i] * q[i];
+    const double alpha = qq > 0.0 && std::isfinite(bq / qq) ? bq / qq : 0.0;
+    if (alpha != 0.0) {
+      double rr = 0.0;
+      for (int i = 0; i < n; ++i) {
+        r[i] = b[i] - alpha * q[i];
+        rr += r[i] * r[i];
+      }
+      if (std::sqrt(rr) < bnorm) {
+        for (int i = 0; i < n; ++i) x[i] = alpha * x0[i];
+        s.timing.start_residual = std::sqrt(rr) / bnorm;
+        if (s.timing.start_residual <= m.solver.tolerance) {
+          s.timing.residual = s.timing.start_residual;
+          return;
+        }
+      } else {
+        std::copy(b, b + n, r.begin());  // roundoff made it no better: from 0
+      }
+    }
+  }
   const double tol = m.solver.tolerance;
   precond(r.data(), z.data());
   p = z;
@@ -523,6 +550,17 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
     s.factor_current = false;
   }
   for (auto* v : {&w.r, &w.z, &w.p, &w.q, &w.t, &w.ms_r, &w.ms_z}) v->assign(n, 0.0);
+  if (dofnode_map && !w.guess.empty()) {  // a cut: the start follows its DOF nodes, 0 on new ones
+    std::vector<double> old = std::move(w.guess);
+    w.guess.assign(n, 0.0);
+    for (int node = 0; node < m.ndofnode; ++node) {
+      const int o = (*dofnode_map)[node];
+      if (o >= 0 && 3 * static_cast<size_t>(o) + 3 <= old.size())
+        for (int c = 0; c < 3; ++c) w.guess[3 * node + c] = old[3 * o + c];
+    }
+  } else if (!dofnode_map) {
+    w.guess.clear();
+  }
   // Node -> rotation slot adjacency for the warped policies.
   w.node_rot_ptr.assign(m.ndofnode + 1, 0);
   w.node_rot.clear();
@@ -618,8 +656,13 @@ void solve_system(const Model& m, State& s, const double* K, int iteration, Stop
         const auto precond = [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); };
         const int rescue = m.solver.rescue_after;
         const bool converged_before = s.timing.converged;
+        // The first Newton iteration's increment alternates in sign between
+        // frames (the trapezoidal rule's undamped sawtooth about the
+        // constant-velocity predictor): the last one, scaled, starts CG close.
+        auto& guess = s.work.guess;
+        const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
         pcg(m, s, s.A.data(), s.rhs.data(), du, precond,
-            rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations);
+            rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations, use_guess ? guess.data() : nullptr);
         if (rescue > 0 && !s.timing.converged && rescue < m.solver.max_iterations) {
           // The lagged factor is too far from A (fast large rotations): factor
           // A now, synchronously (waiting for a running background job), and
@@ -634,6 +677,7 @@ void solve_system(const Model& m, State& s, const double* K, int iteration, Stop
           s.timing.converged = converged_before;
           pcg(m, s, s.A.data(), s.rhs.data(), du, precond, m.solver.max_iterations);
         }
+        if (iteration == 0 && m.solver.previous_guess) s.work.guess.assign(du, du + m.ndof());
         break;
       }
     case SolverPolicy::Warped:
@@ -646,9 +690,14 @@ void solve_system(const Model& m, State& s, const double* K, int iteration, Stop
       form_matrix(m, K, s.A.data());
       update_node_rotations(m, s);
       s.timing.ms[kStageAssembly] += clock.lap();
-      pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, s, r, z); },
-          m.solver.max_iterations);
-      break;
+      {
+        auto& guess = s.work.guess;
+        const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
+        pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, s, r, z); },
+            m.solver.max_iterations, use_guess ? guess.data() : nullptr);
+        if (iteration == 0 && m.solver.previous_guess) guess.assign(du, du + m.ndof());
+        break;
+      }
   }
   s.timing.ms[kStageSolve] += clock.lap();
 }

@@ -407,7 +407,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   p.object(v, at);
   p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
-                         "factorization", "ordering", "factor_precision"});
+                         "factorization", "ordering", "factor_precision", "initial_guess"});
   SolverSettings& o = s.solver;
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
@@ -444,6 +444,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   }
   if (auto it = v.find("max_iterations"); it != v.end())
     o.max_iterations = p.at_least_one(*it, at + ".max_iterations");
+  if (auto it = v.find("initial_guess"); it != v.end())
+    o.previous_guess = p.choice(*it, at + ".initial_guess", {"zero", "previous"}) == 1;
   if (auto it = v.find("threads"); it != v.end()) {
     o.threads = p.at_least_one(*it, at + ".threads");
     if (o.threads > 64) p.fail(at + ".threads", " must be an integer in [1, 64], got " + show(*it));
@@ -457,7 +459,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("ordering"); it != v.end())
     o.ordering = static_cast<OrderingMethod>(p.choice(*it, at + ".ordering", {"auto", "amd", "metis"}));
   const bool iterative = o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG;
-  for (const char* k : {"tolerance", "max_iterations"})
+  for (const char* k : {"tolerance", "max_iterations", "initial_guess"})
     if (v.contains(k) && !iterative)
       p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");

@@ -89,6 +89,7 @@ struct SolverSettings {
   bool carry_ordering = true;        // lagged after cuts: solver.cut_ordering "carried" (true) or "search"
   bool idle_background = true;       // lagged, background: solver.background_priority "idle" (true) or "normal"
   double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
+  bool previous_guess = true;  // CG: solver.initial_guess "previous" (the last frame's increment, scaled) or "zero"
   int max_iterations = 50;     // CG iterations per solve (>= 1)
   int threads = 2;             // assembly workers incl. the calling thread (>= 1)
   int substitution_threads = 1;  // 1 or 2: threads of each substitution with a supernodal factor

@@ -81,6 +81,9 @@ struct SolverWork {
   std::vector<char> node_identity;   // (ndofnode) 1 where 1 or 2 components are constrained: R = I keeps the projection
 
   std::vector<double> r, z, p, q, t;  // (ndof) CG work
+  // (ndof, or empty) CG's start for the next frame's first Newton iteration:
+  // this frame's first increment du (mapped through a cut; 0 on new DOFs).
+  std::vector<double> guess;
 
   SolverWork() = default;
   SolverWork(const SolverWork&) = delete;

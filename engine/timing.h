@@ -32,6 +32,7 @@ struct FrameTiming {
   int solves = 0;             // forward+back substitutions with a Cholesky factor
   double solve_kernel_ms = 0; // time inside those substitutions
   double residual = 0;        // last relative residual |A du - b| / |b| of CG (0 when direct)
+  double start_residual = 1;  // CG's relative residual at its start (< 1: solver.initial_guess "previous" helped)
   bool converged = true;      // CG reached solver.tolerance within solver.max_iterations
   int rescues = 0;            // lagged: synchronous refactorizations after solver.rescue_after CG iterations
   int factor_age = 0;         // lagged: frames since the matrix of the preconditioning factor (last Newton iteration)

@@ -148,6 +148,10 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
                   "lagged: factor in double (CHOLMOD, then the copy) or in single precision straight into the float "
                   "copy (solver.factor_precision)")
       ->check(CLI::IsMember({"double", "single"}));
+  cmd->add_option("--initial-guess", o.initial_guess,
+                  "CG's start in the first Newton iteration: zero, or the last frame's increment scaled to the best "
+                  "fit (solver.initial_guess)")
+      ->check(CLI::IsMember({"zero", "previous"}));
   cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
   cmd->add_option("--tangent-reuse", o.tangent_reuse,
                   "integrator.tangent_reuse of the policy runs: keep an element's tangent while its F moves less than "
@@ -183,6 +187,7 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (o.single_precision == "false") s.factor_copy = FactorCopy::None;
   if (!o.factor_copy.empty())
     s.factor_copy = o.factor_copy == "half" ? FactorCopy::Half : o.factor_copy == "float" ? FactorCopy::Float : FactorCopy::None;
+  if (!o.initial_guess.empty()) s.previous_guess = o.initial_guess == "previous";
   if (!o.factor_precision.empty()) s.single_factorization = o.factor_precision == "single";
   if (s.single_factorization && s.factor_copy != FactorCopy::Float)
     throw Error("--factor-precision single factors straight into the float copy: it needs --factor-copy float");

@@ -35,7 +35,8 @@ void print_model_summary(const Simulation& sim) {
   if (o.substitution_threads > 1) std::printf(", substitutions on %d threads", o.substitution_threads);
   if (m.tangent_reuse > 0) std::printf(", element tangents kept while F moves < %g", m.tangent_reuse);
   if (o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG)
-    std::printf(", CG tolerance %.3g, max %d iterations", o.tolerance, o.max_iterations);
+    std::printf(", CG tolerance %.3g, max %d iterations, starting from %s", o.tolerance, o.max_iterations,
+                o.previous_guess ? "the last frame's increment" : "zero");
   if (o.policy == SolverPolicy::Lagged)
     std::printf(", refresh every %d frame(s)%s%s%s", o.refresh_every,
                 o.background ? (o.idle_background && o.skip_late_factor ? " on a background thread at idle priority"

@@ -56,6 +56,7 @@ struct SolverOverrides {
   std::string single_precision;  // "", "true" or "false"
   std::string factor_copy;       // "", "none", "float" or "half"
   std::string factor_precision;  // "", "double" or "single"
+  std::string initial_guess;     // "", "zero" or "previous"
   std::string late_factor;       // "", "wait" or "skip"
   std::string patch;             // "", "additive" or "multiplicative"
   std::string cut_ordering;      // "", "search" or "carried"

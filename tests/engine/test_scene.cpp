@@ -625,6 +625,16 @@ TEST_F(SceneTest, FactorCopyKeyAndItsOlderSwitch) {
                R"(solver.factor_copy: only used by solver.policy "lagged"; solver.policy is "exact")");
 }
 
+TEST_F(SceneTest, InitialGuessKey) {
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.previous_guess);
+  EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "warped_cg", "initial_guess": "zero"})"), scene_path_)
+                   .solver.previous_guess);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "initial_guess": "last"})"),
+                        R"(solver.initial_guess must be one of "zero", "previous")");
+  expect_error(minimal(R"("solver": {"initial_guess": "zero"})"),
+               R"(solver.initial_guess: only used by the iterative policies "lagged" and "warped_cg"; solver.policy is "exact")");
+}
+
 TEST_F(SceneTest, FactorPrecisionKey) {
   EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.single_factorization);
   EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_precision": "single"})"), scene_path_)

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -245,6 +246,50 @@ TEST(SolverPolicies, LaggedRefreshEveryFrameIsOneIterationPerFrame) {
   std::vector<int> its;
   run_swing(s, 10, &its);
   for (int i : its) EXPECT_EQ(i, 1);
+}
+
+// solver.initial_guess "previous": CG starts from the last frame's first
+// increment scaled to the best fit. It never starts above |b| (the frames
+// it helps start below 1), saves iterations over a swinging run at the same
+// tolerance, and both starts reach the same trajectory within it.
+TEST(SolverPolicies, PreviousIncrementStartSavesIterationsAndKeepsTheTrajectory) {
+  const int frames = 30;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  for (SolverPolicy policy : {SolverPolicy::Lagged, SolverPolicy::WarpedCG}) {
+    SolverSettings s;
+    s.policy = policy;
+    s.refresh_every = 4;
+    s.tolerance = 1e-4;
+    s.max_iterations = 500;
+    int total[2] = {0, 0};
+    std::vector<double> u[2];
+    for (int g = 0; g < 2; ++g) {
+      s.previous_guess = g == 1;
+      const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+      const Model m = build_model(mesh, swing_scene(s));
+      State st;
+      init_state(m, st);
+      int helped = 0;
+      for (int k = 0; k < frames; ++k) {
+        step(m, st);
+        total[g] += st.timing.iterations;
+        EXPECT_LE(st.timing.start_residual, 1.0);
+        helped += st.timing.start_residual < 1.0;
+        EXPECT_TRUE(st.timing.converged);
+      }
+      if (g == 0) {
+        EXPECT_EQ(helped, 0) << "no start but zero without the guess";
+      } else {
+        EXPECT_GE(helped, frames / 2) << policy_name(policy);
+      }
+      u[g] = st.u;
+    }
+    std::printf("[ %s: %d CG iterations from zero, %d from the last increment ]\n", policy_name(policy), total[0], total[1]);
+    EXPECT_LT(total[1], total[0]) << policy_name(policy);
+    // Both within the tolerance's reach of exact (errors ~1e-5 at 1e-4).
+    EXPECT_LT(test::rel_diff(u[0], exact), 1e-3) << policy_name(policy);
+    EXPECT_LT(test::rel_diff(u[1], exact), 1e-3) << policy_name(policy);
+  }
 }
 
 TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
