@@ -2,7 +2,8 @@
 // assembly (not part of ctest). Per element: rotation extraction (warm-started
 // polar), internal force, stiffness blocks and the scatter into the global
 // pattern. Also the supernodal forward+back substitution with the double
-// factor and with its float and binary16 copies (BM_Substitution).
+// factor and with its float and binary16 copies (BM_Substitution), and one
+// numeric factorization by CHOLMOD or in single precision (BM_Factorization).
 // Run: build/tools/incise_microbench [--benchmark_filter=...]
 #include <algorithm>
 #include <cmath>
