@@ -458,6 +458,9 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     o.factor = static_cast<FactorMethod>(p.choice(*it, at + ".factorization", {"auto", "supernodal", "simplicial"}));
   if (auto it = v.find("ordering"); it != v.end())
     o.ordering = static_cast<OrderingMethod>(p.choice(*it, at + ".ordering", {"auto", "amd", "metis"}));
+  if (o.single_factorization && o.factor == FactorMethod::Simplicial)
+    p.fail(at + ".factor_precision", ": \"single\" factors supernodes; solver.factorization \"simplicial\" has none "
+                                     "(use \"supernodal\" or \"auto\")");
   const bool iterative = o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG;
   for (const char* k : {"tolerance", "max_iterations", "initial_guess"})
     if (v.contains(k) && !iterative)

@@ -23,6 +23,7 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
   if (r.factorizations > 0) r.factor_ms_mean = total_ms / r.factorizations;
   if (r.factor_ms_mean > 0) r.gflops = r.flops / (r.factor_ms_mean * 1e-3) * 1e-9;
   r.single_precision = f.single_precision;
+  r.single_factorizations = f0.single_factorizations + st.work.back.stats().single_factorizations;
   r.single_fallbacks = f0.single_fallbacks + st.work.back.stats().single_fallbacks;
   std::vector<double> subs, its;
   double sub_ms = 0;
@@ -49,13 +50,15 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
 
 std::string format_solver_report(const SolverReport& r) {
   char buf[1024];
+  char single[64] = "";
+  if (r.single_precision) std::snprintf(single, sizeof single, " (%d in single precision)", r.single_factorizations);
   std::snprintf(buf, sizeof buf,
                 "solver: policy %s, %d assembly thread%s\n"
                 "factor: nnz(L) %.3g, %.3g Mflop, %d factorization%s%s, mean %.2f ms = %.2f GFLOP/s\n"
                 "solve: %.1f substitutions/frame (median), %.2f ms each = %.2f GB/s (L read twice, counted as doubles)\n"
                 "frame: median = %.1fx the one-substitution bandwidth limit (%.2f ms at %.1f GB/s)\n",
                 r.policy.c_str(), r.threads, r.threads == 1 ? "" : "s", r.nnz_L, r.flops * 1e-6, r.factorizations,
-                r.factorizations == 1 ? "" : "s", r.single_precision ? " in single precision" : "", r.factor_ms_mean, r.gflops, r.substitutions_per_frame,
+                r.factorizations == 1 ? "" : "s", single, r.factor_ms_mean, r.gflops, r.substitutions_per_frame,
                 r.substitution_ms, r.solve_gbs, r.frame_multiple, r.bandwidth_limit_ms, r.bandwidth_gbs);
   std::string out = buf;
   if (r.single_fallbacks > 0) {
@@ -98,6 +101,7 @@ nlohmann::json solver_report_json(const SolverReport& r) {
           {"factor_ms_mean", r.factor_ms_mean},
           {"gflops", r.gflops},
           {"single_precision_factorization", r.single_precision},
+          {"single_precision_factorizations", r.single_factorizations},
           {"single_precision_fallbacks", r.single_fallbacks},
           {"bandwidth_gbs", r.bandwidth_gbs},
           {"bandwidth_limit_ms", r.bandwidth_limit_ms},
@@ -191,6 +195,8 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (!o.factor_precision.empty()) s.single_factorization = o.factor_precision == "single";
   if (s.single_factorization && s.factor_copy != FactorCopy::Float)
     throw Error("--factor-precision single factors straight into the float copy: it needs --factor-copy float");
+  if (!o.factorization.empty() && o.factorization == "simplicial" && s.single_factorization)
+    throw Error("--factor-precision single factors supernodes: it cannot go with --factorization simplicial");
   if (o.threads > 0) s.threads = o.threads;
   if (o.substitution_threads > 0) s.substitution_threads = o.substitution_threads;
   if (o.tangent_reuse >= 0) sim.scene.tangent_reuse = sim.model.tangent_reuse = o.tangent_reuse;

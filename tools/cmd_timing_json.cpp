@@ -51,6 +51,7 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
     j["factor"]["mean_ms"] = r.factor_ms_mean;
     j["factor"]["single_precision_factorization"] = r.single_precision;
     j["factor"]["single_precision_fallbacks"] = r.single_fallbacks;
+    j["factor"]["single_precision_factorizations"] = r.single_factorizations;
     j["solve"] = {{"gbs", r.solve_gbs}, {"substitution_ms", r.substitution_ms},
                   {"substitutions_per_frame", r.substitutions_per_frame}};
     j["frame"]["bandwidth_limit_ms"] = r.bandwidth_limit_ms;

@@ -22,6 +22,7 @@ struct SolverReport {
   double factor_ms_mean = 0;       // their mean wall time
   double gflops = 0;               // flops / factor_ms_mean
   bool single_precision = false;   // solver.factor_precision "single"
+  int single_factorizations = 0;   // of `factorizations`: done in float
   int single_fallbacks = 0;        // of those: float pivots that failed, redone by CHOLMOD in double
   double substitutions_per_frame = 0;  // median
   double substitution_ms = 0;      // mean time of one forward+back substitution

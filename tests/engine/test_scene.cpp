@@ -645,6 +645,8 @@ TEST_F(SceneTest, FactorPrecisionKey) {
                         R"(solver.factor_precision must be one of "double", "single")");
   expect_error(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half", "factor_precision": "single"})"),
                R"(solver.factor_precision: "single" factors straight into the float copy, so solver.factor_copy must be "float" (the default), not "half")");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "factor_precision": "single", "factorization": "simplicial"})"),
+               R"(solver.factor_precision: "single" factors supernodes; solver.factorization "simplicial" has none (use "supernodal" or "auto"))");
   expect_error(minimal(R"("solver": {"factor_precision": "single"})"),
                R"(solver.factor_precision: only used by solver.policy "lagged"; solver.policy is "exact")");
 }
