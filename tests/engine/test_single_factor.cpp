@@ -147,32 +147,8 @@ int copy_preconditioned_cg(FactorCopy copy, double* rel_out) {
   f.analyze(n, m.Ap, m.Ai);
   f.factorize(A.data());
   const std::vector<double> b = random_vector(n, 7);
-  std::vector<double> x(n, 0.0), r = b, z(n), p(n), q(n);
-  auto dot = [](const std::vector<double>& a, const std::vector<double>& c) {
-    double s = 0;
-    for (size_t i = 0; i < a.size(); ++i) s += a[i] * c[i];
-    return s;
-  };
-  f.solve_copy(r.data(), z.data());
-  p = z;
-  double rz = dot(r, z), rel = 1;
-  int it = 0;
-  while (it < 20 && rel > 1e-12) {
-    sym_matvec(m, A.data(), p.data(), q.data());
-    ++it;
-    const double alpha = rz / dot(p, q);
-    for (int i = 0; i < n; ++i) {
-      x[i] += alpha * p[i];
-      r[i] -= alpha * q[i];
-    }
-    rel = norm(r) / norm(b);
-    f.solve_copy(r.data(), z.data());
-    const double rz_new = dot(r, z);
-    for (int i = 0; i < n; ++i) p[i] = z[i] + rz_new / rz * p[i];
-    rz = rz_new;
-  }
-  *rel_out = rel;
-  return it;
+  return test::preconditioned_cg(
+      m, A, b, [&](const double* r, double* z) { f.solve_copy(r, z); }, 20, 1e-12, rel_out);
 }
 
 TEST(SingleFactor, PreconditionedCGConvergesToDoublePrecision) {

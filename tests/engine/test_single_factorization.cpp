@@ -155,28 +155,9 @@ TEST(SingleFactorization, PreconditionedCGConvergesToDoublePrecision) {
   f.analyze(n, m.Ap, m.Ai);
   f.factorize(A.data());
   const std::vector<double> b = random_vector(n, 7);
-  std::vector<double> x(n, 0.0), r = b, z(n), p(n), q(n);
-  auto dot = [](const std::vector<double>& a, const std::vector<double>& c) {
-    double s = 0;
-    for (size_t i = 0; i < a.size(); ++i) s += a[i] * c[i];
-    return s;
-  };
-  const double nb = std::sqrt(dot(b, b));
-  f.solve(r.data(), z.data());
-  p = z;
-  double rz = dot(r, z), rel = 1;
-  int it = 0;
-  while (it < 30 && rel > 1e-12) {
-    sym_matvec(m, A.data(), p.data(), q.data());
-    ++it;
-    const double alpha = rz / dot(p, q);
-    for (int i = 0; i < n; ++i) x[i] += alpha * p[i], r[i] -= alpha * q[i];
-    rel = std::sqrt(dot(r, r)) / nb;
-    f.solve(r.data(), z.data());
-    const double rz_new = dot(r, z);
-    for (int i = 0; i < n; ++i) p[i] = z[i] + rz_new / rz * p[i];
-    rz = rz_new;
-  }
+  double rel = 1;
+  const int it = test::preconditioned_cg(
+      m, A, b, [&](const double* r, double* z) { f.solve(r, z); }, 30, 1e-12, &rel);
   std::printf("[ CG with the single-precision factor: %d iterations to %.2g ]\n", it, rel);
   EXPECT_LE(rel, 1e-12);
   EXPECT_LE(it, 8);

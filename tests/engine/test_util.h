@@ -7,6 +7,7 @@
 
 #include <Eigen/Dense>
 
+#include "engine/assemble.h"
 #include "engine/mesh_tools.h"
 #include "engine/model.h"
 #include "engine/scene.h"
@@ -87,6 +88,39 @@ inline std::vector<double> random_vector(int n, unsigned seed) {
   std::vector<double> v(n);
   for (double& x : v) x = U(rng);
   return v;
+}
+
+// CG on A x = b from x = 0, preconditioned by precond(r, z) (z = P r), until
+// |r| <= tol |b| or max_iterations; returns the iterations, *rel_out the
+// final relative residual.
+template <class Precond>
+int preconditioned_cg(const Model& m, const std::vector<double>& A, const std::vector<double>& b,
+                      const Precond& precond, int max_iterations, double tol, double* rel_out) {
+  const int n = m.ndof();
+  std::vector<double> x(n, 0.0), r = b, z(n), p(n), q(n);
+  auto dot = [](const std::vector<double>& a, const std::vector<double>& c) {
+    double s = 0;
+    for (size_t i = 0; i < a.size(); ++i) s += a[i] * c[i];
+    return s;
+  };
+  const double nb = std::sqrt(dot(b, b));
+  precond(r.data(), z.data());
+  p = z;
+  double rz = dot(r, z), rel = 1;
+  int it = 0;
+  while (it < max_iterations && rel > tol) {
+    sym_matvec(m, A.data(), p.data(), q.data());
+    ++it;
+    const double alpha = rz / dot(p, q);
+    for (int i = 0; i < n; ++i) x[i] += alpha * p[i], r[i] -= alpha * q[i];
+    rel = std::sqrt(dot(r, r)) / nb;
+    precond(r.data(), z.data());
+    const double rz_new = dot(r, z);
+    for (int i = 0; i < n; ++i) p[i] = z[i] + rz_new / rz * p[i];
+    rz = rz_new;
+  }
+  *rel_out = rel;
+  return it;
 }
 
 // A swinging tet10 cantilever 2 x 0.4 x 0.4 (E = 2e4, nu = 0.4, rho = 1,
