@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 
+#include "engine/node_block_matvec.h"
 #include "engine/polar.h"
 #include "engine/rotation_stiffness.h"
 
@@ -146,18 +147,8 @@ void assemble_internal(const Model& m, const double* u, const double* R, double*
 }
 
 void sym_matvec(const Model& m, const double* A, const double* x, double* y) {
-  const int n = m.ndof();
-  std::fill(y, y + n, 0.0);
-  for (int c = 0; c < n; ++c) {
-    double acc = 0.0;
-    const double xc = x[c];
-    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
-      const int r = m.Ai[k];
-      acc += A[k] * x[r];
-      if (r != c) y[r] += A[k] * xc;
-    }
-    y[c] += acc;
-  }
+  std::fill(y, y + m.ndof(), 0.0);
+  node_block_matvec(m.Ap.data(), m.Ai.data(), A, x, 0, m.ndofnode, 0, y, y);
 }
 
 void element_von_mises(const Model& m, const double* u, const double* R, double* vm) {

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 
 #include "engine/assemble.h"
+#include "engine/node_block_matvec.h"
 #include "engine/polar.h"
 #include "engine/rotation_stiffness.h"
 
@@ -114,13 +115,14 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
         all = all && m.rot_K0_ptr[p.elem_rot[k] + 1] > m.rot_K0_ptr[p.elem_rot[k]];
       p.elem_condensed[e] = all;
     }
-  // sym_matvec: column ranges of about equal nnz; workers t > 0 scatter into their own buffer.
+  // sym_matvec: ranges of whole node columns (node_block_matvec) of about
+  // equal nnz; workers t > 0 scatter into their own buffer.
   p.matvec_col_ptr.assign(T + 1, m.ndof());
   p.matvec_col_ptr[0] = 0;
   for (int t = 1, c = 0; t < T; ++t) {
     const long long target = static_cast<long long>(m.nnz()) * t / T;
-    while (c < m.ndof() && m.Ap[c] < target) ++c;
-    p.matvec_col_ptr[t] = c;
+    while (c < m.ndof() && m.Ap[c] < target) c += 3;
+    p.matvec_col_ptr[t] = std::min(c, m.ndof());
   }
   p.matvec_buf.assign(T, std::vector<double>());
   for (int t = 1; t < T; ++t) p.matvec_buf[t].assign(m.ndof(), 0.0);
@@ -534,24 +536,7 @@ void sym_matvec_parallel(const Model& m, AssemblyPlan& plan, ThreadPool& pool, c
     else std::fill(ys, ys + c0, 0.0);
     std::fill(y + c0, y + c1, 0.0);
     pool.barrier();
-    for (int c = c0; c < c1; ++c) {
-      double acc = 0.0;
-      const double xc = x[c];
-      int k = m.Ap[c];
-      const int kend = m.Ap[c + 1];
-      for (; k < kend; ++k) {
-        const int r = m.Ai[k];
-        if (r >= c0) break;
-        acc += A[k] * x[r];
-        ys[r] += A[k] * xc;
-      }
-      for (; k < kend; ++k) {
-        const int r = m.Ai[k];
-        acc += A[k] * x[r];
-        if (r != c) y[r] += A[k] * xc;
-      }
-      y[c] += acc;
-    }
+    node_block_matvec(m.Ap.data(), m.Ai.data(), A, x, c0 / 3, c1 / 3, c0, ys, y);
     pool.barrier();
     // Merge the buffers: rows [0, c0_t) of worker t's buffer.
     int b, e;

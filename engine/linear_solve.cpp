@@ -25,10 +25,11 @@ void form_matrix(const Model& m, const double* K, double* A) {
   const NewmarkCoefficients c = newmark_coefficients(m);
   const double cM = c.cM, cK = c.cK;
   for (int k = 0; k < m.nnz(); ++k) A[k] = cK * K[k];
-  if (!m.mass_csc.empty()) {  // consistent, or lumped with X-FEM couplings
+  if (m.mass_kind == MassKind::Consistent) {
     for (int k = 0; k < m.nnz(); ++k) A[k] += cM * m.mass_csc[k];
-  } else {
+  } else {  // lumped: the diagonal and, with X-FEM, the u-q couplings (Model::mass_coupling)
     for (int d = 0; d < m.ndof(); ++d) A[m.diag[d]] += cM * m.mass_lumped[d];
+    for (int k : m.mass_coupling) A[k] += cM * m.mass_csc[k];
   }
   for (int k : m.constrained_entries) A[k] = 0.0;
   for (int d = 0; d < m.ndof(); ++d)

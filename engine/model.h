@@ -92,6 +92,10 @@ struct Model {
   std::vector<double> mass_lumped; // (ndof) lumped nodal masses (HRZ for tet10); the mass when mass_csc is empty
   std::vector<double> mass_csc;    // (nnz) the mass matrix in the pattern when not diagonal
                                    // (consistent, or lumped with enrichment)
+  std::vector<int> mass_coupling;  // lumped with enrichment: positions in Ai of mass_csc's nonzeros off the
+                                   // diagonal (the u-q couplings, all in enriched columns); with mass_lumped
+                                   // as the diagonal they are the whole matrix (mass_matvec, form_matrix)
+  std::vector<int> mass_coupling_col;  // the column of each
   std::vector<double> f_gravity;   // (ndof) M g: exact free fall for either mass
   std::vector<double> K0_csc;      // (nnz) rest stiffness (R = I): filled for the linear model, the warped
                                    // policies and every model built without a base; a cut rebuild of

@@ -680,6 +680,19 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
   }
   if (incremental && sparse)
     for (int d = 0; d < nstd; ++d) m.mass_csc[m.diag[d]] = m.mass_lumped[d];
+  // Lumped: the standard block is diagonal (add(a, a) only above), so the
+  // off-diagonal nonzeros are the u-q couplings in the enriched columns, and
+  // the diagonal is mass_lumped (the same sums in the same order). Products
+  // with M then cost O(ndof) instead of a pass over the whole pattern.
+  m.mass_coupling.clear();
+  m.mass_coupling_col.clear();
+  if (lumped && sparse)
+    for (int c = nstd; c < m.ndof(); ++c)
+      for (int k = m.Ap[c]; k < m.diag[c]; ++k)
+        if (m.mass_csc[k] != 0.0) {
+          m.mass_coupling.push_back(k);
+          m.mass_coupling_col.push_back(c);
+        }
   // Gravity load f = M g with g on the standard DOFs only: the field u = g t^2/2,
   // q = 0 is exact free fall for every piece.
   m.f_gravity.assign(m.ndof(), 0.0);

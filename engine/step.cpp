@@ -12,10 +12,16 @@
 namespace incise {
 
 void mass_matvec(const Model& m, const double* x, double* y) {
-  if (!m.mass_csc.empty()) {
+  if (m.mass_kind == MassKind::Consistent) {
     sym_matvec(m, m.mass_csc.data(), x, y);
-  } else {
-    for (int d = 0; d < m.ndof(); ++d) y[d] = m.mass_lumped[d] * x[d];
+    return;
+  }
+  // lumped: the diagonal, and with enrichment the u-q couplings (Model::mass_coupling)
+  for (int d = 0; d < m.ndof(); ++d) y[d] = m.mass_lumped[d] * x[d];
+  for (size_t t = 0; t < m.mass_coupling.size(); ++t) {
+    const int k = m.mass_coupling[t], r = m.Ai[k], c = m.mass_coupling_col[t];
+    y[r] += m.mass_csc[k] * x[c];
+    y[c] += m.mass_csc[k] * x[r];
   }
 }
 
@@ -127,9 +133,9 @@ void step(const Model& m, State& s) {
     }
     // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
     for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
-    if (m.mass_csc.empty()) {
-      mass_matvec(m, a1, s.rhs.data());
-    } else {  // consistent, or lumped with X-FEM couplings: a sparse product, on the workers
+    if (m.mass_kind == MassKind::Lumped) {
+      mass_matvec(m, a1, s.rhs.data());  // O(ndof), X-FEM couplings included
+    } else {  // consistent: a sparse product, on the workers
       sym_matvec_parallel(m, s.work.plan, *s.work.pool, m.mass_csc.data(), a1, s.rhs.data());
     }
     for (int d = 0; d < n; ++d) s.rhs[d] = m.f_gravity[d] - s.f_int[d] - s.rhs[d];

@@ -24,6 +24,7 @@ struct FrameTiming {
   std::array<double, kNumStages> ms{};  // per stage
   std::array<double, kNumCutParts> cut_ms{};  // parts of ms[kStageCutting] (cut frames)
   double frame_ms = 0.0;                // whole frame, wall clock
+  double cpu_ms = 0.0;                  // CPU time of the stepping thread in the frame (frame_ms - cpu_ms: time it waited or was preempted)
   bool cut_frame = false;               // the DOF set changed this frame (new symbolic analysis)
   bool cut_ahead = false;               // its layout and model were prepared during the previous frame
   int newton = 0;                       // linearised solves (Newton iterations) this frame

@@ -1,3 +1,5 @@
+#include <ctime>
+
 #include "cutting/cut_apply.h"
 #include "cutting/cut_surface.h"
 #include "engine/error.h"
@@ -6,8 +8,17 @@
 
 namespace incise {
 
+namespace {
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
+}
+}  // namespace
+
 FrameTiming advance_frame(Simulation& sim) {
   Stopwatch clock;
+  const double cpu0 = thread_cpu_ms();
   CutUpdate cut;
   if (!sim.scene.cuts.empty()) {
     cut = update_cuts(sim, sim.state.time, sim.state.time + sim.model.dt);
@@ -23,6 +34,7 @@ FrameTiming advance_frame(Simulation& sim) {
   t.cut_frame = cut.changed;
   t.cut_ahead = cut.ahead;
   t.frame_ms = clock.ms();
+  t.cpu_ms = thread_cpu_ms() - cpu0;
   return t;
 }
 
