@@ -155,42 +155,60 @@ inline void rotated_stress(const double* R, const double* F, double w, double mu
   Pm.noalias() = w * (Rm * sig);
 }
 
-// A condensed slot (Model::rot_K0): out_a += R sum_b K0_ab (R^T in_b - X_b)
-// over the element's n DOF nodes (X = null: no rest positions, the product
-// R^ K0 R^T in). K0 holds blocks a <= b, row-major; y and t are (n, 3) scratch.
-void condensed_slot_force(int n, const double* K0, const double* R, const double* in, const double* X,
-                          const int* nodes, double* y, double* t, double* out) {
+// A condensed slot (Model::rot_K0, over the npe mesh nodes in the piece's
+// displacements d_a = in_a + in_{p(a)}, p = the slot's partner list):
+// t_a = sum_b K0_ab (R^T d_b - X_b), and out gains R t_a at a and at p(a)
+// (X = null: no rest positions, the product R^ K0 R^T in). K0 holds blocks
+// a <= b, row-major; y and t are (npe, 3) scratch.
+void condensed_slot_force(int npe, const double* K0, const int* partner, const double* R, const double* in,
+                          const double* X, const int* nodes, double* y, double* t, double* out) {
   const Eigen::Map<const Mat3> Rm(R);
-  for (int a = 0; a < n; ++a) {
+  for (int a = 0; a < npe; ++a) {
+    Eigen::Vector3d d = Eigen::Map<const Eigen::Vector3d>(in + 3 * a);
+    if (partner[a] >= 0) d += Eigen::Map<const Eigen::Vector3d>(in + 3 * partner[a]);
     Eigen::Map<Eigen::Vector3d> ya(y + 3 * a);
-    ya.noalias() = Rm.transpose() * Eigen::Map<const Eigen::Vector3d>(in + 3 * a);
+    ya.noalias() = Rm.transpose() * d;
     if (X) ya -= Eigen::Map<const Eigen::Vector3d>(X + 3 * nodes[a]);
   }
   // t = K0 y from the upper blocks: (a, b) adds K_ab y_b to t_a and K_ab^T y_a to t_b.
-  std::fill(t, t + 3 * n, 0.0);
+  std::fill(t, t + 3 * npe, 0.0);
   const double* blk = K0;
-  for (int a = 0; a < n; ++a)
-    for (int b = a; b < n; ++b, blk += 9) {
+  for (int a = 0; a < npe; ++a)
+    for (int b = a; b < npe; ++b, blk += 9) {
       const double* yb = y + 3 * b;
       for (int i = 0; i < 3; ++i) t[3 * a + i] += blk[3 * i] * yb[0] + blk[3 * i + 1] * yb[1] + blk[3 * i + 2] * yb[2];
       if (b == a) continue;
       const double* ya = y + 3 * a;
       for (int j = 0; j < 3; ++j) t[3 * b + j] += blk[j] * ya[0] + blk[3 + j] * ya[1] + blk[6 + j] * ya[2];
     }
-  for (int a = 0; a < n; ++a)
-    Eigen::Map<Eigen::Vector3d>(out + 3 * nodes[a]) += Rm * Eigen::Map<const Eigen::Vector3d>(t + 3 * a);
+  for (int a = 0; a < npe; ++a) {
+    const Eigen::Vector3d v = Rm * Eigen::Map<const Eigen::Vector3d>(t + 3 * a);
+    Eigen::Map<Eigen::Vector3d>(out + 3 * nodes[a]) += v;
+    if (partner[a] >= 0) Eigen::Map<Eigen::Vector3d>(out + 3 * nodes[partner[a]]) += v;
+  }
 }
 
-// Kl += R^ K0 R^T block by block (blocks a <= b, row-major).
-void condensed_slot_stiffness(int n, const double* K0, const double* R, double* Kl) {
+// Kl (the element's n DOF nodes, blocks i <= j, row-major) += E^T R^ K0 R^T E
+// with E the map d_a = u_a + q_{p(a)}: each block B = R K0_ab R^T lands on
+// (a, b), (a, p(b)), (p(a), b) and (p(a), p(b)), transposed where the row
+// node comes after the column node; for a = b (B symmetric) the (p(a), a)
+// copy is (a, p(a))'s transpose and is not added again.
+void condensed_slot_stiffness(int n, int npe, const double* K0, const int* partner, const double* R, double* Kl) {
   const Eigen::Map<const Mat3> Rm(R);
-  const int nblk = n * (n + 1) / 2;
-  for (int k = 0; k < nblk; ++k) {
-    // row-major 3x3 block = column-major transpose
-    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> B(K0 + 9 * k);
-    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> O(Kl + 9 * k);
-    O.noalias() += Rm * B * Rm.transpose();
-  }
+  const auto at = [n](int i, int j) { return 9 * (i * n - i * (i - 1) / 2 + (j - i)); };
+  const double* k0 = K0;
+  for (int a = 0; a < npe; ++a)
+    for (int b = a; b < npe; ++b, k0 += 9) {
+      const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> K(k0);
+      const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> B = Rm * K * Rm.transpose();
+      const int I[2] = {a, partner[a]}, J[2] = {b, partner[b]};
+      for (int i : I)
+        for (int j : J) {
+          if (i < 0 || j < 0 || (a == b && i > j)) continue;
+          if (i <= j) Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(Kl + at(i, j)) += B;
+          else Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(Kl + at(j, i)) += B.transpose();
+        }
+    }
 }
 
 // K += the element's blocks Kl; with a cache, K += Kl - kept (when `cached`)
@@ -295,8 +313,9 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
       const int r = plan.elem_rot[k];
       const double* K0 = &m.rot_K0[m.rot_K0_ptr[r]];
-      condensed_slot_force(n, K0, Rall + 9 * r, xe, m.X.data(), nodes, h, t, f);
-      if (K) condensed_slot_stiffness(n, K0, Rall + 9 * r, Kl);
+      const int* partner = m.slot_partner(r);
+      condensed_slot_force(m.mesh.npe(), K0, partner, Rall + 9 * r, xe, m.X.data(), nodes, h, t, f);
+      if (K) condensed_slot_stiffness(n, m.mesh.npe(), K0, partner, Rall + 9 * r, Kl);
     }
     if (K) {
       scatter_blocks(m, e, nblk, Kl, K, cache, cached);
@@ -397,7 +416,8 @@ void element_matvec(const Model& m, const AssemblyPlan& plan, int e, const doubl
   if (plan.elem_condensed[e]) {
     for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
       const int r = plan.elem_rot[k];
-      condensed_slot_force(n, &m.rot_K0[m.rot_K0_ptr[r]], Rall + 9 * r, ve, nullptr, nodes, ve + 3 * n, ve + 6 * n, y);
+      condensed_slot_force(m.mesh.npe(), &m.rot_K0[m.rot_K0_ptr[r]], m.slot_partner(r), Rall + 9 * r, ve, nullptr,
+                           nodes, ve + 3 * n, ve + 6 * n, y);
     }
     return;
   }

@@ -71,8 +71,17 @@ struct Model {
   // with one rotation R for all of them, their force is R^ K0 (R^T x - X) and
   // their frozen-R tangent R^ K0 R^T (R^ = diag(R, ...)), so assembly rotates
   // this matrix instead of integrating the piece's many sub-element points.
+  // A piece displaces its mesh node a by d_a = u_a + q_a (q_a: the piece's
+  // enriched DOF node at a, if any; preprint eq. 64), so K0 is kept over the
+  // npe mesh nodes in d and spread onto the element's u and q at assembly:
+  // a quarter of the blocks of the same matrix over all the DOF nodes.
   std::vector<int> rot_K0_ptr;     // (nrot + 1) into rot_K0; an empty range: the slot's points are integrated
-  std::vector<double> rot_K0;      // per condensed slot: blocks (a <= b) x 9, row-major, over the element's DOF nodes
+  std::vector<double> rot_K0;      // per condensed slot: blocks (a <= b) x 9, row-major, over the npe mesh nodes
+  std::vector<int> rot_K0_partner; // per condensed slot, (npe): local DOF-node index of q_a, -1 where none
+  const int* slot_partner(int r) const {  // rot_K0_partner of condensed slot r
+    const int npe = mesh.npe();
+    return &rot_K0_partner[static_cast<size_t>(rot_K0_ptr[r]) / (9 * npe * (npe + 1) / 2) * npe];
+  }
 
   // Global sparse pattern: upper triangle, compressed columns, ndof x ndof
   std::vector<int> Ap;             // (ndof + 1) column starts
