@@ -1,6 +1,7 @@
 #include "engine/assemble_parallel.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstring>
 
@@ -102,9 +103,27 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
     std::vector<int> next(p.color_ptr.begin(), p.color_ptr.end() - 1);
     for (size_t s = 0; s < separators.size(); ++s) p.color_elem[next[color[s]]++] = separators[s];
   }
+  for (int e = 0; e < m.nelem; ++e) {
+    p.max_elem_slots = std::max(p.max_elem_slots, p.elem_rot_ptr[e + 1] - p.elem_rot_ptr[e]);
+    for (int k = p.elem_rot_ptr[e]; k < p.elem_rot_ptr[e + 1]; ++k)  // slots numbered element by element
+      assert(p.elem_rot[k] == p.elem_rot[p.elem_rot_ptr[e]] + (k - p.elem_rot_ptr[e]));
+  }
   const int n = p.max_elem_nodes;
-  p.scratch.assign(T, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 16));
+  p.scratch.assign(T, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 9 * p.max_elem_slots + 16));
   p.qp_own_rot = point_rotation_flags(m);
+  // A point whose slot is its own with the same gradients (tet10 per_point)
+  // has the F its rotation was extracted from: element_terms keeps it.
+  p.qp_slot_F.assign(m.qp_rot.size(), 0);
+  {
+    std::vector<int> users(m.nrot, 0);
+    for (int r : m.qp_rot) ++users[r];
+    for (size_t q = 0; q < m.qp_rot.size(); ++q) {
+      const int r = m.qp_rot[q];
+      const int len = m.qp_grad_ptr[q + 1] - m.qp_grad_ptr[q];
+      p.qp_slot_F[q] = users[r] == 1 && m.rot_grad_ptr[r + 1] - m.rot_grad_ptr[r] == len &&
+                       std::memcmp(&m.qp_grad[m.qp_grad_ptr[q]], &m.rot_grad[m.rot_grad_ptr[r]], len * sizeof(double)) == 0;
+    }
+  }
   p.slot_weight = shared_slot_weights(m);
   // Condensed elements: every slot has a rest stiffness (Model::rot_K0).
   p.elem_condensed.assign(m.nelem, 0);
@@ -242,6 +261,7 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
   double* h = xe + 3 * n;    // (n, 3) rotated gradients
   double* Kl = h + 3 * n;    // blocks a <= b, 9 each, row-major
   double* t = Kl + 9 * n * (n + 1) / 2;  // (n, 3, 3) rotation-mode vectors (rotation_stiffness.h)
+  double* Fs = t + 9 * n;                // (slots, 9) each slot's F, for the points that share it (qp_slot_F)
   const int nblk = n * (n + 1) / 2;
   for (int a = 0; a < n; ++a)
     for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
@@ -274,7 +294,7 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
       Rm.setIdentity();
       continue;
     }
-    double F[9];
+    double* F = Fs + 9 * (k - plan.elem_rot_ptr[e]);
     grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
     Mat3 Rr = Rm;
     if (extract_rotation(Eigen::Map<const Mat3>(F), Rr) < 0) ++fallbacks;
@@ -327,8 +347,10 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
     const double w = m.qp_weight[q];
     const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
     const double* R = Rall + 9 * m.qp_rot[q];
-    double F[9], P[9];
-    grad_sum<NN>(n, xe, g, F);
+    double Fq[9], P[9];
+    const double* F = Fq;
+    if (plan.qp_slot_F[q] && !linear) F = Fs + 9 * (m.qp_rot[q] - plan.elem_rot[plan.elem_rot_ptr[e]]);
+    else grad_sum<NN>(n, xe, g, Fq);
     rotated_stress(R, F, w, mu, lambda, /*strain=*/true, P);
     for (int a = 0; a < n; ++a) {
       const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
@@ -336,11 +358,14 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
       fa[0] += P[0] * g0 + P[3] * g1 + P[6] * g2;
       fa[1] += P[1] * g0 + P[4] * g1 + P[7] * g2;
       fa[2] += P[2] * g0 + P[5] * g1 + P[8] * g2;
+    }
+    if (!K) continue;  // a kept element: forces only
+    for (int a = 0; a < n; ++a) {  // rotated gradients h_a = R g_a
+      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
       h[3 * a] = R[0] * g0 + R[3] * g1 + R[6] * g2;
       h[3 * a + 1] = R[1] * g0 + R[4] * g1 + R[7] * g2;
       h[3 * a + 2] = R[2] * g0 + R[5] * g1 + R[8] * g2;
     }
-    if (!K) continue;
     // Rotation term (rotation_stiffness.h), fused into the blocks for the
     // fixed-size elements: sum_k coef_k (u_k x h_a)(u_k x h_b)^T
     // = [h_a]x Y [h_b]x^T with Y = sum_k coef_k u_k u_k^T (3x3), so with

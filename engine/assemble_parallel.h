@@ -28,6 +28,8 @@ struct AssemblyPlan {
   std::vector<int> color_elem;    // separator elements grouped by colour
   int max_elem_nodes = 0;         // largest element (DOF nodes)
   std::vector<char> qp_own_rot;   // (nqp) 1 where the point's rotation slot is its own (rotation_stiffness.h)
+  std::vector<char> qp_slot_F;    // (nqp) 1 where the point's F is its slot's (one point, same gradients): computed once
+  int max_elem_slots = 0;         // most rotation slots of one element
   std::vector<double> slot_weight;  // (nrot) shared_slot_weights: > 0 where a shared slot gets the rotation term
   std::vector<char> elem_condensed;  // (nelem) 1 where every slot of the element has a rest stiffness (Model::rot_K0)
   std::vector<std::vector<double>> scratch;  // (nthreads) per-worker work space

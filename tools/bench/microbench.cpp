@@ -361,6 +361,10 @@ void BM_CutAssembly(benchmark::State& state, bool with_K) {
   }
   count_per_element(state, m.nelem);
   state.counters["split_elements"] = static_cast<double>(std::count(plan.elem_condensed.begin(), plan.elem_condensed.end(), 1));
+  int enriched_whole = 0;  // whole elements with enriched DOF nodes (integrated point by point)
+  for (int e = 0; e < m.nelem; ++e)
+    enriched_whole += !plan.elem_condensed[e] && m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e] > m.mesh.npe();
+  state.counters["enriched_whole"] = enriched_whole;
 }
 
 // One product with the symmetric upper-triangle matrix (sym_matvec_parallel
