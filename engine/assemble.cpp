@@ -72,16 +72,6 @@ int update_rotations(const Model& m, const double* u, double* R, int r_begin, in
   return fallbacks;
 }
 
-double max_rotation_change(const Model& m, const double* u, const double* R, int r_begin, int r_end) {
-  if (m.material.model == MaterialModel::Linear) return 0.0;
-  double worst = 0.0;
-  for (int r = r_begin; r < r_end; ++r) {
-    const Mat3 F = deformation_gradient(m, m.rot_elem[r], u, &m.rot_grad[m.rot_grad_ptr[r]]);
-    worst = std::max(worst, rotation_angle_to(F, Eigen::Map<const Mat3>(R + 9 * r)));
-  }
-  return worst;
-}
-
 void assemble_internal(const Model& m, const double* u, const double* R, double* f_int, double* K) {
   std::fill(f_int, f_int + m.ndof(), 0.0);
   if (K) std::fill(K, K + m.nnz(), 0.0);

@@ -24,10 +24,6 @@ namespace incise {
 int update_rotations(const Model& model, const double* u /* (ndof) */, double* R);
 // The same for slots [r_begin, r_end) only (one worker's share).
 int update_rotations(const Model& model, const double* u, double* R, int r_begin, int r_end);
-// Largest angle between the slot rotations R and the rotations of the
-// configuration u over slots [r_begin, r_end) (rotation_angle_to: one Newton
-// step, not a full extraction); R is not changed.
-double max_rotation_change(const Model& model, const double* u, const double* R, int r_begin, int r_end);
 
 // (nqp) 1 where a point's rotation slot serves that point alone, so its R is
 // the polar factor of the point's own F and the tangent gets the rotation

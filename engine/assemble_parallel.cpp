@@ -553,6 +553,49 @@ void stiffness_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, cons
   });
 }
 
+namespace {
+// The element's positions gathered once for all its slots (a slot at a time
+// gathered them per slot: 4 times for a tet10 per_point).
+template <int NN>
+double element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, const double* u, const double* Rall,
+                               double* xe) {
+  const int b0 = m.elem_dof_ptr[e];
+  const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
+  const int* nodes = &m.elem_dof_node[b0];
+  for (int a = 0; a < n; ++a)
+    for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
+  double worst = 0.0;
+  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+    const int r = plan.elem_rot[k];
+    double F[9];
+    grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+    worst = std::max(worst, rotation_angle_to(Eigen::Map<const Mat3>(F), Eigen::Map<const Mat3>(Rall + 9 * r)));
+  }
+  return worst;
+}
+}  // namespace
+
+double max_rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R) {
+  if (m.material.model == MaterialModel::Linear) return 0.0;
+  if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  double worst[64] = {0};  // per worker (solver.threads <= 64)
+  pool.run([&](int tid) {
+    int b, e;
+    ThreadPool::split(m.nelem, pool.size(), tid, b, e);
+    double* xe = plan.scratch[tid].data();
+    for (int el = b; el < e; ++el) {
+      const int n = m.elem_dof_ptr[el + 1] - m.elem_dof_ptr[el];
+      const double w = n == 10 ? element_rotation_change<10>(m, plan, el, u, R, xe)
+                       : n == 4 ? element_rotation_change<4>(m, plan, el, u, R, xe)
+                                : element_rotation_change<0>(m, plan, el, u, R, xe);
+      worst[tid] = std::max(worst[tid], w);
+    }
+  });
+  double w = 0.0;
+  for (int t = 0; t < pool.size(); ++t) w = std::max(w, worst[t]);
+  return w;
+}
+
 void element_subset_forces(const Model& m, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,
                            double* R, double* f, const double* v, double* Kv) {
   double* s = plan.scratch[0].data();

@@ -81,6 +81,12 @@ int assemble_corotated(const Model& model, AssemblyPlan& plan, ThreadPool& pool,
 // elements' internal forces at u (their rotation slots updated in R, warm
 // started), and, when v is given, Kv += their R K0 R^T v. For a cut rebuild's
 // consistent acceleration near the elements the cut changed.
+// Largest angle between the slot rotations R and the rotations of the
+// configuration u, over every slot (rotation_angle_to: one Newton step, not a
+// full extraction), on the pool's workers; R is not changed. An angle that is
+// NaN is not counted.
+double max_rotation_change(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R);
+
 void element_subset_forces(const Model& model, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,
                            double* R, double* f_int, const double* v, double* Kv);
 

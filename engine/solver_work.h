@@ -74,9 +74,11 @@ struct SolverWork {
   std::vector<int> patch_row_col, patch_row_k;
   std::vector<double> ms_r, ms_z;      // (ndof) multiplicative Schwarz work
 
-  // warped: DOF node -> rotation slots (weights: the slot's share of element volume).
-  std::vector<int> node_rot_ptr, node_rot;  // (ndofnode + 1), slots
-  std::vector<double> node_rot_weight;
+  // warped: DOF node -> its elements; each element's volume-weighted sum of
+  // its slots' R (the slot's share of the element's volume) is summed once
+  // per frame and then per node.
+  std::vector<int> node_elem_ptr, node_elem;  // (ndofnode + 1), elements
+  std::vector<double> elem_S;                 // (nelem, 9) sum over the element's slots of vol/nslot R
   std::vector<double> Rn;            // (ndofnode, 9) node rotations, column-major
   std::vector<char> node_identity;   // (ndofnode) 1 where 1 or 2 components are constrained: R = I keeps the projection
 

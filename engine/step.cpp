@@ -168,14 +168,7 @@ void step(const Model& m, State& s) {
     // soft beam the frozen-rotation error grows past 0.1 rad a few frames
     // before one-iteration stepping diverges; on smooth frames it stays below.
     for (int d = 0; d < n; ++d) x[d] = s.u[d] + s.delta[d];
-    double worst[64] = {0};  // per worker (solver.threads <= 64)
-    s.work.pool->run([&](int tid) {  // the slots split over the assembly workers
-      int b, e;
-      ThreadPool::split(m.nrot, s.work.pool->size(), tid, b, e);
-      worst[tid] = max_rotation_change(m, x, s.R.data(), b, e);
-    });
-    bool moved = false;
-    for (int t = 0; t < s.work.pool->size(); ++t) moved = moved || worst[t] > m.rotation_tolerance;
+    const bool moved = max_rotation_change(m, s.work.plan, *s.work.pool, x, s.R.data()) > m.rotation_tolerance;
     s.timing.ms[kStageAssembly] += clock.lap();
     if (!moved) break;
   }
