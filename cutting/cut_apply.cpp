@@ -9,6 +9,7 @@
 #include "engine/linear_solve.h"
 #include "engine/probe.h"
 #include "engine/step.h"
+#include "engine/thread_affinity.h"
 #include "engine/timing.h"
 
 namespace incise {
@@ -303,7 +304,9 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   ahead->base_version = sim.model_version;
   CutAhead* a = ahead.get();
   const Simulation* s = &sim;
-  ahead->job = std::thread([a, s] {
+  const bool helper_cpus = sim.model.solver.split_affinity;
+  ahead->job = std::thread([a, s, helper_cpus] {
+    if (helper_cpus) set_thread_role(ThreadRole::Helper);
     try {
       a->result = prepare_cut(*s, a->progress, a->t_sweep);
     } catch (...) {

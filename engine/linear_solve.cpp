@@ -13,6 +13,7 @@
 #include "engine/carried_ordering.h"
 #include "engine/error.h"
 #include "engine/polar.h"
+#include "engine/thread_affinity.h"
 
 namespace incise {
 
@@ -220,7 +221,9 @@ void launch_job(const Model& m, State& s) {
   // idle-priority thread gets next to no CPU while every core is busy (an
   // unprivileged thread cannot raise it back for the wait).
   const bool idle = m.solver.idle_background && m.solver.skip_late_factor;
-  w.job = std::thread([f, wp, n, idle] {
+  const bool helper_cpus = m.solver.split_affinity;
+  w.job = std::thread([f, wp, n, idle, helper_cpus] {
+    if (helper_cpus) set_thread_role(ThreadRole::Helper);
     if (idle) {
       sched_param sp{};
       pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);
@@ -492,6 +495,9 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   if (m.solver.substitution_threads <= 1) w.substitution_worker.reset();
   s.solver.set_substitution_worker(w.substitution_worker.get());
   w.back.set_substitution_worker(w.substitution_worker.get());
+  // After the workers above exist (they keep the whole CPU set; ones started
+  // later unpin themselves: unpin_if_split).
+  if (m.solver.split_affinity) set_thread_role(ThreadRole::Stepping);
   w.plan = make_assembly_plan(m, threads);
   const int n = m.ndof();
   if (dofnode_map && solver_carries_over_cuts(m, s)) {

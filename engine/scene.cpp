@@ -407,7 +407,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   p.object(v, at);
   p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
-                         "factorization", "ordering", "factor_precision", "initial_guess"});
+                         "factorization", "ordering", "factor_precision", "initial_guess", "affinity"});
   SolverSettings& o = s.solver;
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
@@ -438,6 +438,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     o.carry_ordering = p.choice(*it, at + ".cut_ordering", {"search", "carried"}) == 1;
   if (auto it = v.find("background_priority"); it != v.end())
     o.idle_background = p.choice(*it, at + ".background_priority", {"normal", "idle"}) == 1;
+  if (auto it = v.find("affinity"); it != v.end())
+    o.split_affinity = p.choice(*it, at + ".affinity", {"none", "split"}) == 1;
   if (auto it = v.find("tolerance"); it != v.end()) {
     o.tolerance = p.positive(*it, at + ".tolerance");
     if (!(o.tolerance < 1.0)) p.fail(at + ".tolerance", " must be in (0, 1), got " + show(*it));

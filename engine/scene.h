@@ -88,6 +88,7 @@ struct SolverSettings {
   bool multiplicative_patch = true;  // lagged after cuts: solver.patch "multiplicative" (true) or "additive"
   bool carry_ordering = true;        // lagged after cuts: solver.cut_ordering "carried" (true) or "search"
   bool idle_background = true;       // lagged, background: solver.background_priority "idle" (true) or "normal"
+  bool split_affinity = false;       // solver.affinity "split" (engine/thread_affinity.h) or "none"
   double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
   bool previous_guess = true;  // CG: solver.initial_guess "previous" (the last frame's increment, scaled) or "zero"
   int max_iterations = 50;     // CG iterations per solve (>= 1)

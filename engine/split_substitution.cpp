@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <numeric>
 
+#include "engine/thread_affinity.h"
+
 namespace incise {
 
 SubstitutionSplit split_supernodes(const cholmod_factor* L) {
@@ -106,6 +108,7 @@ void SubstitutionWorker::wait() {
 }
 
 void SubstitutionWorker::loop() {
+  unpin_if_split();  // started by a pinned stepping thread: not on its one CPU
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
     wake_.wait(lock, [this] { return pending_ || stop_; });

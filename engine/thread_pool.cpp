@@ -1,5 +1,7 @@
 #include "engine/thread_pool.h"
 
+#include "engine/thread_affinity.h"
+
 namespace incise {
 
 ThreadPool::ThreadPool(int nthreads) : nthreads_(nthreads < 1 ? 1 : nthreads) {
@@ -16,6 +18,7 @@ ThreadPool::~ThreadPool() {
 }
 
 void ThreadPool::worker(int tid) {
+  unpin_if_split();  // started by a pinned stepping thread: not on its one CPU
   long long seen = 0;
   for (;;) {
     const std::function<void(int)>* job;

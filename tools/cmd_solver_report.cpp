@@ -141,6 +141,10 @@ void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
   cmd->add_option("--background-priority", o.background_priority,
                   "lagged, background: run the background factorization at idle priority (the default) or normal")
       ->check(CLI::IsMember({"idle", "normal"}));
+  cmd->add_option("--affinity", o.affinity,
+                  "none: the kernel places the threads; split: the stepping thread gets a CPU of its own, the cut-ahead "
+                  "helper and the background factorization the others (solver.affinity)")
+      ->check(CLI::IsMember({"none", "split"}));
   cmd->add_flag("--warp", o.warp, "lagged: rotate the lagged factor by the node rotations since its frame");
   cmd->add_option("--single-precision", o.single_precision, "lagged: float copy of the factor for the substitutions")
       ->check(CLI::IsMember({"true", "false"}));
@@ -186,6 +190,7 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
   if (!o.patch.empty()) s.multiplicative_patch = o.patch == "multiplicative";
   if (!o.cut_ordering.empty()) s.carry_ordering = o.cut_ordering == "carried";
   if (!o.background_priority.empty()) s.idle_background = o.background_priority == "idle";
+  if (!o.affinity.empty()) s.split_affinity = o.affinity == "split";
   if (o.warp) s.warp = true;
   if (o.single_precision == "true") s.factor_copy = FactorCopy::Float;
   if (o.single_precision == "false") s.factor_copy = FactorCopy::None;

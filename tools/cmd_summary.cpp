@@ -1,6 +1,7 @@
 #include <cstdio>
 
 #include "engine/simulation.h"
+#include "engine/thread_affinity.h"
 #include "tools/commands.h"
 
 namespace incise {
@@ -52,6 +53,10 @@ void print_model_summary(const Simulation& sim) {
                 !o.background ? "" : o.carry_ordering ? ", carried ordering while cutting" : ", searched ordering while cutting");
   if (o.policy == SolverPolicy::Lagged && o.rescue_after > 0)
     std::printf(", rescue after %d CG iterations", o.rescue_after);
+  if (o.split_affinity && stepping_cpu() >= 0)
+    std::printf(", stepping thread on CPU %d, helpers on the others", stepping_cpu());
+  else if (o.split_affinity)
+    std::printf(", affinity split not applied (fewer than two CPUs)");
   std::printf("\n");
 }
 

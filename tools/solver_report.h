@@ -62,6 +62,7 @@ struct SolverOverrides {
   std::string patch;             // "", "additive" or "multiplicative"
   std::string cut_ordering;      // "", "search" or "carried"
   std::string background_priority;  // "", "idle" or "normal"
+  std::string affinity;             // "", "none" or "split"
   std::string factorization, ordering;  // empty: the scene's
 };
 // Registers --policy, --tolerance, ... on a sub-command.

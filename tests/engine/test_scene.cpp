@@ -635,6 +635,13 @@ TEST_F(SceneTest, InitialGuessKey) {
                R"(solver.initial_guess: only used by the iterative policies "lagged" and "warped_cg"; solver.policy is "exact")");
 }
 
+TEST_F(SceneTest, AffinityKey) {
+  EXPECT_FALSE(parse_scene(minimal(""), scene_path_).solver.split_affinity);
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"affinity": "split"})"), scene_path_).solver.split_affinity);
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "affinity": "split"})"), scene_path_).solver.split_affinity);
+  expect_error_contains(minimal(R"("solver": {"affinity": "pinned"})"), R"(solver.affinity must be one of "none", "split")");
+}
+
 TEST_F(SceneTest, FactorPrecisionKey) {
   EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.single_factorization);
   EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_precision": "single"})"), scene_path_)

@@ -246,6 +246,21 @@ TEST_F(Cli, BenchFactorPrecisionOption) {
   EXPECT_NE(bad.out.find("--factor-copy float"), std::string::npos) << bad.out;
 }
 
+// --affinity split reaches the solver: the summary names the stepping
+// thread's CPU (or says why nothing was pinned); a bad value is refused.
+TEST_F(Cli, BenchAffinityOption) {
+  cantilever_scene();
+  const Result r = incise("bench " + path("scene.json") + " --frames 2 --affinity split");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const bool pinned = r.out.find("stepping thread on CPU") != std::string::npos;
+  const bool refused = r.out.find("affinity split not applied (fewer than two CPUs)") != std::string::npos;
+  EXPECT_TRUE(pinned != refused) << r.out;
+  EXPECT_EQ(incise("bench " + path("scene.json") + " --frames 2").out.find("stepping thread on CPU"), std::string::npos);
+  const Result bad = incise("bench " + path("scene.json") + " --frames 1 --affinity cores");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("--affinity"), std::string::npos) << bad.out;
+}
+
 TEST_F(Cli, ComparePrintsTheErrorAtEachFrame) {
   cantilever_scene();
   const Result r = incise("compare " + path("scene.json") + " --policy warped,lagged --frames 1,3 --json " + path("c.json"));

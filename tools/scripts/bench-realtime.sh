@@ -18,7 +18,9 @@
 # consistent corotated tangent (integrator.tangent; REALTIME_TANGENT=frozen_rotation
 # for the default), a rescue refactorization after 20 stalled CG iterations
 # (REALTIME_RESCUE) and late background factors skipped instead of waited for
-# (REALTIME_LATE=wait for deterministic runs). incise bench times FRAMES frames
+# (REALTIME_LATE=wait for deterministic runs), and the stepping thread on a CPU
+# of its own with the helpers on the others (REALTIME_AFFINITY=none leaves it
+# to the kernel). incise bench times FRAMES frames
 # too (BENCH_FRAMES to change), started at PACE Hz as the real-time loop does
 # (default 30; PACE=0 runs them back to back), and writes its per-frame trace
 # to BUILD/realtime/NAME.trace.csv. incise compare runs back to back.
@@ -41,6 +43,7 @@ copy="${REALTIME_COPY:-float}"              # solver.factor_copy: float, half or
 reuse="${REALTIME_TANGENT_REUSE:-0.01}"     # integrator.tangent_reuse of the policy runs (0: off; the exact reference never)
 subthreads="${REALTIME_SUBSTITUTION_THREADS:-2}"  # solver.substitution_threads
 precision="${REALTIME_FACTOR_PRECISION:-single}"  # solver.factor_precision (single needs the float copy)
+affinity="${REALTIME_AFFINITY:-split}"      # solver.affinity: split (stepping thread on a CPU of its own) or none
 # name mesh-or-scene K
 # K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
 # CHOLMOD's OpenMP teams were made serial; single precision, eighth session:
@@ -98,7 +101,7 @@ json.dump(d, open(dst, "w"), indent=1)
 PY
       ;;
   esac
-  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 --rescue-after $rescue --late-factor $late --factor-copy $copy --substitution-threads $subthreads --tangent-reuse $reuse --factor-precision $precision $extra"
+  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 --rescue-after $rescue --late-factor $late --factor-copy $copy --substitution-threads $subthreads --tangent-reuse $reuse --factor-precision $precision --affinity $affinity $extra"
   echo "compare $name ($frames frames; $opts) ..." >&2
   # shellcheck disable=SC2086
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
