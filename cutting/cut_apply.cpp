@@ -113,6 +113,7 @@ void carry_tangent_cache(const Model& from, TangentCache& old, const std::vector
                         std::equal(from.Ap.begin(), from.Ap.begin() + cstd + 1, to.Ap.begin());
   const int split = same_std ? to.Ap[cstd] : 0;
   std::copy_n(old_K.begin(), split, s.K.begin());
+  std::fill(s.K.begin() + split, s.K.end(), 0.0);  // the enriched columns: summed below
   for (int e = 0; e < to.nelem; ++e) {
     const int nb = to.elem_scatter_ptr[e + 1] - to.elem_scatter_ptr[e];
     if (e >= from.nelem || fresh[e] || nb != from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e] ||
@@ -220,7 +221,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   ++sim.model_version;
   up.part_ms[kCutTransfer] = part.lap();
   if (carry) {  // the lagged factors stay; the new pattern is analyzed off this frame
-    size_state(sim.model, sim.state);
+    size_state(sim.model, sim.state, /*zero=*/false);  // u, v, a, R set below; K by the carry or the next assembly
     prepare_solver(sim.model, sim.state, &p.map);
   } else {
     init_state(sim.model, sim.state, /*consistent_a0=*/false);  // new pattern: symbolic analysis

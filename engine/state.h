@@ -38,7 +38,11 @@ void init_state(const Model& model, State& state, bool consistent_a0 = true);
 
 // Sizes the kinematics, rotations and work arrays for the model (all zero,
 // rotations identity); no solver set-up. Used by init_state and by a cut
-// that carries the solver over (engine/linear_solve.h).
-void size_state(const Model& model, State& state);
+// that carries the solver over (engine/linear_solve.h). With zero = false
+// the arrays are only sized (what they held stays, new entries are 0): for
+// a cut, which then sets u, v, a and R, and whose step writes every work
+// array and A before reading them (K: the tangent carry or a full assembly
+// fills it); zeroing 8 MB at 10k DOF took 0.85 ms of each cut frame.
+void size_state(const Model& model, State& state, bool zero = true);
 
 }  // namespace incise

@@ -47,8 +47,17 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
 
 }  // namespace
 
-void size_state(const Model& m, State& s) {
+void size_state(const Model& m, State& s, bool zero) {
   const int n = m.ndof();
+  s.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one
+  s.tangent_cache.theta = m.tangent_reuse;
+  if (!zero) {
+    for (auto* w : {&s.u, &s.v, &s.a, &s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) w->resize(n);
+    s.R.resize(9 * static_cast<size_t>(m.nrot));
+    s.K.resize(m.nnz());
+    s.A.resize(m.nnz());
+    return;
+  }
   s.u.assign(n, 0.0);
   s.v.assign(n, 0.0);
   s.a.assign(n, 0.0);
@@ -57,8 +66,6 @@ void size_state(const Model& m, State& s) {
   for (auto* w : {&s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) w->assign(n, 0.0);
   s.K.assign(m.nnz(), 0.0);
   s.A.assign(m.nnz(), 0.0);
-  s.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one
-  s.tangent_cache.theta = m.tangent_reuse;
 }
 
 void init_state(const Model& m, State& s, bool consistent_a0) {
