@@ -12,7 +12,8 @@
 // helpers the others; threads that work for the stepping thread (assembly
 // workers, the substitution worker) may run anywhere in the set. With fewer
 // than two CPUs in the set nothing is pinned. "none" (the default) leaves
-// placement to the kernel.
+// placement to the kernel. A pin lasts for the thread's life: a later
+// Model with "none" in the same process does not undo it.
 //
 // A haptic thread (1 kHz) belongs on the helpers' CPUs at a priority above
 // theirs: the stepping CPU is fully booked in a cut frame.
