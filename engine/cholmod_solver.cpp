@@ -239,55 +239,53 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, const double* i
   for (int k = 0; k < n; ++k) x[Perm[k]] = y[k];
 }
 
-// The same on two threads (SubstitutionSplit): the two bins of independent
-// subtrees at once, the top supernodes (their common ancestors) alone. Forward:
-// the second thread updates a private copy y2 (both bins subtract from the top
-// supernodes' rows), its own columns are copied back and the top rows merged
-// as y += y2 - y0; then the top. Backward: the top first, then both bins
-// reading it (each writes only its own columns).
+// The worker's bins (SubstitutionSplit::bins[1]) for split_substitute, on
+// its private copy y2 (the caller's y stays the caller's, so a bin the caller
+// gave up on and redid never races with it). Forward: the bin's columns and
+// its updates of the top rows. Backward: the bin's columns, reading the top
+// ones (y2 is a copy of y after the top was solved).
 template <class T>
-void split_substitute(const cholmod_factor* L, const T* Lx, const double* inv_scale, int n, const double* b,
-                      double* x, const SubstitutionSplit& sp, SubstitutionWorker& worker, double* y, double* w,
-                      double* y2, double* w2, double* y0_top) {
-  const SnFactor<T> F = sn_factor(L, Lx, inv_scale);
-  const int* Perm = static_cast<const int*>(L->Perm);
-  for (int k = 0; k < n; ++k) y[k] = b[Perm[k]];
-  const size_t ntop = sp.top_cols.size();
-  for (size_t i = 0; i < ntop; ++i) y0_top[i] = y[sp.top_cols[i]];
-  std::memcpy(y2, y, sizeof(double) * n);
-  struct Ctx {
-    const SnFactor<T>* F;
-    const SubstitutionSplit* sp;
-    double *y, *y2, *w2;
-  } ctx{&F, &sp, y, y2, w2};
-  worker.start(
-      [](void* p) {
-        const Ctx& c = *static_cast<const Ctx*>(p);
-        for (const auto& r : c.sp->bins[1])
-          for (int sn = r.first; sn <= r.second; ++sn) forward_supernode(*c.F, sn, c.y2, c.w2);
-        for (const auto& r : c.sp->bins[1]) {
-          const int c0 = c.F->super[r.first], c1 = c.F->super[r.second + 1];
-          std::memcpy(c.y + c0, c.y2 + c0, sizeof(double) * (c1 - c0));
-        }
-      },
-      &ctx);
-  for (const auto& r : sp.bins[0])
+void worker_forward(void* p) {
+  auto& j = *static_cast<SplitJob*>(p);
+  const SnFactor<T> F = sn_factor(j.L, static_cast<const T*>(j.Lx), j.inv_scale);
+  int done = 0;
+  for (const auto& r : j.sp->bins[1])
+    for (int sn = r.first; sn <= r.second; ++sn) {
+      forward_supernode(F, sn, j.y2, j.w2);
+      j.progress.store(++done, std::memory_order_relaxed);
+    }
+}
+
+template <class T>
+void worker_backward(void* p) {
+  auto& j = *static_cast<SplitJob*>(p);
+  const SnFactor<T> F = sn_factor(j.L, static_cast<const T*>(j.Lx), j.inv_scale);
+  int done = 0;
+  for (auto r = j.sp->bins[1].rbegin(); r != j.sp->bins[1].rend(); ++r)
+    for (int sn = r->second; sn >= r->first; --sn) {
+      backward_supernode(F, sn, j.y2, j.w2);
+      j.progress.store(++done, std::memory_order_relaxed);
+    }
+}
+
+template <class T>
+void forward_bin(const SnFactor<T>& F, const SubstitutionSplit& sp, int k, double* y, double* w) {
+  for (const auto& r : sp.bins[k])
     for (int sn = r.first; sn <= r.second; ++sn) forward_supernode(F, sn, y, w);
-  worker.wait();
-  for (size_t i = 0; i < ntop; ++i) y[sp.top_cols[i]] += y2[sp.top_cols[i]] - y0_top[i];
-  for (int sn : sp.top) forward_supernode(F, sn, y, w);
-  for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
-  worker.start(
-      [](void* p) {
-        const Ctx& c = *static_cast<const Ctx*>(p);
-        for (auto r = c.sp->bins[1].rbegin(); r != c.sp->bins[1].rend(); ++r)
-          for (int sn = r->second; sn >= r->first; --sn) backward_supernode(*c.F, sn, c.y, c.w2);
-      },
-      &ctx);
-  for (auto r = sp.bins[0].rbegin(); r != sp.bins[0].rend(); ++r)
+}
+
+template <class T>
+void backward_bin(const SnFactor<T>& F, const SubstitutionSplit& sp, int k, double* y, double* w) {
+  for (auto r = sp.bins[k].rbegin(); r != sp.bins[k].rend(); ++r)
     for (int sn = r->second; sn >= r->first; --sn) backward_supernode(F, sn, y, w);
-  worker.wait();
-  for (int k = 0; k < n; ++k) x[Perm[k]] = y[k];
+}
+
+void copy_bin_columns(const cholmod_factor* L, const SubstitutionSplit& sp, int k, const double* from, double* to) {
+  const int* super = static_cast<const int*>(L->super);
+  for (const auto& r : sp.bins[k]) {
+    const int c0 = super[r.first], c1 = super[r.second + 1];
+    std::memcpy(to + c0, from + c0, sizeof(double) * (c1 - c0));
+  }
 }
 #undef INCISE_LOAD4
 #undef INCISE_LOAD_F4
@@ -368,7 +366,7 @@ CholmodSolver::CholmodSolver() {
 }
 
 CholmodSolver::~CholmodSolver() {
-  release();
+  release();  // waits for a bin given up on (the worker outlives this object's use of it)
   cholmod_finish(&c_);
 }
 
@@ -388,6 +386,7 @@ void CholmodSolver::configure(FactorMethod method, OrderingMethod ordering) {
 }
 
 void CholmodSolver::release() {
+  settle();
   if (A_) cholmod_free_sparse(&A_, &c_);
   if (L_) cholmod_free_factor(&L_, &c_);
   if (B_) cholmod_free_dense(&B_, &c_);
@@ -412,6 +411,7 @@ void CholmodSolver::set_single_factorization(bool on) {
 }
 
 void CholmodSolver::set_factor_copy(FactorCopy copy) {
+  settle();
   if (single_numeric_ && copy != FactorCopy::Float)
     throw Error("single-precision factorization: the factor is the float copy; turn it off before another copy");
   copy_ = copy;
@@ -473,6 +473,7 @@ std::vector<int> CholmodSolver::permutation() const {
 
 void CholmodSolver::factorize(const double* values) {
   if (!L_) throw Error("CHOLMOD: factorize called before analyze");
+  settle();
   factorized_ = false;
   copy_valid_ = false;
   single_current_ = false;
@@ -572,14 +573,88 @@ void CholmodSolver::prepare_workspace() {
   }
 }
 
+// The substitution on two threads (SubstitutionSplit): the two bins of
+// independent subtrees at once, the top supernodes (their common ancestors)
+// alone. Forward: the worker's bin updates its copy y2, whose bin columns are
+// copied back and whose top rows are merged as y += y2 - y0; then the top.
+// Backward: the top first, then both bins. When the worker makes no progress
+// for kWorkerStallMs this thread does the worker's bin on y itself (then
+// exactly the one-thread substitution's sums); while a bin it gave up on
+// still runs, substitutions stay on this thread.
+template <class T>
+void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x) {
+  SubstitutionWorker& worker = *worker_;
+  if (worker.busy()) {  // a bin given up on still runs on y2
+    supernodal_substitute(L_, Lx, inv_scale, n_, b, x, work_y_.data(), work_w_.data());
+    return;
+  }
+  left_running_ = false;
+  ++stats_.split_substitutions;
+  const SubstitutionSplit& sp = split_;
+  const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
+  const int* Perm = static_cast<const int*>(L_->Perm);
+  double *y = work_y_.data(), *w = work_w_.data(), *y2 = work_y2_.data(), *y0_top = work_top_.data();
+  for (int k = 0; k < n_; ++k) y[k] = b[Perm[k]];
+  const size_t ntop = sp.top_cols.size();
+  for (size_t i = 0; i < ntop; ++i) y0_top[i] = y[sp.top_cols[i]];
+  std::memcpy(y2, y, sizeof(double) * n_);
+  job_.L = L_;
+  job_.Lx = Lx;
+  job_.inv_scale = inv_scale;
+  job_.sp = &sp;
+  job_.y2 = y2;
+  job_.w2 = work_w2_.data();
+  job_.progress.store(0, std::memory_order_relaxed);
+  bool started = worker.try_start(&worker_forward<T>, &job_);
+  forward_bin(F, sp, 0, y, w);
+  if (started && worker.await(job_.progress, kWorkerStallMs)) {
+    copy_bin_columns(L_, sp, 1, y2, y);
+    for (size_t i = 0; i < ntop; ++i) y[sp.top_cols[i]] += y2[sp.top_cols[i]] - y0_top[i];
+  } else {
+    ++stats_.takeovers;
+    left_running_ = worker.busy();
+    forward_bin(F, sp, 1, y, w);  // the top rows then sum both bins in the one-thread order
+  }
+  for (int sn : sp.top) forward_supernode(F, sn, y, w);
+  for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
+  started = false;
+  if (!worker.busy()) {
+    left_running_ = false;
+    std::memcpy(y2, y, sizeof(double) * n_);
+    job_.progress.store(0, std::memory_order_relaxed);
+    started = worker.try_start(&worker_backward<T>, &job_);
+  }
+  backward_bin(F, sp, 0, y, w);
+  if (started && worker.await(job_.progress, kWorkerStallMs)) {
+    copy_bin_columns(L_, sp, 1, y2, y);
+  } else {
+    if (started) {
+      ++stats_.takeovers;
+      left_running_ = worker.busy();
+    }
+    backward_bin(F, sp, 1, y, w);
+  }
+  for (int k = 0; k < n_; ++k) x[Perm[k]] = y[k];
+}
+
 template <class T>
 void CholmodSolver::substitute(const T* Lx, const double* inv_scale, const double* b, double* x) {
   prepare_workspace();
   if (substitutes_on_two_threads())
-    split_substitute(L_, Lx, inv_scale, n_, b, x, split_, *worker_, work_y_.data(), work_w_.data(), work_y2_.data(),
-                     work_w2_.data(), work_top_.data());
+    split_substitute(Lx, inv_scale, b, x);
   else
     supernodal_substitute(L_, Lx, inv_scale, n_, b, x, work_y_.data(), work_w_.data());
+}
+
+void CholmodSolver::set_substitution_worker(SubstitutionWorker* worker) {
+  if (worker == worker_) return;
+  settle();  // the old worker is still alive (set_substitution_worker's contract)
+  worker_ = worker;
+}
+
+void CholmodSolver::settle() {
+  if (left_running_.load(std::memory_order_acquire) && worker_) worker_->wait();
+  left_running_ = false;
 }
 
 void CholmodSolver::solve_cholmod(const double* b, double* x) {

@@ -34,7 +34,18 @@ struct FactorStats {
   bool single_precision = false;
   int single_factorizations = 0;  // done in float (of `factorizations`)
   int single_fallbacks = 0;
+  // Substitutions split over two threads, and bins of theirs this thread did
+  // itself because the worker made no progress for kWorkerStallMs.
+  int split_substitutions = 0;
+  int takeovers = 0;
 };
+
+// How long a substitution's caller waits for a worker that makes no progress
+// before doing its bin itself (CholmodSolver::set_substitution_worker). A
+// bin's supernodes take microseconds each, and a woken worker starts within
+// 0.1 ms in nine cases of ten here; a worker the kernel left runnable behind
+// another thread of normal priority waited up to a 4 ms tick (HZ=250).
+constexpr double kWorkerStallMs = 0.1;
 
 // Whether BLAS may run on two threads at once: true for an OpenBLAS built
 // with threading (Debian's libopenblas0-pthread or -openmp, whose buffer
@@ -126,7 +137,14 @@ class CholmodSolver {
   // analysis (engine/split_substitution.h). Results equal the one-thread
   // substitution's to roundoff (the top rows add the two bins' updates in
   // another order). A factor whose tree does not split stays on one thread.
-  void set_substitution_worker(SubstitutionWorker* worker) { worker_ = worker; }
+  // This thread never waits for a worker that makes no progress: after
+  // kWorkerStallMs without any it does the worker's bin itself (counted in
+  // FactorStats::takeovers), and while a bin it gave up on still runs on
+  // the worker, its substitutions stay on one thread; this object waits for
+  // it before its factor, copies or buffers change, and in its destructor.
+  // So a worker must outlive the solvers it was given to, or be taken from
+  // them first (set_substitution_worker(nullptr)).
+  void set_substitution_worker(SubstitutionWorker* worker);
   const SubstitutionSplit& substitution_split() const { return split_; }
   bool substitutes_on_two_threads() const { return worker_ && split_.valid() && L_ && L_->is_super; }
 
@@ -149,6 +167,11 @@ class CholmodSolver {
   SubstitutionWorker* worker_ = nullptr;   // set_substitution_worker
   SubstitutionSplit split_;                // of the current analysis
   std::vector<double> work_y2_, work_w2_, work_top_;  // the worker's y copy and gather, the top rows' start values
+  // What the worker's bin reads (here, not on the caller's stack: a bin
+  // given up on may run after the call returned).
+  SplitJob job_;
+  std::atomic<bool> left_running_{false};  // a bin given up on may still run on worker_
+  void settle();  // waits for such a bin: before the factor, the copies or the buffers change
   FactorCopy copy_ = FactorCopy::None;  // set_factor_copy
   bool copy_valid_ = false;              // the copy holds the current factor's values
   std::vector<float> Lx_single_;         // (L->xsize) Float: float copy of a supernodal L->x
@@ -158,6 +181,8 @@ class CholmodSolver {
   bool single_current_ = false;          // the current factor exists in float only (Lx_single_)
   SingleFactorization single_;           // its scatter map and workspace, per analysis
   void prepare_workspace();
+  template <class T>
+  void split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
   template <class T>
   void substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
   void convert_copy();

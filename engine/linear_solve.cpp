@@ -47,10 +47,12 @@ double dot(const std::vector<double>& a, const std::vector<double>& b) {
 // when the factor has one: lagged with solver.factor_copy float or half).
 void substitute(State& s, CholmodSolver& f, const double* b, double* x) {
   Stopwatch w;
+  const int takeovers = f.stats().takeovers;
   if (f.has_factor_copy()) f.solve_copy(b, x);
   else f.solve(b, x);
   s.timing.solves += 1;
   s.timing.solve_kernel_ms += w.ms();
+  s.timing.takeovers += f.stats().takeovers - takeovers;
 }
 
 // x = Rn A0^-1 Rn^T b with the rest factor in state.solver.
@@ -492,7 +494,11 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   if (!w.pool || w.pool->size() != threads) w.pool = std::make_unique<ThreadPool>(threads);
   if (m.solver.substitution_threads > 1 && !w.substitution_worker)
     w.substitution_worker = std::make_unique<SubstitutionWorker>();
-  if (m.solver.substitution_threads <= 1) w.substitution_worker.reset();
+  if (m.solver.substitution_threads <= 1 && w.substitution_worker) {
+    s.solver.set_substitution_worker(nullptr);  // before the worker goes (a bin given up on may still run)
+    w.back.set_substitution_worker(nullptr);
+    w.substitution_worker.reset();
+  }
   s.solver.set_substitution_worker(w.substitution_worker.get());
   w.back.set_substitution_worker(w.substitution_worker.get());
   // After the workers above exist (they keep the whole CPU set; ones started

@@ -20,6 +20,8 @@ struct SolverWork {
   AssemblyPlan plan;
   // solver.substitution_threads 2: the second thread of every substitution
   // (set on both factor slots; engine/split_substitution.h). Null with 1.
+  // Declared before `back` so that it outlives it; State's destructor takes
+  // it from State::solver (CholmodSolver::set_substitution_worker).
   std::unique_ptr<SubstitutionWorker> substitution_worker;
 
   // lagged: two factor slots (0 = State::solver, 1 = `back`). The

@@ -1,9 +1,14 @@
 #include "engine/split_substitution.h"
 
 #include <algorithm>
+#include <chrono>
 #include <numeric>
 
 #include "engine/thread_affinity.h"
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
 
 namespace incise {
 
@@ -80,7 +85,15 @@ SubstitutionSplit split_supernodes(const cholmod_factor* L) {
   return sp;
 }
 
-SubstitutionWorker::SubstitutionWorker() : thread_([this] { loop(); }) {}
+SubstitutionWorker::SubstitutionWorker() : SubstitutionWorker(true) {}
+
+SubstitutionWorker::SubstitutionWorker(bool launch_now) {
+  if (launch_now) launch();
+}
+
+void SubstitutionWorker::launch() {
+  if (!thread_.joinable()) thread_ = std::thread([this] { loop(); });
+}
 
 SubstitutionWorker::~SubstitutionWorker() {
   {
@@ -88,39 +101,77 @@ SubstitutionWorker::~SubstitutionWorker() {
     stop_ = true;
   }
   wake_.notify_one();
-  thread_.join();
+  if (thread_.joinable()) thread_.join();
 }
 
-void SubstitutionWorker::start(void (*fn)(void*), void* arg) {
+bool SubstitutionWorker::try_start(void (*fn)(void*), void* arg) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (state_.load(std::memory_order_acquire) != kIdle) return false;
     fn_ = fn;
     arg_ = arg;
-    pending_ = true;
-    busy_ = true;
+    state_.store(kPending, std::memory_order_release);
   }
   wake_.notify_one();
+  return true;
+}
+
+bool SubstitutionWorker::await(const std::atomic<int>& progress, double stall_ms) {
+  using clock = std::chrono::steady_clock;
+  const auto stall = std::chrono::duration_cast<clock::duration>(std::chrono::duration<double, std::milli>(stall_ms));
+  int seen = progress.load(std::memory_order_relaxed);
+  auto since = clock::now();
+  for (unsigned i = 0;; ++i) {
+    if (state_.load(std::memory_order_acquire) == kIdle) return true;
+#if defined(__x86_64__) || defined(__i386__)
+    _mm_pause();
+#endif
+    if ((i & 31) != 31) continue;
+    const auto now = clock::now();
+    const int p = progress.load(std::memory_order_relaxed);
+    if (p != seen) {
+      seen = p;
+      since = now;
+    } else if (now - since > stall) {
+      break;
+    }
+  }
+  bool withdrawn = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    int expected = kPending;
+    withdrawn = state_.compare_exchange_strong(expected, kIdle, std::memory_order_acq_rel);
+  }
+  if (withdrawn) {
+    done_.notify_all();
+    return false;
+  }
+  return state_.load(std::memory_order_acquire) == kIdle;  // it may have ended just now
 }
 
 void SubstitutionWorker::wait() {
   std::unique_lock<std::mutex> lock(mutex_);
-  done_.wait(lock, [this] { return !busy_; });
+  done_.wait(lock, [this] { return state_.load(std::memory_order_acquire) == kIdle; });
 }
 
 void SubstitutionWorker::loop() {
   unpin_if_split();  // started by a pinned stepping thread: not on its one CPU
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
-    wake_.wait(lock, [this] { return pending_ || stop_; });
-    if (stop_) return;
-    pending_ = false;
+    wake_.wait(lock, [this] { return state_.load(std::memory_order_acquire) == kPending || stop_; });
+    int expected = kPending;
+    if (!state_.compare_exchange_strong(expected, kRunning, std::memory_order_acq_rel)) {
+      if (stop_) return;
+      continue;  // withdrawn before it began
+    }
     void (*fn)(void*) = fn_;
     void* arg = arg_;
     lock.unlock();
+    helper_if_split();  // (the stepping thread may have been pinned since this thread started)
     fn(arg);
     lock.lock();
-    busy_ = false;
-    done_.notify_one();
+    state_.store(kIdle, std::memory_order_release);
+    done_.notify_all();
   }
 }
 

@@ -8,6 +8,7 @@
 // substitutions at once: 9.1-9.5 ms each against 7.9 ms alone), so the bins
 // gain where the second core is free: beside the lagged policy's background
 // factorization, which runs at idle priority, it is.
+#include <atomic>
 #include <condition_variable>
 #include <mutex>
 #include <thread>
@@ -37,24 +38,55 @@ struct SubstitutionSplit {
 // simplicial factor, or when the numbering is not a postorder.
 SubstitutionSplit split_supernodes(const cholmod_factor* L);
 
-// One helper thread that runs a task on request (start, then wait), sleeping
-// in between; no allocation per task.
+// The worker's part of one substitution (CholmodSolver::split_substitute).
+struct SplitJob {
+  const cholmod_factor* L = nullptr;
+  const void* Lx = nullptr;  // float, double or binary16 entries, by the task's type
+  const double* inv_scale = nullptr;
+  const SubstitutionSplit* sp = nullptr;
+  double *y2 = nullptr, *w2 = nullptr;  // (n) its copy of the permuted vector; its supernode gather
+  std::atomic<int> progress{0};         // supernodes done, for SubstitutionWorker::await
+};
+
+// One helper thread that runs a task on request, sleeping in between; no
+// allocation per task. The thread that starts a task need not wait for it
+// whatever happens on the other core: a substitution's caller waits only
+// while the task makes progress (await), and otherwise does the task's work
+// itself. A task that had not begun is withdrawn (it never runs); one that
+// stalled part-way (its thread preempted) is left to finish on its own, and
+// busy() stays true until it does, so what it reads and writes must stay
+// alive and untouched until then (wait()).
 class SubstitutionWorker {
  public:
   SubstitutionWorker();
+  // Tests: launch = false starts no thread until launch(), so a task stays
+  // pending (as one whose thread is slow to wake).
+  explicit SubstitutionWorker(bool launch);
   ~SubstitutionWorker();
   SubstitutionWorker(const SubstitutionWorker&) = delete;
   SubstitutionWorker& operator=(const SubstitutionWorker&) = delete;
-  void start(void (*fn)(void*), void* arg);
+  void launch();
+  // Starts fn(arg); false (nothing started) while an earlier task still runs.
+  bool try_start(void (*fn)(void*), void* arg);
+  // Waits for the task started last while it makes progress: returns true
+  // once it ran to the end (its writes are visible to the caller). Returns
+  // false when `progress` (the task's own counter, bumped as it works) has not
+  // changed for stall_ms: a task that had not begun is withdrawn, one that
+  // had is left running (busy()).
+  bool await(const std::atomic<int>& progress, double stall_ms);
+  bool busy() const { return state_.load(std::memory_order_acquire) != kIdle; }
+  // Blocks until no task is pending or running.
   void wait();
 
  private:
+  enum { kIdle, kPending, kRunning };
   void loop();
   std::mutex mutex_;
   std::condition_variable wake_, done_;
   void (*fn_)(void*) = nullptr;
   void* arg_ = nullptr;
-  bool pending_ = false, busy_ = false, stop_ = false;
+  std::atomic<int> state_{kIdle};
+  bool stop_ = false;
   std::thread thread_;
 };
 

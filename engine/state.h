@@ -27,8 +27,18 @@ struct State {
   FrameTiming timing;           // last frame
   int refactorizations = 0;     // numeric factorizations so far
   int rotation_fallbacks = 0;   // SVD fallbacks in the last frame (inverted points)
-  double last_residual = 0.0;
-  int newton_iterations_done = 0;  // linearised solves in the last step   // relative residual of the last Newton iteration
+  double last_residual = 0.0;      // relative residual of the last Newton iteration
+  int newton_iterations_done = 0;  // linearised solves in the last step
+
+  State() = default;
+  State(const State&) = delete;
+  State& operator=(const State&) = delete;
+  // `work` goes first: its background job may be factorizing `solver`, and a
+  // substitution bin given up on may still read it on work's worker.
+  ~State() {
+    work.wait_job();
+    solver.set_substitution_worker(nullptr);
+  }
 };
 
 // Sizes the arrays, analyzes the pattern, sets u = v = 0 and (when

@@ -50,6 +50,10 @@ void unpin_if_split() {
   if (g_stepping_cpu.load() >= 0 && t_role < 0) set_thread_role(ThreadRole::Any);
 }
 
+void helper_if_split() {
+  if (g_stepping_cpu.load() >= 0 && t_role != static_cast<int>(ThreadRole::Helper)) set_thread_role(ThreadRole::Helper);
+}
+
 int stepping_cpu() { return g_stepping_cpu.load(); }
 
 }  // namespace incise

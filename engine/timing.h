@@ -32,6 +32,7 @@ struct FrameTiming {
   int iterations = 0;         // CG iterations (lagged, warped_cg); 0 for direct policies
   int solves = 0;             // forward+back substitutions with a Cholesky factor
   double solve_kernel_ms = 0; // time inside those substitutions
+  int takeovers = 0;          // their worker's bins the stepping thread did itself (CholmodSolver::set_substitution_worker)
   double residual = 0;        // last relative residual |A du - b| / |b| of CG (0 when direct)
   double start_residual = 1;  // CG's relative residual at its start (< 1: solver.initial_guess "previous" helped)
   bool converged = true;      // CG reached solver.tolerance within solver.max_iterations

@@ -135,10 +135,10 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, 
   std::vector<double> A;
   const Model m = dynamic_beam(nx, nyz, A);
   const int n = m.ndof();
+  std::unique_ptr<SubstitutionWorker> worker;  // outlives f (CholmodSolver::set_substitution_worker)
+  if (threads > 1) worker = std::make_unique<SubstitutionWorker>();
   CholmodSolver f;
   f.set_factor_copy(copy);
-  std::unique_ptr<SubstitutionWorker> worker;
-  if (threads > 1) worker = std::make_unique<SubstitutionWorker>();
   f.set_substitution_worker(worker.get());
   f.analyze(n, m.Ap, m.Ai);
   f.factorize(A.data());  // the first conversion also allocates (page faults): not counted below
