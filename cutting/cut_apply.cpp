@@ -6,6 +6,7 @@
 #include <memory>
 #include <thread>
 
+#include "engine/headroom.h"
 #include "engine/linear_solve.h"
 #include "engine/probe.h"
 #include "engine/step.h"
@@ -74,6 +75,21 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
 // so the next assembly measures the motion again.
 // The arrays are written element by element into the previous cut's spare
 // buffers (capacity kept: no page faults of a fresh 7 MB block per cut frame).
+// A cut that carries no blocks still hands the old cache's arrays on (valid
+// stays false: the next assembly fills them), so the filling assembly reuses
+// their pages instead of faulting in 7 MB of new ones (10k incision).
+void keep_buffers(TangentCache& old, TangentCache& c, bool with_F) {
+  c.Kl = std::move(old.Kl);
+  c.spare_Kl = std::move(old.spare_Kl);
+  if (with_F) {
+    c.F = std::move(old.F);
+    c.F.clear();  // the old model's slots: an assembly sizes it anew (capacity kept)
+    c.spare_F = std::move(old.spare_F);
+  } else {
+    c.spare_F = std::move(old.F);
+  }
+}
+
 void carry_tangent_cache(const Model& from, TangentCache& old, const std::vector<double>& old_K, const Model& to,
                          const std::vector<int>& changed, State& s) {
   s.tangent_cache.last_partial = old.last_partial;
@@ -86,23 +102,29 @@ void carry_tangent_cache(const Model& from, TangentCache& old, const std::vector
     for (int e : changed) fresh[e] = 1;
     const std::vector<int> old_ptr = slot_ptr(from), new_ptr = slot_ptr(to);
     std::vector<double>& F = s.tangent_cache.F;
-    F.assign(9 * static_cast<size_t>(to.nrot), std::nan(""));
+    F = std::move(old.spare_F);
+    assign_with_headroom(F, 9 * static_cast<size_t>(to.nrot), std::nan(""));
     for (int e = 0; e < to.nelem; ++e)
       if (!fresh[e] && new_ptr[e + 1] - new_ptr[e] == old_ptr[e + 1] - old_ptr[e])
         std::copy(old.F.begin() + 9 * static_cast<size_t>(old_ptr[e]),
                   old.F.begin() + 9 * static_cast<size_t>(old_ptr[e + 1]), F.begin() + 9 * static_cast<size_t>(new_ptr[e]));
+    keep_buffers(old, s.tangent_cache, /*with_F=*/false);
     return;
   }
-  if (!old.valid || !(to.tangent_reuse > 0.0) || old.Kl.size() != from.elem_scatter.size()) return;
+  if (!old.valid || !(to.tangent_reuse > 0.0) || old.Kl.size() != from.elem_scatter.size()) {
+    keep_buffers(old, s.tangent_cache, /*with_F=*/true);
+    return;
+  }
   if ((old.last_partial < 0 || 2 * old.last_partial > from.nelem) && old.skipped_carries < 4) {
     s.tangent_cache.skipped_carries = old.skipped_carries + 1;
+    keep_buffers(old, s.tangent_cache, /*with_F=*/true);
     return;
   }
   TangentCache& c = s.tangent_cache;
   c.Kl = std::move(old.spare_Kl);
   c.F = std::move(old.spare_F);
-  c.Kl.resize(to.elem_scatter.size());
-  c.F.resize(9 * static_cast<size_t>(to.nrot));
+  resize_with_headroom(c.Kl, to.elem_scatter.size());
+  resize_with_headroom(c.F, 9 * static_cast<size_t>(to.nrot));
   std::vector<char> fresh(to.nelem, 0);
   for (int e : changed) fresh[e] = 1;
   const std::vector<int> old_ptr = slot_ptr(from), new_ptr = slot_ptr(to);
@@ -246,15 +268,11 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
 // The next frame's cut update, prepared on a helper thread during this
 // frame's step (Simulation::cut_ahead).
 struct CutAhead {
-  std::thread job;
   PreparedCut result;
   std::exception_ptr error;
   std::vector<double> progress;
   double t_sweep = 0.0;
   int base_version = -1;
-  ~CutAhead() {
-    if (job.joinable()) job.join();
-  }
 };
 
 // Progress of every cut for a frame at time t whose swept cuts reach t_sweep;
@@ -284,7 +302,7 @@ bool take_ahead(Simulation& sim, const std::vector<double>& progress, double t_s
   auto ahead = std::static_pointer_cast<CutAhead>(sim.cut_ahead);
   if (!ahead) return false;
   sim.cut_ahead.reset();
-  if (ahead->job.joinable()) ahead->job.join();
+  sim.cut_helper->wait();
   if (ahead->error) std::rethrow_exception(ahead->error);
   if (ahead->base_version != sim.model_version || ahead->progress != progress || ahead->t_sweep != t_sweep) return false;
   *out = std::move(ahead->result);
@@ -306,8 +324,9 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   CutAhead* a = ahead.get();
   const Simulation* s = &sim;
   const bool helper_cpus = sim.model.solver.split_affinity;
-  ahead->job = std::thread([a, s, helper_cpus] {
-    if (helper_cpus) set_thread_role(ThreadRole::Helper);
+  if (!sim.cut_helper || sim.cut_helper->helper_cpus() != helper_cpus)
+    sim.cut_helper = std::make_unique<HelperThread>(helper_cpus, HelperThread::Priority::Normal);  // (none running)
+  sim.cut_helper->run([ahead, a, s] {  // (ahead: the task keeps its result alive)
     try {
       a->result = prepare_cut(*s, a->progress, a->t_sweep);
     } catch (...) {

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 
 #include "engine/assemble.h"
+#include "engine/headroom.h"
 #include "engine/node_block_matvec.h"
 #include "engine/polar.h"
 #include "engine/rotation_stiffness.h"
@@ -496,10 +497,10 @@ int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, con
   const bool probe = cache && cache->bypass;
   if (probe) {
     if (cache->F.size() != 9 * static_cast<size_t>(m.nrot))  // a new model: no F of the last frame
-      cache->F.assign(9 * static_cast<size_t>(m.nrot), std::nan(""));
+      assign_with_headroom(cache->F, 9 * static_cast<size_t>(m.nrot), std::nan(""));
   } else if (cache && !cache->valid) {  // a full assembly that fills the cache
-    cache->Kl.assign(m.elem_scatter.size(), 0.0);
-    cache->F.assign(9 * static_cast<size_t>(m.nrot), 0.0);
+    assign_with_headroom(cache->Kl, m.elem_scatter.size(), 0.0);  // (a cut's spare buffers: cut_apply.cpp)
+    assign_with_headroom(cache->F, 9 * static_cast<size_t>(m.nrot), 0.0);
   }
   const bool keep_K = cache && cache->valid && !probe;  // K holds the kept blocks' sum: updated, not rebuilt
   int fb[64] = {0}, up[64] = {0}, kp[64] = {0};

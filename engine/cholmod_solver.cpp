@@ -16,6 +16,7 @@
 #include "engine/block_recycler.h"
 #include "engine/error.h"
 #include "engine/half.h"
+#include "engine/headroom.h"
 #include "engine/timing.h"
 
 namespace incise {
@@ -480,7 +481,7 @@ void CholmodSolver::factorize(const double* values) {
   if (single_numeric_ && L_->is_super) {
     Stopwatch clock;
     if (!single_.analyzed()) single_.analyze(L_, n_, static_cast<const int*>(A_->p), static_cast<const int*>(A_->i));
-    Lx_single_.resize(L_->xsize);  // same analysis: no reallocation after the first
+    resize_with_headroom(Lx_single_, L_->xsize);  // no reallocation after the first (nor per cut: headroom.h)
     const long bad = single_.factorize(values, Lx_single_.data());
     stats_.factor_ms_total += clock.ms();
     ++stats_.factorizations;

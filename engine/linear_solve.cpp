@@ -12,6 +12,7 @@
 #include "engine/assemble.h"
 #include "engine/carried_ordering.h"
 #include "engine/error.h"
+#include "engine/headroom.h"
 #include "engine/polar.h"
 #include "engine/thread_affinity.h"
 
@@ -182,7 +183,7 @@ void take_job(State& s) {
 void launch_job(const Model& m, State& s) {
   auto& w = s.work;
   const int k = w.front == 0 ? 1 : 0;  // any slot but the front (none is running)
-  w.A_back.assign(s.A.begin(), s.A.end());
+  assign_range_with_headroom(w.A_back, s.A.begin(), s.A.end());
   // While an incision goes on (a new pattern this frame or the last), a slot
   // analyzing the new pattern carries the front factor's ordering over
   // (solver.cut_ordering "carried"): no METIS in the job (39-44 ms at 10k DOF,
@@ -222,15 +223,15 @@ void launch_job(const Model& m, State& s) {
   // -> 6.5-7.2 ms). Not with "wait": the step then blocks on the job, and an
   // idle-priority thread gets next to no CPU while every core is busy (an
   // unprivileged thread cannot raise it back for the wait).
-  const bool idle = m.solver.idle_background && m.solver.skip_late_factor;
+  const auto priority = m.solver.idle_background && m.solver.skip_late_factor ? HelperThread::Priority::Idle
+                                                                               : HelperThread::Priority::Normal;
   const bool helper_cpus = m.solver.split_affinity;
-  w.job = std::thread([f, wp, n, idle, helper_cpus] {
-    if (helper_cpus) set_thread_role(ThreadRole::Helper);
-    if (idle) {
-      sched_param sp{};
-      pthread_setschedparam(pthread_self(), SCHED_IDLE, &sp);
-    }
-    wp->job_policy = sched_getscheduler(0);
+  if (!w.job_thread || w.job_thread->priority() != priority || w.job_thread->helper_cpus() != helper_cpus) {
+    w.job_thread.reset();  // (no job runs: launch_job is called with none)
+    w.job_thread = std::make_unique<HelperThread>(helper_cpus, priority);
+  }
+  w.job_thread->run([f, wp, n] {
+    wp->job_policy = wp->job_thread->policy();
     try {
       if (wp->job_analyze && !wp->job_old_perm.empty()) {
         const std::vector<int> perm = carried_ordering(wp->job_nnode, wp->job_enr_node, wp->job_map, wp->job_old_perm);

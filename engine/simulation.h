@@ -3,6 +3,7 @@
 #include <memory>
 #include <string>
 
+#include "engine/helper_thread.h"
 #include "engine/mesh.h"
 #include "engine/model.h"
 #include "engine/scene.h"
@@ -18,10 +19,11 @@ struct Simulation {
   State state;
   double setup_ms = 0.0;  // reading the mesh, precomputation, symbolic analysis
   int model_version = 0;  // counts the models a cut put in place
-  // cutting/cut_apply.cpp: the next frame's cut update being prepared on a
-  // helper thread that reads model, mesh and scene. Last member, so it is
-  // destroyed (its thread joined) before them.
+  // cutting/cut_apply.cpp: the next frame's cut update being prepared on
+  // cut_helper, which reads model, mesh and scene. Last members, so the
+  // thread (destroyed first) has finished before any of them goes.
   std::shared_ptr<void> cut_ahead;
+  std::unique_ptr<HelperThread> cut_helper;
 };
 
 // Reads the scene and its mesh, builds the model, initialises the state.

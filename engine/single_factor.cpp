@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "engine/error.h"
+#include "engine/headroom.h"
 
 // Reference BLAS/LAPACK (OpenBLAS here), Fortran calling convention: CHOLMOD
 // links the same libraries; the hidden string lengths are not read by them.
@@ -92,7 +93,7 @@ void SingleFactorization::analyze(const cholmod_factor* L, int n, const int* Ap,
   const int* perm = static_cast<const int*>(L->Perm);
   std::vector<int> pinv(n);
   for (int k = 0; k < n; ++k) pinv[perm[k]] = k;
-  col_super_.assign(n, 0);
+  assign_with_headroom(col_super_, n, 0);
   size_t max_rows = 0, max_c = 0;
   for (int s = 0; s < nsuper_; ++s) {
     for (int j = super_[s]; j < super_[s + 1]; ++j) col_super_[j] = s;
@@ -104,7 +105,7 @@ void SingleFactorization::analyze(const cholmod_factor* L, int n, const int* Ap,
   // A's entries by the supernode of their (permuted) column in L's lower triangle.
   const int nnz = Ap[n];
   std::vector<int> target_col(nnz), target_row(nnz);
-  a_ptr_.assign(nsuper_ + 1, 0);
+  assign_with_headroom(a_ptr_, nsuper_ + 1, 0);
   for (int c = 0; c < n; ++c)
     for (int k = Ap[c]; k < Ap[c + 1]; ++k) {
       const int pr = pinv[Ai[k]], pc = pinv[c];
@@ -113,11 +114,11 @@ void SingleFactorization::analyze(const cholmod_factor* L, int n, const int* Ap,
       ++a_ptr_[col_super_[target_col[k]] + 1];
     }
   for (int s = 0; s < nsuper_; ++s) a_ptr_[s + 1] += a_ptr_[s];
-  a_src_.assign(nnz, 0);
-  a_dst_.assign(nnz, 0);
+  assign_with_headroom(a_src_, nnz, 0);
+  assign_with_headroom(a_dst_, nnz, 0);
   std::vector<int> fill(a_ptr_.begin(), a_ptr_.end() - 1);
   for (int k = 0; k < nnz; ++k) a_src_[fill[col_super_[target_col[k]]]++] = k;
-  map_.assign(n, -1);
+  assign_with_headroom(map_, n, -1);
   for (int s = 0; s < nsuper_; ++s) {
     const int nsrow = pi_[s + 1] - pi_[s];
     for (int p = 0; p < nsrow; ++p) map_[ls_[pi_[s] + p]] = p;
@@ -131,12 +132,12 @@ void SingleFactorization::analyze(const cholmod_factor* L, int n, const int* Ap,
     }
     for (int p = 0; p < nsrow; ++p) map_[ls_[pi_[s] + p]] = -1;
   }
-  head_.assign(nsuper_, -1);
-  next_.assign(nsuper_, -1);
-  lpos_.assign(nsuper_, 0);
-  relmap_.assign(max_rows, 0);
+  assign_with_headroom(head_, nsuper_, -1);
+  assign_with_headroom(next_, nsuper_, -1);
+  assign_with_headroom(lpos_, nsuper_, 0);
+  assign_with_headroom(relmap_, max_rows, 0);
   c_size_ = std::max<size_t>(max_c, 1);
-  C_.assign(c_size_, 0.0f);
+  assign_with_headroom(C_, c_size_, 0.0f);
   n_ = n;
 }
 

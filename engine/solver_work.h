@@ -11,6 +11,7 @@
 
 #include "engine/assemble_parallel.h"
 #include "engine/cholmod_solver.h"
+#include "engine/helper_thread.h"
 #include "engine/thread_pool.h"
 
 namespace incise {
@@ -50,7 +51,7 @@ struct SolverWork {
   bool slot_carried[2] = {false, false};  // that slot's analysis used a carried ordering: searched again once cutting pauses
   bool job_analyze = false;
   int job_slot = -1;
-  std::thread job;
+  std::unique_ptr<HelperThread> job_thread;  // runs the jobs (created at the first, again if its settings change)
   bool job_running = false;
   std::atomic<bool> job_done{false};   // set by the job when it has finished (late_factor "skip" polls it)
   int job_policy = -1;                 // the scheduling policy the last job ran at (SCHED_IDLE, SCHED_OTHER), set by it
@@ -94,7 +95,7 @@ struct SolverWork {
   SolverWork& operator=(const SolverWork&) = delete;
   ~SolverWork() { wait_job(); }
   void wait_job() {
-    if (job.joinable()) job.join();
+    if (job_thread) job_thread->wait();
   }
 };
 

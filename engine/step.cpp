@@ -7,6 +7,7 @@
 #include "engine/assemble.h"
 #include "engine/assemble_parallel.h"
 #include "engine/error.h"
+#include "engine/headroom.h"
 #include "engine/linear_solve.h"
 
 namespace incise {
@@ -52,10 +53,10 @@ void size_state(const Model& m, State& s, bool zero) {
   s.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one
   s.tangent_cache.theta = m.tangent_reuse;
   if (!zero) {
-    for (auto* w : {&s.u, &s.v, &s.a, &s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) w->resize(n);
-    s.R.resize(9 * static_cast<size_t>(m.nrot));
-    s.K.resize(m.nnz());
-    s.A.resize(m.nnz());
+    for (auto* w : {&s.u, &s.v, &s.a, &s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) resize_with_headroom(*w, n);
+    resize_with_headroom(s.R, 9 * static_cast<size_t>(m.nrot));
+    resize_with_headroom(s.K, m.nnz());
+    resize_with_headroom(s.A, m.nnz());
     return;
   }
   s.u.assign(n, 0.0);
