@@ -241,7 +241,7 @@ inline void scatter_blocks(const Model& m, int e, int nblk, const double* Kl, do
       if (sc[k] >= 0) K[sc[k]] += Kl[k];
     return;
   }
-  double* kept = &cache->Kl[m.elem_scatter_ptr[e]];
+  double* kept = &cache->Kl[cache->kl_ptr[e]];
   for (int k = 0; k < 9 * nblk; ++k) {
     if (sc[k] >= 0) K[sc[k]] += cached ? Kl[k] - kept[k] : Kl[k];
     kept[k] = Kl[k];
@@ -500,6 +500,8 @@ int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, con
       assign_with_headroom(cache->F, 9 * static_cast<size_t>(m.nrot), std::nan(""));
   } else if (cache && !cache->valid) {  // a full assembly that fills the cache
     assign_with_headroom(cache->Kl, m.elem_scatter.size(), 0.0);  // (a cut's spare buffers: cut_apply.cpp)
+    cache->kl_ptr.assign(m.elem_scatter_ptr.begin(), m.elem_scatter_ptr.end() - 1);
+    cache->kl_garbage = 0;
     assign_with_headroom(cache->F, 9 * static_cast<size_t>(m.nrot), 0.0);
   }
   const bool keep_K = cache && cache->valid && !probe;  // K holds the kept blocks' sum: updated, not rebuilt

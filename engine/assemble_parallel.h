@@ -52,7 +52,14 @@ AssemblyPlan make_assembly_plan(const Model& model, int nthreads);
 struct TangentCache {
   double theta = 0.0;
   bool valid = false;
-  std::vector<double> Kl;  // (Model::elem_scatter.size()) blocks of each element, at elem_scatter_ptr
+  std::vector<double> Kl;  // blocks of each element (Model::elem_scatter's order), at kl_ptr
+  // (nelem) where each element's blocks start in Kl: elem_scatter_ptr when an
+  // assembly fills the cache; a cut's carry leaves the elements it did not
+  // change where they are and puts the ones that grew at the end
+  // (cut_apply.cpp), so Kl may hold unused entries (kl_garbage).
+  std::vector<int> kl_ptr;
+  std::size_t kl_garbage = 0;
+  const double* blocks(int e) const { return &Kl[kl_ptr[e]]; }
   std::vector<double> F;   // (nrot, 9) deformation gradient of each slot when its element's blocks were made
   int updated = 0;         // elements whose blocks the last call recomputed (all, when it was a full assembly)
   int last_partial = -1;   // `updated` of the last call that had a valid cache (-1: none yet); kept across cuts

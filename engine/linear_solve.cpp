@@ -489,7 +489,7 @@ bool solver_carries_over_cuts(const Model& m, const State& s) {
   return m.solver.policy == SolverPolicy::Lagged && s.factor_current;
 }
 
-void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_map) {
+void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_map, AssemblyPlan* plan) {
   auto& w = s.work;
   const int threads = std::max(1, m.solver.threads);
   if (!w.pool || w.pool->size() != threads) w.pool = std::make_unique<ThreadPool>(threads);
@@ -505,7 +505,8 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   // After the workers above exist (they keep the whole CPU set; ones started
   // later unpin themselves: unpin_if_split).
   if (m.solver.split_affinity) set_thread_role(ThreadRole::Stepping);
-  w.plan = make_assembly_plan(m, threads);
+  if (plan && plan->nthreads == threads) w.plan = std::move(*plan);
+  else w.plan = make_assembly_plan(m, threads);
   const int n = m.ndof();
   if (dofnode_map && solver_carries_over_cuts(m, s)) {
     // A cut: keep the factors; each maps the new DOFs onto its own (composed

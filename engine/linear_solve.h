@@ -34,7 +34,10 @@ namespace incise {
 // the cut frame; the lagged factors keep preconditioning through the map (an
 // exact solve on a patch around the DOFs they do not know) and the next
 // background job (or synchronous refresh) analyzes and factorizes the new pattern.
-void prepare_solver(const Model& model, State& state, const std::vector<int>* dofnode_map = nullptr);
+// `plan`: make_assembly_plan(model, its solver.threads) made ahead (a cut's
+// helper thread), taken instead of making one here.
+void prepare_solver(const Model& model, State& state, const std::vector<int>* dofnode_map = nullptr,
+                    AssemblyPlan* plan = nullptr);
 
 // The lagged policy with a valid factor: a cut keeps it (see prepare_solver).
 bool solver_carries_over_cuts(const Model& model, const State& state);

@@ -23,6 +23,7 @@ struct Simulation {
   // cut_helper, which reads model, mesh and scene. Last members, so the
   // thread (destroyed first) has finished before any of them goes.
   std::shared_ptr<void> cut_ahead;
+  std::shared_ptr<Model> retired_model;  // the model the last cut replaced, freed by the next cut-ahead task
   std::unique_ptr<HelperThread> cut_helper;
 };
 
