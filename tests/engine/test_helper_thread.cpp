@@ -1,9 +1,8 @@
 // engine/helper_thread.h: one long-lived thread per helper role, its tasks in
-// order and one at a time, its priority and CPUs taken once; and the
-// substitution worker's CPUs under solver.affinity "split".
+// order and one at a time, its priority taken once (its CPUs:
+// test_thread_affinity.cpp).
 #include <gtest/gtest.h>
 
-#include <pthread.h>
 #include <sched.h>
 
 #include <atomic>
@@ -12,18 +11,9 @@
 #include <vector>
 
 #include "engine/helper_thread.h"
-#include "engine/split_substitution.h"
-#include "engine/thread_affinity.h"
 
 namespace incise {
 namespace {
-
-cpu_set_t current_cpus() {
-  cpu_set_t s;
-  CPU_ZERO(&s);
-  pthread_getaffinity_np(pthread_self(), sizeof s, &s);
-  return s;
-}
 
 TEST(HelperThread, RunsTasksInOrderOneAtATimeOnOneThread) {
   HelperThread helper(/*helper_cpus=*/false, HelperThread::Priority::Normal);
@@ -69,31 +59,6 @@ TEST(HelperThread, IdlePriorityRunsUnderSchedIdle) {
   EXPECT_EQ(idle.policy(), SCHED_IDLE);
   EXPECT_EQ(seen_normal, SCHED_OTHER);
   EXPECT_EQ(normal.policy(), SCHED_OTHER);
-}
-
-// Under "split" the helper threads and the substitution worker stay off the
-// stepping thread's CPU, even when the pinned stepping thread creates them.
-TEST(HelperThread, SplitKeepsHelpersAndTheSubstitutionWorkerOffTheSteppingCpu) {
-  const cpu_set_t all = current_cpus();
-  if (CPU_COUNT(&all) < 2) GTEST_SKIP() << "one CPU: nothing is pinned";
-  std::thread stepping([&] {
-    ASSERT_TRUE(set_thread_role(ThreadRole::Stepping));
-    const int step_cpu = stepping_cpu();
-    HelperThread helper(/*helper_cpus=*/true, HelperThread::Priority::Normal);
-    cpu_set_t in_task;
-    helper.run([&] { in_task = current_cpus(); });
-    helper.wait();
-    EXPECT_FALSE(CPU_ISSET(step_cpu, &in_task));
-    EXPECT_EQ(CPU_COUNT(&in_task), CPU_COUNT(&all) - 1);
-    SubstitutionWorker worker;
-    struct Ctx {
-      cpu_set_t cpus;
-    } c;
-    ASSERT_TRUE(worker.try_start([](void* p) { static_cast<Ctx*>(p)->cpus = current_cpus(); }, &c));
-    worker.wait();
-    EXPECT_FALSE(CPU_ISSET(step_cpu, &c.cpus));
-  });
-  stepping.join();
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // solver.affinity "split" (engine/thread_affinity.h): the stepping thread on
 // the last CPU of the process's set, helpers on the others, and workers that
-// a pinned thread starts back on the whole set. Run on threads of their own:
+// a pinned thread starts back on the whole set; the helper threads and the
+// substitution worker off the stepping CPU. Run on threads of their own:
 // the test's main thread stays where it was.
 #include <gtest/gtest.h>
 
@@ -9,6 +10,8 @@
 
 #include <thread>
 
+#include "engine/helper_thread.h"
+#include "engine/split_substitution.h"
 #include "engine/thread_affinity.h"
 
 namespace incise {
@@ -59,6 +62,31 @@ TEST(ThreadAffinity, SplitGivesTheSteppingThreadOneCpuAndTheHelpersTheRest) {
       EXPECT_FALSE(CPU_ISSET(last, &now));
     });
     helper.join();
+  });
+  stepping.join();
+}
+
+// Under "split" the helper threads and the substitution worker stay off the
+// stepping thread's CPU, even when the pinned stepping thread creates them.
+TEST(ThreadAffinity, HelpersAndTheSubstitutionWorkerStayOffTheSteppingCpu) {
+  const cpu_set_t all = current_cpus();
+  if (CPU_COUNT(&all) < 2) GTEST_SKIP() << "one CPU: nothing is pinned";
+  std::thread stepping([&] {
+    ASSERT_TRUE(set_thread_role(ThreadRole::Stepping));
+    const int step_cpu = stepping_cpu();
+    HelperThread helper(/*helper_cpus=*/true, HelperThread::Priority::Normal);
+    cpu_set_t in_task;
+    helper.run([&] { in_task = current_cpus(); });
+    helper.wait();
+    EXPECT_FALSE(CPU_ISSET(step_cpu, &in_task));
+    EXPECT_EQ(CPU_COUNT(&in_task), CPU_COUNT(&all) - 1);
+    SubstitutionWorker worker;
+    struct Ctx {
+      cpu_set_t cpus;
+    } c;
+    ASSERT_TRUE(worker.try_start([](void* p) { static_cast<Ctx*>(p)->cpus = current_cpus(); }, &c));
+    worker.wait();
+    EXPECT_FALSE(CPU_ISSET(step_cpu, &c.cpus));
   });
   stepping.join();
 }
