@@ -579,9 +579,9 @@ void CholmodSolver::prepare_workspace() {
 // alone. Forward: the worker's bin updates its copy y2, whose bin columns are
 // copied back and whose top rows are merged as y += y2 - y0; then the top.
 // Backward: the top first, then both bins. When the worker makes no progress
-// for kWorkerStallMs this thread does the worker's bin on y itself (then
-// exactly the one-thread substitution's sums); while a bin it gave up on
-// still runs, substitutions stay on this thread.
+// for kWorkerStallMs this thread does the worker's bin on y itself (the
+// one-thread result to roundoff: the top rows get bin 0's updates, then bin
+// 1's); while a bin it gave up on still runs, substitutions stay on this thread.
 template <class T>
 void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x) {
   SubstitutionWorker& worker = *worker_;
@@ -614,7 +614,7 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   } else {
     ++stats_.takeovers;
     left_running_ = worker.busy();
-    forward_bin(F, sp, 1, y, w);  // the top rows then sum both bins in the one-thread order
+    forward_bin(F, sp, 1, y, w);  // the top rows gain bin 1's updates directly
   }
   for (int sn : sp.top) forward_supernode(F, sn, y, w);
   for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
