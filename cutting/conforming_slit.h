@@ -4,7 +4,7 @@
 // on the x > xc side take the duplicates; nodes on the slit front (z == z_tip)
 // are shared, so the slit closes there. No X-FEM involved: an independent
 // check of the cut model (tests/cutting, tools/study_slit).
-#include "engine/mesh.h"
+#include "engine/mesh/mesh.h"
 
 namespace incise {
 

@@ -6,12 +6,12 @@
 #include <memory>
 #include <thread>
 
-#include "engine/headroom.h"
-#include "engine/linear_solve.h"
-#include "engine/probe.h"
-#include "engine/step.h"
-#include "engine/thread_affinity.h"
-#include "engine/timing.h"
+#include "engine/util/headroom.h"
+#include "engine/solve/linear_solve.h"
+#include "engine/output/probe.h"
+#include "engine/dynamics/step.h"
+#include "engine/runtime/thread_affinity.h"
+#include "engine/runtime/timing.h"
 
 namespace incise {
 

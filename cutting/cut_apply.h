@@ -5,8 +5,8 @@
 #include "cutting/xfem_layout.h"
 #include <array>
 
-#include "engine/simulation.h"
-#include "engine/timing.h"
+#include "engine/runtime/simulation.h"
+#include "engine/runtime/timing.h"
 
 namespace incise {
 
@@ -14,7 +14,7 @@ struct CutUpdate {
   bool changed = false;  // the model (DOF set) changed this frame
   CutReport report;      // of the new layout
   double ms = 0.0;       // time spent (layout, model, analysis, transfer)
-  std::array<double, kNumCutParts> part_ms{};  // its parts (engine/timing.h)
+  std::array<double, kNumCutParts> part_ms{};  // its parts (engine/runtime/timing.h)
   bool ahead = false;    // layout and model were prepared during the previous frame (start_cut_ahead)
 };
 

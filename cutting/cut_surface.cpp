@@ -8,7 +8,7 @@
 #include <Eigen/Dense>
 
 #include "cutting/exact_sign.h"
-#include "engine/error.h"
+#include "engine/util/error.h"
 
 namespace incise {
 

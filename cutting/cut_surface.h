@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/scene.h"
+#include "engine/scene/scene.h"
 
 namespace incise {
 

@@ -1,7 +1,7 @@
 #pragma once
 // X-FEM layout of a mesh cut by surfaces: element classification, sub-element
 // decomposition, the regions of each node's support and the enriched DOF
-// nodes they need. The result feeds build_model (engine/cut_layout.h).
+// nodes they need. The result feeds build_model (engine/model/cut_layout.h).
 //
 // Classification of an element against one cut, from the exact signs of the
 // level set at its corners:
@@ -24,8 +24,8 @@
 #include <vector>
 
 #include "cutting/cut_surface.h"
-#include "engine/cut_layout.h"
-#include "engine/model.h"
+#include "engine/model/cut_layout.h"
+#include "engine/model/model.h"
 
 namespace incise {
 

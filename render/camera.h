@@ -3,7 +3,7 @@
 // parts framed from the mesh's bounding box so the whole body is in view.
 #include <array>
 
-#include "engine/scene.h"
+#include "engine/scene/scene.h"
 
 namespace incise {
 

@@ -7,7 +7,7 @@
 #include <cstring>
 #include <vector>
 
-#include "engine/error.h"
+#include "engine/util/error.h"
 #include "render/gl.h"
 
 namespace incise {

@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <string>
 
-#include "engine/error.h"
+#include "engine/util/error.h"
 #include "render/image.h"
 
 namespace incise {

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <limits>
 
-#include "engine/error.h"
+#include "engine/util/error.h"
 #include "render/gl.h"
 #include "render/shaders.h"
 

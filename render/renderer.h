@@ -10,8 +10,8 @@
 #include <memory>
 #include <vector>
 
-#include "engine/display_mesh.h"
-#include "engine/scene.h"
+#include "engine/output/display_mesh.h"
+#include "engine/scene/scene.h"
 #include "render/camera.h"
 #include "render/egl_context.h"
 #include "render/image.h"

@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "engine/error.h"
+#include "engine/util/error.h"
 #include "render/gl.h"
 
 namespace incise {

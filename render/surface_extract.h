@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "engine/display_mesh.h"
+#include "engine/output/display_mesh.h"
 
 namespace incise {
 

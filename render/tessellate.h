@@ -7,7 +7,7 @@
 // shades smoothly while a cut face never shares a normal with the boundary.
 #include <vector>
 
-#include "engine/display_mesh.h"
+#include "engine/output/display_mesh.h"
 #include "render/surface_extract.h"
 
 namespace incise {

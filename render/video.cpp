@@ -9,7 +9,7 @@
 #include <sstream>
 #include <vector>
 
-#include "engine/error.h"
+#include "engine/util/error.h"
 
 namespace incise {
 

@@ -4,8 +4,8 @@
 #include <cstdio>
 #include <thread>
 
-#include "engine/simulation.h"
-#include "engine/timing_stats.h"
+#include "engine/runtime/simulation.h"
+#include "engine/runtime/timing_stats.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
 #include "tools/frame_trace.h"

@@ -1,14 +1,14 @@
 #include <iostream>
 
-#include "engine/error.h"
-#include "engine/malloc_tuning.h"
+#include "engine/util/error.h"
+#include "engine/runtime/malloc_tuning.h"
 #include "tools/cli.h"
 #include "tools/commands.h"
 
 namespace incise {
 
 int cli_main(int argc, char** argv) {
-  tune_malloc_for_frames();  // engine/malloc_tuning.h: no page faults from rebuilt Models in cut frames
+  tune_malloc_for_frames();  // engine/runtime/malloc_tuning.h: no page faults from rebuilt Models in cut frames
   CLI::App app{"incise: real-time surgical cutting engine (corotated tet10 FEM, Newmark, CHOLMOD)"};
   app.require_subcommand(1);
   add_run_command(app);

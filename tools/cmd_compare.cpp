@@ -9,10 +9,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/error.h"
-#include "engine/simulation.h"
-#include "engine/step.h"
-#include "engine/timing_stats.h"
+#include "engine/util/error.h"
+#include "engine/runtime/simulation.h"
+#include "engine/dynamics/step.h"
+#include "engine/runtime/timing_stats.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
 #include "tools/solver_report.h"

@@ -2,8 +2,8 @@
 
 #include "cutting/cut_apply.h"
 #include "cutting/cut_surface.h"
-#include "engine/error.h"
-#include "engine/step.h"
+#include "engine/util/error.h"
+#include "engine/dynamics/step.h"
 #include "tools/frame_loop.h"
 
 namespace incise {

@@ -2,7 +2,7 @@
 #include <fstream>
 #include <string>
 
-#include "engine/error.h"
+#include "engine/util/error.h"
 #include "tools/frame_trace.h"
 
 namespace incise {

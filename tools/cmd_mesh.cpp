@@ -2,9 +2,9 @@
 #include <array>
 #include <cstdio>
 
-#include "engine/error.h"
-#include "engine/mesh_io.h"
-#include "engine/mesh_tools.h"
+#include "engine/util/error.h"
+#include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
 #include "tools/commands.h"
 
 namespace incise {

@@ -1,7 +1,7 @@
 // incise render: step K frames and render that frame to a PNG.
 #include <cstdio>
 
-#include "engine/simulation.h"
+#include "engine/runtime/simulation.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
 #include "tools/render_stage.h"

@@ -3,10 +3,10 @@
 #include <filesystem>
 #include <fstream>
 
-#include "engine/error.h"
-#include "engine/result_grid.h"
-#include "engine/simulation.h"
-#include "engine/timing_stats.h"
+#include "engine/util/error.h"
+#include "engine/output/result_grid.h"
+#include "engine/runtime/simulation.h"
+#include "engine/runtime/timing_stats.h"
 #include "render/video.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"

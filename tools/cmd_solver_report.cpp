@@ -1,7 +1,7 @@
 #include <algorithm>
 #include <cstdio>
 
-#include "engine/block_recycler.h"
+#include "engine/solve/block_recycler.h"
 #include "tools/solver_report.h"
 
 namespace incise {
@@ -112,8 +112,8 @@ nlohmann::json solver_report_json(const SolverReport& r) {
 
 #include <CLI/CLI.hpp>
 
-#include "engine/error.h"
-#include "engine/step.h"
+#include "engine/util/error.h"
+#include "engine/dynamics/step.h"
 
 namespace incise {
 

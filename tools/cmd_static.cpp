@@ -7,11 +7,11 @@
 #include <sstream>
 
 #include "cutting/cut_apply.h"
-#include "engine/error.h"
-#include "engine/probe.h"
-#include "engine/result_grid.h"
-#include "engine/simulation.h"
-#include "engine/static_solve.h"
+#include "engine/util/error.h"
+#include "engine/output/probe.h"
+#include "engine/output/result_grid.h"
+#include "engine/runtime/simulation.h"
+#include "engine/dynamics/static_solve.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
 

@@ -1,7 +1,7 @@
 #include <cstdio>
 
-#include "engine/simulation.h"
-#include "engine/thread_affinity.h"
+#include "engine/runtime/simulation.h"
+#include "engine/runtime/thread_affinity.h"
 #include "tools/commands.h"
 
 namespace incise {

@@ -4,7 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/error.h"
+#include "engine/util/error.h"
 #include "tools/solver_report.h"
 #include "tools/timing_json.h"
 

@@ -6,8 +6,8 @@
 #include <memory>
 #include <string>
 
-#include "engine/simulation.h"
-#include "engine/timing.h"
+#include "engine/runtime/simulation.h"
+#include "engine/runtime/timing.h"
 
 namespace incise {
 

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/timing.h"
+#include "engine/runtime/timing.h"
 
 namespace incise {
 

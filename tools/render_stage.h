@@ -6,8 +6,8 @@
 #include <memory>
 #include <string>
 
-#include "engine/display_mesh.h"
-#include "engine/simulation.h"
+#include "engine/output/display_mesh.h"
+#include "engine/runtime/simulation.h"
 #include "render/renderer.h"
 
 namespace incise {

@@ -8,9 +8,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "engine/simulation.h"
-#include "engine/timing.h"
-#include "engine/timing_stats.h"
+#include "engine/runtime/simulation.h"
+#include "engine/runtime/timing.h"
+#include "engine/runtime/timing_stats.h"
 
 namespace incise {
 

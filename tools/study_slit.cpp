@@ -14,10 +14,10 @@
 
 #include "cutting/conforming_slit.h"
 #include "cutting/cut_apply.h"
-#include "engine/mesh_tools.h"
-#include "engine/probe.h"
-#include "engine/static_solve.h"
-#include "engine/timing.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/output/probe.h"
+#include "engine/dynamics/static_solve.h"
+#include "engine/runtime/timing.h"
 
 using namespace incise;
 

@@ -3,8 +3,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/simulation.h"
-#include "engine/timing_stats.h"
+#include "engine/runtime/simulation.h"
+#include "engine/runtime/timing_stats.h"
 
 namespace incise {
 

@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/step.h"
+#include "engine/dynamics/step.h"
 #include "test_util.h"
 #include "tools/frame_loop.h"
 

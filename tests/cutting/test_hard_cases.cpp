@@ -7,9 +7,9 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
-#include "engine/assemble.h"
-#include "engine/probe.h"
-#include "engine/step.h"
+#include "engine/fem/assemble.h"
+#include "engine/output/probe.h"
+#include "engine/dynamics/step.h"
 #include "test_util.h"
 
 namespace incise {

@@ -1,5 +1,5 @@
 // The solver's sparse products on cut models: the node-blocked symmetric
-// product (engine/node_block_matvec.h) relies on the pattern's layout, and the
+// product (engine/fem/node_block_matvec.h) relies on the pattern's layout, and the
 // lumped mass product on M being its diagonal plus the u-q couplings
 // (Model::mass_coupling). Both are checked against a plain entry-by-entry
 // product of the stored upper triangle, on a fresh cut model and on a cut
@@ -9,9 +9,9 @@
 #include <cmath>
 #include <vector>
 
-#include "engine/assemble.h"
-#include "engine/assemble_parallel.h"
-#include "engine/step.h"
+#include "engine/fem/assemble.h"
+#include "engine/fem/assemble_parallel.h"
+#include "engine/dynamics/step.h"
 #include "tests/cutting/test_util.h"
 
 namespace incise {

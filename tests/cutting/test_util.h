@@ -8,9 +8,9 @@
 #include "cutting/cut_apply.h"
 #include "cutting/cut_surface.h"
 #include "cutting/xfem_layout.h"
-#include "engine/mesh_tools.h"
-#include "engine/model.h"
-#include "engine/scene.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/model/model.h"
+#include "engine/scene/scene.h"
 #include "tests/engine/test_util.h"
 
 namespace incise::test {

@@ -6,10 +6,10 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
-#include "engine/assemble.h"
-#include "engine/assemble_parallel.h"
-#include "engine/probe.h"
-#include "engine/step.h"
+#include "engine/fem/assemble.h"
+#include "engine/fem/assemble_parallel.h"
+#include "engine/output/probe.h"
+#include "engine/dynamics/step.h"
 #include "test_util.h"
 
 namespace incise {
@@ -131,8 +131,8 @@ TEST(Xfem, CrossingCutsGiveTheRightNumberOfPieces) {
 }  // namespace
 }  // namespace incise
 
-#include "engine/display_mesh.h"
-#include "engine/result_grid.h"
+#include "engine/output/display_mesh.h"
+#include "engine/output/result_grid.h"
 
 namespace incise {
 namespace {
@@ -173,7 +173,7 @@ TEST(Xfem, DisplayShowsTheCutOpeningWithInnerFacesFlagged) {
 }  // namespace incise
 
 #include "cutting/conforming_slit.h"
-#include "engine/static_solve.h"
+#include "engine/dynamics/static_solve.h"
 
 namespace incise {
 namespace {
@@ -232,7 +232,7 @@ TEST(Xfem, FaceAlignedSlitEqualsANodeDuplicatedMesh) {
 #include <filesystem>
 #include <fstream>
 
-#include "engine/error.h"
+#include "engine/util/error.h"
 
 namespace incise {
 namespace {

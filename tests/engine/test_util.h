@@ -7,10 +7,10 @@
 
 #include <Eigen/Dense>
 
-#include "engine/assemble.h"
-#include "engine/mesh_tools.h"
-#include "engine/model.h"
-#include "engine/scene.h"
+#include "engine/fem/assemble.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/model/model.h"
+#include "engine/scene/scene.h"
 
 namespace incise::test {
 

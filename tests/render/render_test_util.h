@@ -13,12 +13,12 @@
 #include <memory>
 #include <string>
 
-#include "engine/display_mesh.h"
-#include "engine/error.h"
-#include "engine/mesh_io.h"
-#include "engine/mesh_tools.h"
-#include "engine/model.h"
-#include "engine/state.h"
+#include "engine/output/display_mesh.h"
+#include "engine/util/error.h"
+#include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/model/model.h"
+#include "engine/dynamics/state.h"
 #include "render/image.h"
 #include "render/renderer.h"
 

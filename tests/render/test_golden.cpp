@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "engine/display_mesh.h"
+#include "engine/output/display_mesh.h"
 #include "render/camera.h"
 #include "tools/frame_loop.h"
 #include "render_test_util.h"

@@ -3,8 +3,8 @@
 //   build/tests/render_tests --gtest_also_run_disabled_tests --gtest_filter='*RenderTiming*'
 #include <gtest/gtest.h>
 
-#include "engine/timing.h"
-#include "engine/timing_stats.h"
+#include "engine/runtime/timing.h"
+#include "engine/runtime/timing_stats.h"
 #include "render_test_util.h"
 
 namespace incise::test {

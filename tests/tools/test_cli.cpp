@@ -11,7 +11,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "engine/mesh_io.h"
+#include "engine/mesh/mesh_io.h"
 
 namespace fs = std::filesystem;
 

@@ -18,14 +18,14 @@
 #include "cutting/cut_apply.h"
 #include "cutting/cut_surface.h"
 #include "cutting/xfem_layout.h"
-#include "engine/assemble.h"
-#include "engine/assemble_parallel.h"
-#include "engine/cholmod_solver.h"
-#include "engine/mesh_io.h"
-#include "engine/mesh_tools.h"
-#include "engine/model.h"
-#include "engine/polar.h"
-#include "engine/simulation.h"
+#include "engine/fem/assemble.h"
+#include "engine/fem/assemble_parallel.h"
+#include "engine/solve/cholmod_solver.h"
+#include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/model/model.h"
+#include "engine/fem/polar.h"
+#include "engine/runtime/simulation.h"
 
 namespace {
 
@@ -72,7 +72,7 @@ struct Setup {
   }
 };
 
-// Fused kernel (engine/assemble_parallel.cpp) on `threads` workers; the
+// Fused kernel (engine/fem/assemble_parallel.cpp) on `threads` workers; the
 // rotations stay warm-started from the previous call, as between frames.
 // `consistent`: integrator.tangent "consistent" (the rotation term).
 void BM_Fused(benchmark::State& state, int order, RotationMode rot, int threads, bool with_K, bool consistent = false) {
@@ -174,7 +174,7 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, 
 // One numeric factorization of the dynamic beam system (see dynamic_beam):
 // CHOLMOD in double plus the float copy the lagged policy substitutes with
 // (`cholmod`), or the single-precision factorization straight into that copy
-// (`single`, engine/single_factor.h), both on CHOLMOD's METIS/AMD analysis.
+// (`single`, engine/solve/single_factor.h), both on CHOLMOD's METIS/AMD analysis.
 // GFLOPs: CHOLMOD's flop count of the factorization per second.
 void BM_Factorization(benchmark::State& state, int nx, int nyz, bool single) {
   std::vector<double> A;

@@ -1,0 +1,643 @@
+#include "engine/fem/assemble_parallel.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+
+#include <Eigen/Core>
+
+#include "engine/fem/assemble.h"
+#include "engine/util/headroom.h"
+#include "engine/fem/node_block_matvec.h"
+#include "engine/fem/polar.h"
+#include "engine/fem/rotation_stiffness.h"
+
+namespace incise {
+
+AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
+  AssemblyPlan p;
+  p.nthreads = std::max(1, nthreads);
+  // Rotation slots of each element (counting sort of rot_elem).
+  p.elem_rot_ptr.assign(m.nelem + 1, 0);
+  for (int r = 0; r < m.nrot; ++r) ++p.elem_rot_ptr[m.rot_elem[r] + 1];
+  for (int e = 0; e < m.nelem; ++e) p.elem_rot_ptr[e + 1] += p.elem_rot_ptr[e];
+  p.elem_rot.assign(m.nrot, 0);
+  {
+    std::vector<int> next(p.elem_rot_ptr.begin(), p.elem_rot_ptr.end() - 1);
+    for (int r = 0; r < m.nrot; ++r) p.elem_rot[next[m.rot_elem[r]]++] = r;
+  }
+  for (int e = 0; e < m.nelem; ++e) p.max_elem_nodes = std::max(p.max_elem_nodes, m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e]);
+
+  // Blocks: slabs of equal element count across the longest axis of the
+  // mesh's bounding box (by element centroid), so the separator layer is the
+  // smallest cross-section; a DOF node touched by two blocks makes its
+  // elements separators. Enriched DOF nodes (X = 0) do not move centroids
+  // much: the corner nodes dominate.
+  const int T = p.nthreads;
+  std::vector<int> block_of(m.nelem, 0);
+  if (T > 1) {
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    for (int node = 0; node < m.nnode; ++node)
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], m.X[3 * node + d]);
+        hi[d] = std::max(hi[d], m.X[3 * node + d]);
+      }
+    int axis = 0;
+    for (int d = 1; d < 3; ++d)
+      if (hi[d] - lo[d] > hi[axis] - lo[axis]) axis = d;
+    std::vector<std::pair<double, int>> key(m.nelem);
+    for (int e = 0; e < m.nelem; ++e) {
+      double c = 0.0;
+      int cnt = 0;
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+        if (m.elem_dof_node[k] < m.nnode) c += m.X[3 * m.elem_dof_node[k] + axis], ++cnt;
+      key[e] = {cnt ? c / cnt : 0.0, e};
+    }
+    std::sort(key.begin(), key.end());
+    for (int t = 0; t < T; ++t) {
+      int b, e;
+      ThreadPool::split(m.nelem, T, t, b, e);
+      for (int k = b; k < e; ++k) block_of[key[k].second] = t;
+    }
+  }
+  std::vector<int> node_block(m.ndofnode, -1);  // -2 = touched by several blocks
+  for (int e = 0; e < m.nelem; ++e)
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) {
+      int& nb = node_block[m.elem_dof_node[k]];
+      if (nb == -1) nb = block_of[e];
+      else if (nb != block_of[e]) nb = -2;
+    }
+  std::vector<std::vector<int>> blocks(T);
+  std::vector<int> separators;
+  for (int e = 0; e < m.nelem; ++e) {
+    bool interior = true;
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) interior = interior && node_block[m.elem_dof_node[k]] >= 0;
+    (interior ? blocks[block_of[e]] : separators).push_back(e);
+  }
+  p.block_ptr.assign(1, 0);
+  for (auto& b : blocks) {
+    p.block_elem.insert(p.block_elem.end(), b.begin(), b.end());
+    p.block_ptr.push_back(static_cast<int>(p.block_elem.size()));
+  }
+  // Greedy colouring of the separators: the smallest colour none of its nodes has yet.
+  std::vector<std::vector<int>> node_colors(m.ndofnode);
+  std::vector<int> color(separators.size());
+  int ncolor = 0;
+  std::vector<char> used;
+  for (size_t s = 0; s < separators.size(); ++s) {
+    const int e = separators[s];
+    used.assign(ncolor + 1, 0);
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+      for (int c : node_colors[m.elem_dof_node[k]]) used[c] = 1;
+    int c = 0;
+    while (used[c]) ++c;
+    color[s] = c;
+    ncolor = std::max(ncolor, c + 1);
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) node_colors[m.elem_dof_node[k]].push_back(c);
+  }
+  p.color_ptr.assign(ncolor + 1, 0);
+  for (int c : color) ++p.color_ptr[c + 1];
+  for (int c = 0; c < ncolor; ++c) p.color_ptr[c + 1] += p.color_ptr[c];
+  p.color_elem.assign(separators.size(), 0);
+  {
+    std::vector<int> next(p.color_ptr.begin(), p.color_ptr.end() - 1);
+    for (size_t s = 0; s < separators.size(); ++s) p.color_elem[next[color[s]]++] = separators[s];
+  }
+  for (int e = 0; e < m.nelem; ++e) {
+    p.max_elem_slots = std::max(p.max_elem_slots, p.elem_rot_ptr[e + 1] - p.elem_rot_ptr[e]);
+    for (int k = p.elem_rot_ptr[e]; k < p.elem_rot_ptr[e + 1]; ++k)  // slots numbered element by element
+      assert(p.elem_rot[k] == p.elem_rot[p.elem_rot_ptr[e]] + (k - p.elem_rot_ptr[e]));
+  }
+  const int n = p.max_elem_nodes;
+  p.scratch.assign(T, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 9 * p.max_elem_slots + 16));
+  p.qp_own_rot = point_rotation_flags(m);
+  // A point whose slot is its own with the same gradients (tet10 per_point)
+  // has the F its rotation was extracted from: element_terms keeps it.
+  p.qp_slot_F.assign(m.qp_rot.size(), 0);
+  {
+    std::vector<int> users(m.nrot, 0);
+    for (int r : m.qp_rot) ++users[r];
+    for (size_t q = 0; q < m.qp_rot.size(); ++q) {
+      const int r = m.qp_rot[q];
+      const int len = m.qp_grad_ptr[q + 1] - m.qp_grad_ptr[q];
+      p.qp_slot_F[q] = users[r] == 1 && m.rot_grad_ptr[r + 1] - m.rot_grad_ptr[r] == len &&
+                       std::memcmp(&m.qp_grad[m.qp_grad_ptr[q]], &m.rot_grad[m.rot_grad_ptr[r]], len * sizeof(double)) == 0;
+    }
+  }
+  p.slot_weight = shared_slot_weights(m);
+  // Condensed elements: every slot has a rest stiffness (Model::rot_K0).
+  p.elem_condensed.assign(m.nelem, 0);
+  if (!m.rot_K0_ptr.empty())
+    for (int e = 0; e < m.nelem; ++e) {
+      bool all = p.elem_rot_ptr[e + 1] > p.elem_rot_ptr[e];
+      for (int k = p.elem_rot_ptr[e]; k < p.elem_rot_ptr[e + 1]; ++k)
+        all = all && m.rot_K0_ptr[p.elem_rot[k] + 1] > m.rot_K0_ptr[p.elem_rot[k]];
+      p.elem_condensed[e] = all;
+    }
+  // sym_matvec: ranges of whole node columns (node_block_matvec) of about
+  // equal nnz; workers t > 0 scatter into their own buffer.
+  p.matvec_col_ptr.assign(T + 1, m.ndof());
+  p.matvec_col_ptr[0] = 0;
+  for (int t = 1, c = 0; t < T; ++t) {
+    const long long target = static_cast<long long>(m.nnz()) * t / T;
+    while (c < m.ndof() && m.Ap[c] < target) c += 3;
+    p.matvec_col_ptr[t] = std::min(c, m.ndof());
+  }
+  p.matvec_buf.assign(T, std::vector<double>());
+  for (int t = 1; t < T; ++t) p.matvec_buf[t].assign(m.ndof(), 0.0);
+  return p;
+}
+
+namespace {
+
+using Mat3 = Eigen::Matrix3d;
+
+// F(i, j) = sum_a x[3a + i] g[3a + j], column-major.
+template <int NN>
+inline void grad_sum(int n_dyn, const double* x, const double* g, double* F) {
+  const int n = NN > 0 ? NN : n_dyn;
+  double f[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  for (int a = 0; a < n; ++a)
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i) f[i + 3 * j] += x[3 * a + i] * g[3 * a + j];
+  std::memcpy(F, f, sizeof f);
+}
+
+// P = w R sig(S) with S = R^T F; sig = mu (S + S^T) + lambda tr(S) I (- (2 mu + 3 lambda) I when `strain`).
+inline void rotated_stress(const double* R, const double* F, double w, double mu, double lambda, bool strain, double* P) {
+  const Eigen::Map<const Mat3> Rm(R), Fm(F);
+  const Mat3 S = Rm.transpose() * Fm;
+  Mat3 sig = mu * (S + S.transpose());
+  const double tr = strain ? S.trace() - 3.0 : S.trace();
+  sig.diagonal().array() += lambda * tr - (strain ? 2.0 * mu : 0.0);
+  Eigen::Map<Mat3> Pm(P);
+  Pm.noalias() = w * (Rm * sig);
+}
+
+// A condensed slot (Model::rot_K0, over the npe mesh nodes in the piece's
+// displacements d_a = in_a + in_{p(a)}, p = the slot's partner list):
+// t_a = sum_b K0_ab (R^T d_b - X_b), and out gains R t_a at a and at p(a)
+// (X = null: no rest positions, the product R^ K0 R^T in). K0 holds blocks
+// a <= b, row-major; y and t are (npe, 3) scratch.
+void condensed_slot_force(int npe, const double* K0, const int* partner, const double* R, const double* in,
+                          const double* X, const int* nodes, double* y, double* t, double* out) {
+  const Eigen::Map<const Mat3> Rm(R);
+  for (int a = 0; a < npe; ++a) {
+    Eigen::Vector3d d = Eigen::Map<const Eigen::Vector3d>(in + 3 * a);
+    if (partner[a] >= 0) d += Eigen::Map<const Eigen::Vector3d>(in + 3 * partner[a]);
+    Eigen::Map<Eigen::Vector3d> ya(y + 3 * a);
+    ya.noalias() = Rm.transpose() * d;
+    if (X) ya -= Eigen::Map<const Eigen::Vector3d>(X + 3 * nodes[a]);
+  }
+  // t = K0 y from the upper blocks: (a, b) adds K_ab y_b to t_a and K_ab^T y_a to t_b.
+  std::fill(t, t + 3 * npe, 0.0);
+  const double* blk = K0;
+  for (int a = 0; a < npe; ++a)
+    for (int b = a; b < npe; ++b, blk += 9) {
+      const double* yb = y + 3 * b;
+      for (int i = 0; i < 3; ++i) t[3 * a + i] += blk[3 * i] * yb[0] + blk[3 * i + 1] * yb[1] + blk[3 * i + 2] * yb[2];
+      if (b == a) continue;
+      const double* ya = y + 3 * a;
+      for (int j = 0; j < 3; ++j) t[3 * b + j] += blk[j] * ya[0] + blk[3 + j] * ya[1] + blk[6 + j] * ya[2];
+    }
+  for (int a = 0; a < npe; ++a) {
+    const Eigen::Vector3d v = Rm * Eigen::Map<const Eigen::Vector3d>(t + 3 * a);
+    Eigen::Map<Eigen::Vector3d>(out + 3 * nodes[a]) += v;
+    if (partner[a] >= 0) Eigen::Map<Eigen::Vector3d>(out + 3 * nodes[partner[a]]) += v;
+  }
+}
+
+// Kl (the element's n DOF nodes, blocks i <= j, row-major) += E^T R^ K0 R^T E
+// with E the map d_a = u_a + q_{p(a)}: each block B = R K0_ab R^T lands on
+// (a, b), (a, p(b)), (p(a), b) and (p(a), p(b)), transposed where the row
+// node comes after the column node; for a = b (B symmetric) the (p(a), a)
+// copy is (a, p(a))'s transpose and is not added again.
+void condensed_slot_stiffness(int n, int npe, const double* K0, const int* partner, const double* R, double* Kl) {
+  const Eigen::Map<const Mat3> Rm(R);
+  const auto at = [n](int i, int j) { return 9 * (i * n - i * (i - 1) / 2 + (j - i)); };
+  const double* k0 = K0;
+  for (int a = 0; a < npe; ++a)
+    for (int b = a; b < npe; ++b, k0 += 9) {
+      const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> K(k0);
+      const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> B = Rm * K * Rm.transpose();
+      const int I[2] = {a, partner[a]}, J[2] = {b, partner[b]};
+      for (int i : I)
+        for (int j : J) {
+          if (i < 0 || j < 0 || (a == b && i > j)) continue;
+          if (i <= j) Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(Kl + at(i, j)) += B;
+          else Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(Kl + at(j, i)) += B.transpose();
+        }
+    }
+}
+
+// K += the element's blocks Kl; with a cache, K += Kl - kept (when `cached`)
+// and Kl is kept.
+inline void scatter_blocks(const Model& m, int e, int nblk, const double* Kl, double* K, TangentCache* cache,
+                           bool cached) {
+  const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+  if (!cache) {
+    for (int k = 0; k < 9 * nblk; ++k)
+      if (sc[k] >= 0) K[sc[k]] += Kl[k];
+    return;
+  }
+  double* kept = &cache->Kl[cache->kl_ptr[e]];
+  for (int k = 0; k < 9 * nblk; ++k) {
+    if (sc[k] >= 0) K[sc[k]] += cached ? Kl[k] - kept[k] : Kl[k];
+    kept[k] = Kl[k];
+  }
+}
+
+// With `cache` (tangent_reuse, valid): the element's blocks are recomputed only
+// when some slot's F moved more than cache->theta from the F they were made
+// at, and K then gains the difference; *updated says whether they were.
+template <int NN>
+int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double* u, double* Rall, double* f, double* K,
+                  double* scratch, TangentCache* cache = nullptr, bool* updated = nullptr,
+                  bool* keepable = nullptr) {
+  const int b0 = m.elem_dof_ptr[e];
+  const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
+  const int* nodes = &m.elem_dof_node[b0];
+  double* xe = scratch;      // (n, 3) current positions
+  double* h = xe + 3 * n;    // (n, 3) rotated gradients
+  double* Kl = h + 3 * n;    // blocks a <= b, 9 each, row-major
+  double* t = Kl + 9 * n * (n + 1) / 2;  // (n, 3, 3) rotation-mode vectors (rotation_stiffness.h)
+  double* Fs = t + 9 * n;                // (slots, 9) each slot's F, for the points that share it (qp_slot_F)
+  const int nblk = n * (n + 1) / 2;
+  for (int a = 0; a < n; ++a)
+    for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
+  if (K && !(cache && cache->valid && !cache->bypass)) {
+    // The scatter into K below misses the caches (K is 3-6 MB at 10-20k
+    // DOF, and the frame's solves stream 12-28 MB of factor between two
+    // assemblies; perf put 28% of this kernel on the load of K[sc[k]]):
+    // fetch the element's lines of K now, while its rotations and blocks are
+    // computed. Entries (0,0), (1,1), (2,2) of a 3x3 block lie in its three
+    // columns, whose three rows are contiguous. organ-20k drag, one thread,
+    // three alternating pairs: fastest assembly 24.6-26.5 -> 23.6-24.2 ms.
+    const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+    const int nsc = m.elem_scatter_ptr[e + 1] - m.elem_scatter_ptr[e];
+    for (int k = 0; k < nsc; k += 9)
+      for (int c = 0; c < 9; c += 4)
+        if (sc[k + c] >= 0) __builtin_prefetch(K + sc[k + c], 1, 3);
+  }
+  int fallbacks = 0;
+  const bool linear = m.material.model == MaterialModel::Linear;
+  // probe (TangentCache::bypass): blocks recomputed and added to K directly,
+  // F kept per slot only to tell whether the element would have been kept.
+  const bool probe = K && cache && cache->bypass;
+  const bool cached = K && cache && cache->valid && !probe;
+  bool keep = cached;  // every |F - F_then| entry of the element's slots <= theta (a NaN: not kept)
+  bool would_keep = probe;
+  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+    const int r = plan.elem_rot[k];
+    Eigen::Map<Mat3> Rm(Rall + 9 * r);
+    if (linear) {
+      Rm.setIdentity();
+      continue;
+    }
+    double* F = Fs + 9 * (k - plan.elem_rot_ptr[e]);
+    grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+    Mat3 Rr = Rm;
+    if (extract_rotation(Eigen::Map<const Mat3>(F), Rr) < 0) ++fallbacks;
+    Rm = Rr;
+    if (keep)
+      for (int i = 0; i < 9; ++i)
+        if (!(std::fabs(F[i] - cache->F[9 * static_cast<size_t>(r) + i]) <= cache->theta)) keep = false;
+    if (probe) {
+      double* Fr = &cache->F[9 * static_cast<size_t>(r)];
+      for (int i = 0; i < 9; ++i)
+        if (!(std::fabs(F[i] - Fr[i]) <= cache->theta)) would_keep = false;
+      std::copy(F, F + 9, Fr);
+    }
+  }
+  if (keepable) *keepable = would_keep;
+  if (probe) cache = nullptr;  // from here on a full assembly's element
+  // The element's tangent is (re)computed without a valid cache, or when a
+  // slot moved past theta (or has no kept F: NaN after a cut's rebuild).
+  if (keep) K = nullptr;
+  if (updated) *updated = K != nullptr;
+  if (K) {
+    std::fill(Kl, Kl + 9 * nblk, 0.0);
+    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1] && !linear; ++k) {
+      const int r = plan.elem_rot[k];
+      const bool store_F = cache != nullptr;  // the gradients the new blocks are made at
+      if (!store_F && !(plan.slot_weight[r] > 0.0)) continue;
+      double F[9];
+      grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+      if (store_F) std::copy(F, F + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
+      if (plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points below)
+        add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
+                                    plan.slot_weight[r], Kl, h, t);
+    }
+  }
+  if (plan.elem_condensed[e]) {  // a split element: rotate its pieces' rest stiffness
+    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+      const int r = plan.elem_rot[k];
+      const double* K0 = &m.rot_K0[m.rot_K0_ptr[r]];
+      const int* partner = m.slot_partner(r);
+      condensed_slot_force(m.mesh.npe(), K0, partner, Rall + 9 * r, xe, m.X.data(), nodes, h, t, f);
+      if (K) condensed_slot_stiffness(n, m.mesh.npe(), K0, partner, Rall + 9 * r, Kl);
+    }
+    if (K) {
+      scatter_blocks(m, e, nblk, Kl, K, cache, cached);
+    }
+    return fallbacks;
+  }
+  const double mu = m.mu, lambda = m.lambda;
+  for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
+    const double w = m.qp_weight[q];
+    const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
+    const double* R = Rall + 9 * m.qp_rot[q];
+    double Fq[9], P[9];
+    const double* F = Fq;
+    if (plan.qp_slot_F[q] && !linear) F = Fs + 9 * (m.qp_rot[q] - plan.elem_rot[plan.elem_rot_ptr[e]]);
+    else grad_sum<NN>(n, xe, g, Fq);
+    rotated_stress(R, F, w, mu, lambda, /*strain=*/true, P);
+    for (int a = 0; a < n; ++a) {
+      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
+      double* fa = f + 3 * nodes[a];
+      fa[0] += P[0] * g0 + P[3] * g1 + P[6] * g2;
+      fa[1] += P[1] * g0 + P[4] * g1 + P[7] * g2;
+      fa[2] += P[2] * g0 + P[5] * g1 + P[8] * g2;
+    }
+    if (!K) continue;  // a kept element: forces only
+    for (int a = 0; a < n; ++a) {  // rotated gradients h_a = R g_a
+      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
+      h[3 * a] = R[0] * g0 + R[3] * g1 + R[6] * g2;
+      h[3 * a + 1] = R[1] * g0 + R[4] * g1 + R[7] * g2;
+      h[3 * a + 2] = R[2] * g0 + R[5] * g1 + R[8] * g2;
+    }
+    // Rotation term (rotation_stiffness.h), fused into the blocks for the
+    // fixed-size elements: sum_k coef_k (u_k x h_a)(u_k x h_b)^T
+    // = [h_a]x Y [h_b]x^T with Y = sum_k coef_k u_k u_k^T (3x3), so with
+    // G = [h_a]x Y block row i gains h_b x (row i of G): 18 products per block
+    // instead of three rank-1 updates of a dense element matrix.
+    double Y[9];
+    const bool rot = NN > 0 && plan.qp_own_rot[q] && rotation_stiffness_matrix(R, F, mu, lambda, w, Y);
+    // K_ab = w (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I)
+    const double wl = w * lambda, wm = w * mu;
+    double* blk = Kl;
+    for (int a = 0; a < n; ++a) {
+      const double ha0 = h[3 * a], ha1 = h[3 * a + 1], ha2 = h[3 * a + 2];
+      const double la0 = wl * ha0, la1 = wl * ha1, la2 = wl * ha2;
+      const double ma0 = wm * ha0, ma1 = wm * ha1, ma2 = wm * ha2;
+      const double ga0 = wm * g[3 * a], ga1 = wm * g[3 * a + 1], ga2 = wm * g[3 * a + 2];
+      if (!rot) {
+        for (int b = a; b < n; ++b, blk += 9) {
+          const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
+          const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
+          blk[0] += la0 * hb0 + hb0 * ma0 + gg;
+          blk[1] += la0 * hb1 + hb0 * ma1;
+          blk[2] += la0 * hb2 + hb0 * ma2;
+          blk[3] += la1 * hb0 + hb1 * ma0;
+          blk[4] += la1 * hb1 + hb1 * ma1 + gg;
+          blk[5] += la1 * hb2 + hb1 * ma2;
+          blk[6] += la2 * hb0 + hb2 * ma0;
+          blk[7] += la2 * hb1 + hb2 * ma1;
+          blk[8] += la2 * hb2 + hb2 * ma2 + gg;
+        }
+        continue;
+      }
+      // G = [h_a]x Y, row-major (Y symmetric, column-major = row-major).
+      double G[9];
+      for (int l = 0; l < 3; ++l) {
+        G[l] = ha1 * Y[3 * l + 2] - ha2 * Y[3 * l + 1];
+        G[3 + l] = ha2 * Y[3 * l] - ha0 * Y[3 * l + 2];
+        G[6 + l] = ha0 * Y[3 * l + 1] - ha1 * Y[3 * l];
+      }
+      for (int b = a; b < n; ++b, blk += 9) {
+        const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
+        const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
+        blk[0] += la0 * hb0 + hb0 * ma0 + gg + (hb1 * G[2] - hb2 * G[1]);
+        blk[1] += la0 * hb1 + hb0 * ma1 + (hb2 * G[0] - hb0 * G[2]);
+        blk[2] += la0 * hb2 + hb0 * ma2 + (hb0 * G[1] - hb1 * G[0]);
+        blk[3] += la1 * hb0 + hb1 * ma0 + (hb1 * G[5] - hb2 * G[4]);
+        blk[4] += la1 * hb1 + hb1 * ma1 + gg + (hb2 * G[3] - hb0 * G[5]);
+        blk[5] += la1 * hb2 + hb1 * ma2 + (hb0 * G[4] - hb1 * G[3]);
+        blk[6] += la2 * hb0 + hb2 * ma0 + (hb1 * G[8] - hb2 * G[7]);
+        blk[7] += la2 * hb1 + hb2 * ma1 + (hb2 * G[6] - hb0 * G[8]);
+        blk[8] += la2 * hb2 + hb2 * ma2 + gg + (hb0 * G[7] - hb1 * G[6]);
+      }
+    }
+    if constexpr (NN == 0) {
+      double uk[9], coef[3];
+      if (plan.qp_own_rot[q] && rotation_stiffness_modes(R, F, mu, lambda, w, uk, coef))
+        add_rotation_stiffness(n, h, uk, coef, Kl, t);
+    }
+  }
+  if (K) {
+    scatter_blocks(m, e, nblk, Kl, K, cache, cached);
+  }
+  return fallbacks;
+}
+
+template <int NN>
+void element_matvec(const Model& m, const AssemblyPlan& plan, int e, const double* Rall, const double* v, double* y, double* scratch) {
+  const int b0 = m.elem_dof_ptr[e];
+  const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
+  const int* nodes = &m.elem_dof_node[b0];
+  double* ve = scratch;
+  for (int a = 0; a < n; ++a)
+    for (int i = 0; i < 3; ++i) ve[3 * a + i] = v[3 * nodes[a] + i];
+  if (plan.elem_condensed[e]) {
+    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+      const int r = plan.elem_rot[k];
+      condensed_slot_force(m.mesh.npe(), &m.rot_K0[m.rot_K0_ptr[r]], m.slot_partner(r), Rall + 9 * r, ve, nullptr,
+                           nodes, ve + 3 * n, ve + 6 * n, y);
+    }
+    return;
+  }
+  for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
+    const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
+    double G[9], P[9];
+    grad_sum<NN>(n, ve, g, G);
+    rotated_stress(Rall + 9 * m.qp_rot[q], G, m.qp_weight[q], m.mu, m.lambda, /*strain=*/false, P);
+    for (int a = 0; a < n; ++a) {
+      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
+      double* ya = y + 3 * nodes[a];
+      ya[0] += P[0] * g0 + P[3] * g1 + P[6] * g2;
+      ya[1] += P[1] * g0 + P[4] * g1 + P[7] * g2;
+      ya[2] += P[2] * g0 + P[5] * g1 + P[8] * g2;
+    }
+  }
+}
+
+// Runs body(e, tid) over every element with the plan's race-free schedule,
+// after zeroing `zero_a` (na) and `zero_b` (nb) in parallel.
+template <class Body>
+void for_each_element(const AssemblyPlan& plan, ThreadPool& pool, double* zero_a, int na, double* zero_b, int nb,
+                      const Body& body) {
+  pool.run([&](int tid) {
+    const int T = pool.size();
+    int b, e;
+    if (zero_a) {
+      ThreadPool::split(na, T, tid, b, e);
+      std::fill(zero_a + b, zero_a + e, 0.0);
+    }
+    if (zero_b) {
+      ThreadPool::split(nb, T, tid, b, e);
+      std::fill(zero_b + b, zero_b + e, 0.0);
+    }
+    pool.barrier();
+    for (int k = plan.block_ptr[tid]; k < plan.block_ptr[tid + 1]; ++k) body(plan.block_elem[k], tid);
+    for (int c = 0; c < plan.ncolors(); ++c) {
+      pool.barrier();
+      ThreadPool::split(plan.color_ptr[c + 1] - plan.color_ptr[c], T, tid, b, e);
+      for (int k = plan.color_ptr[c] + b; k < plan.color_ptr[c] + e; ++k) body(plan.color_elem[k], tid);
+    }
+  });
+}
+
+}  // namespace
+
+int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, double* R, double* f,
+                       double* K, TangentCache* cache) {
+  if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  if (cache && (!K || !(cache->theta > 0.0))) cache = nullptr;
+  const bool probe = cache && cache->bypass;
+  if (probe) {
+    if (cache->F.size() != 9 * static_cast<size_t>(m.nrot))  // a new model: no F of the last frame
+      assign_with_headroom(cache->F, 9 * static_cast<size_t>(m.nrot), std::nan(""));
+  } else if (cache && !cache->valid) {  // a full assembly that fills the cache
+    assign_with_headroom(cache->Kl, m.elem_scatter.size(), 0.0);  // (a cut's spare buffers: cut_apply.cpp)
+    cache->kl_ptr.assign(m.elem_scatter_ptr.begin(), m.elem_scatter_ptr.end() - 1);
+    cache->kl_garbage = 0;
+    assign_with_headroom(cache->F, 9 * static_cast<size_t>(m.nrot), 0.0);
+  }
+  const bool keep_K = cache && cache->valid && !probe;  // K holds the kept blocks' sum: updated, not rebuilt
+  int fb[64] = {0}, up[64] = {0}, kp[64] = {0};
+  for_each_element(plan, pool, f, m.ndof(), keep_K ? nullptr : K, keep_K || !K ? 0 : m.nnz(), [&](int e, int tid) {
+    double* s = plan.scratch[tid].data();
+    const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
+    bool updated = false, keepable = false;
+    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable)
+                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable)
+                                : element_terms<0>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable);
+    up[tid] += updated;
+    kp[tid] += keepable;
+  });
+  int total = 0, updated = 0, keepable = 0;
+  for (int t = 0; t < pool.size(); ++t) total += fb[t], updated += up[t], keepable += kp[t];
+  if (cache) {
+    cache->updated = updated;
+    if (probe) {
+      // Back to keeping blocks (a filling assembly next) once a tenth of the
+      // elements would have been kept this frame.
+      cache->would_keep = keepable;
+      if (10 * keepable > m.nelem) {
+        cache->bypass = false;
+        // What a keeping assembly would have recomputed: a cut's carry
+        // (cut_apply.cpp) reads it to tell whether the body still moves.
+        cache->last_partial = m.nelem - keepable;
+      }
+    } else {
+      cache->valid = true;
+      if (keep_K) {
+        cache->last_partial = updated;
+        // Nine tenths recomputed: keeping blocks costs more than it saves
+        // (reading and writing 4 KB per tet10 element); bypass until the
+        // motion calms.
+        if (10 * updated > 9 * m.nelem) cache->bypass = true, cache->valid = false;
+      }
+    }
+  }
+  return total;
+}
+
+void stiffness_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* R, const double* v,
+                      double* y) {
+  if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  for_each_element(plan, pool, y, m.ndof(), nullptr, 0, [&](int e, int tid) {
+    double* s = plan.scratch[tid].data();
+    const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
+    if (n == 10) element_matvec<10>(m, plan, e, R, v, y, s);
+    else if (n == 4) element_matvec<4>(m, plan, e, R, v, y, s);
+    else element_matvec<0>(m, plan, e, R, v, y, s);
+  });
+}
+
+namespace {
+// The element's positions gathered once for all its slots (a slot at a time
+// gathered them per slot: 4 times for a tet10 per_point).
+template <int NN>
+double element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, const double* u, const double* Rall,
+                               double* xe) {
+  const int b0 = m.elem_dof_ptr[e];
+  const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
+  const int* nodes = &m.elem_dof_node[b0];
+  for (int a = 0; a < n; ++a)
+    for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
+  double worst = 0.0;
+  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+    const int r = plan.elem_rot[k];
+    double F[9];
+    grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+    worst = std::max(worst, rotation_angle_to(Eigen::Map<const Mat3>(F), Eigen::Map<const Mat3>(Rall + 9 * r)));
+  }
+  return worst;
+}
+}  // namespace
+
+double max_rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R) {
+  if (m.material.model == MaterialModel::Linear) return 0.0;
+  if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  double worst[64] = {0};  // per worker (solver.threads <= 64)
+  pool.run([&](int tid) {
+    int b, e;
+    ThreadPool::split(m.nelem, pool.size(), tid, b, e);
+    double* xe = plan.scratch[tid].data();
+    for (int el = b; el < e; ++el) {
+      const int n = m.elem_dof_ptr[el + 1] - m.elem_dof_ptr[el];
+      const double w = n == 10 ? element_rotation_change<10>(m, plan, el, u, R, xe)
+                       : n == 4 ? element_rotation_change<4>(m, plan, el, u, R, xe)
+                                : element_rotation_change<0>(m, plan, el, u, R, xe);
+      worst[tid] = std::max(worst[tid], w);
+    }
+  });
+  double w = 0.0;
+  for (int t = 0; t < pool.size(); ++t) w = std::max(w, worst[t]);
+  return w;
+}
+
+void element_subset_forces(const Model& m, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,
+                           double* R, double* f, const double* v, double* Kv) {
+  double* s = plan.scratch[0].data();
+  for (int e : elems) {
+    const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
+    if (n == 10) element_terms<10>(m, plan, e, u, R, f, nullptr, s);
+    else if (n == 4) element_terms<4>(m, plan, e, u, R, f, nullptr, s);
+    else element_terms<0>(m, plan, e, u, R, f, nullptr, s);
+    if (!v) continue;
+    if (n == 10) element_matvec<10>(m, plan, e, R, v, Kv, s);
+    else if (n == 4) element_matvec<4>(m, plan, e, R, v, Kv, s);
+    else element_matvec<0>(m, plan, e, R, v, Kv, s);
+  }
+}
+
+void sym_matvec_parallel(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* A, const double* x,
+                         double* y) {
+  if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  const int n = m.ndof();
+  pool.run([&](int tid) {
+    const int c0 = plan.matvec_col_ptr[tid], c1 = plan.matvec_col_ptr[tid + 1];
+    // Worker 0 owns y[0, c1) outright (its rows r <= c < c1); the others scatter
+    // rows below their range into a private buffer merged afterwards.
+    double* ys = tid == 0 ? y : plan.matvec_buf[tid].data();
+    if (tid == 0) std::fill(y, y + c1, 0.0);
+    else std::fill(ys, ys + c0, 0.0);
+    std::fill(y + c0, y + c1, 0.0);
+    pool.barrier();
+    node_block_matvec(m.Ap.data(), m.Ai.data(), A, x, c0 / 3, c1 / 3, c0, ys, y);
+    pool.barrier();
+    // Merge the buffers: rows [0, c0_t) of worker t's buffer.
+    int b, e;
+    ThreadPool::split(n, pool.size(), tid, b, e);
+    for (int t = 1; t < pool.size(); ++t) {
+      const int lim = std::min(e, plan.matvec_col_ptr[t]);
+      const double* bt = plan.matvec_buf[t].data();
+      for (int r = b; r < lim; ++r) y[r] += bt[r];
+    }
+  });
+}
+
+}  // namespace incise

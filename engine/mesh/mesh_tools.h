@@ -1,0 +1,34 @@
+#pragma once
+// Mesh operations: structured beams, tet4 -> tet10, quality report and checks.
+#include <string>
+
+#include "engine/mesh/mesh.h"
+
+namespace incise {
+
+// Box [0,lx]x[0,ly]x[0,lz] split into nx*ny*nz cubes of 6 tetrahedra each
+// (Kuhn split, conforming across cubes). order 2 adds shared mid-edge nodes.
+Mesh make_beam(double lx, double ly, double lz, int nx, int ny, int nz, int order);
+
+// Raises a tet4 mesh to tet10: one shared node at the midpoint of each edge.
+// A tet10 mesh is returned unchanged.
+Mesh raise_to_tet10(const Mesh& mesh);
+
+struct MeshQuality {
+  int nnode = 0, ntet = 0;
+  double min_volume = 0, max_volume = 0, total_volume = 0;
+  double min_dihedral_deg = 0, max_dihedral_deg = 0;  // over corner tets
+  int worst_tet = -1;  // element with the smallest min dihedral angle
+};
+// Volumes of tet10 elements are integrated with their quadratic geometry.
+MeshQuality mesh_quality(const Mesh& mesh);
+std::string format_quality(const MeshQuality& q);  // one human-readable block
+
+// Throws incise::Error naming the first inverted or zero-volume element
+// ("mesh.msh: element 17 (nodes 3 8 9 12) has volume -1.2e-06 <= 0: inverted
+// or degenerate; reorder its nodes or fix the mesh"), an out-of-range node id,
+// or a non-finite coordinate. For tet10 also checks the Jacobian at the corners
+// and mid-edge nodes is positive.
+void check_mesh(const Mesh& mesh);
+
+}  // namespace incise

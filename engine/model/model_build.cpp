@@ -1,0 +1,923 @@
+// Precomputation of the frozen Model: quadrature, rotation slots, sparse
+// pattern and scatter map, mass, rest stiffness, loads, constraints.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <sstream>
+
+#include <Eigen/Core>
+
+#include "engine/fem/assemble.h"
+#include "engine/fem/element.h"
+#include "engine/util/error.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/model/model.h"
+
+namespace incise {
+
+namespace {
+
+// The pieces of element e: with no layout, the whole element as one piece
+// with no enrichment.
+struct PieceView {
+  const int* enr = nullptr;      // (npe) enriched DOF node per element node, -1 none; null = none
+  const double* rst = nullptr;   // (nsub, 4, 3) sub-tetrahedra; null = the element itself
+  int nsub = 1;
+};
+
+std::vector<PieceView> pieces_of(const Model& m, int e) {
+  std::vector<PieceView> out;
+  if (!m.has_cuts()) return {PieceView{}};
+  const CutLayout& L = m.cuts;
+  const int npe = m.mesh.npe();
+  for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
+    PieceView v;
+    v.enr = &L.piece_enr[static_cast<size_t>(P) * npe];
+    if (L.elem_split[e]) {  // a whole element keeps rst = null: integrated (and its mass reused) as one
+      v.rst = &L.subtet_rst[static_cast<size_t>(L.piece_subtet_ptr[P]) * 12];
+      v.nsub = L.piece_subtet_ptr[P + 1] - L.piece_subtet_ptr[P];
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
+// Maps a point of sub-tet `sub` (cubature coordinates rst_q) to the element's local coordinates.
+void map_to_element(const double* sub, const double* rst_q, double* r) {
+  const double L[4] = {1.0 - rst_q[0] - rst_q[1] - rst_q[2], rst_q[0], rst_q[1], rst_q[2]};
+  for (int d = 0; d < 3; ++d) r[d] = L[0] * sub[d] + L[1] * sub[3 + d] + L[2] * sub[6 + d] + L[3] * sub[9 + d];
+}
+
+double subtet_ref_volume(const double* v) {
+  double a[3], b[3], c[3];
+  for (int d = 0; d < 3; ++d) {
+    a[d] = v[3 + d] - v[d];
+    b[d] = v[6 + d] - v[d];
+    c[d] = v[9 + d] - v[d];
+  }
+  return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+}
+
+const double kRefTet[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+
+// Whether element e has the same pieces in m's layout as in base's (none
+// there = one whole piece): same enrichment, split flag and sub-tetrahedra,
+// so its integration data can be copied from base (a cut rebuild redoes
+// only the elements the new cut touched).
+bool same_pieces(const Model& m, const Model& base, int e) {
+  const int npe = m.mesh.npe();
+  const CutLayout& L = m.cuts;
+  const CutLayout& B = base.cuts;
+  const int p0 = m.has_cuts() ? L.elem_piece_ptr[e] : 0, np = m.has_cuts() ? L.elem_piece_ptr[e + 1] - p0 : 1;
+  const int b0 = base.has_cuts() ? B.elem_piece_ptr[e] : 0, nb = base.has_cuts() ? B.elem_piece_ptr[e + 1] - b0 : 1;
+  if (np != nb) return false;
+  const bool split = m.has_cuts() && L.elem_split[e], bsplit = base.has_cuts() && B.elem_split[e];
+  if (split != bsplit) return false;
+  // Enriched DOF nodes may be renumbered between layouts: the element's
+  // integration data depend only on which (piece, node) pairs share one, so
+  // the ids must correspond one to one within the element.
+  int xs[64], ys[64], nmap = 0;
+  for (int k = 0; k < np; ++k) {
+    for (int a = 0; a < npe; ++a) {
+      const int x = m.has_cuts() ? L.piece_enr[static_cast<size_t>(p0 + k) * npe + a] : -1;
+      const int y = base.has_cuts() ? B.piece_enr[static_cast<size_t>(b0 + k) * npe + a] : -1;
+      if ((x < 0) != (y < 0)) return false;
+      if (x < 0) continue;
+      int j = 0;
+      while (j < nmap && xs[j] != x && ys[j] != y) ++j;
+      if (j < nmap && (xs[j] != x || ys[j] != y)) return false;
+      if (j == nmap) {
+        if (nmap == 64) return false;
+        xs[nmap] = x, ys[nmap++] = y;
+      }
+    }
+    if (!split) continue;
+    const int s0 = L.piece_subtet_ptr[p0 + k], ns = L.piece_subtet_ptr[p0 + k + 1] - s0;
+    const int t0 = B.piece_subtet_ptr[b0 + k], nt = B.piece_subtet_ptr[b0 + k + 1] - t0;
+    if (ns != nt || !std::equal(L.subtet_rst.begin() + 12 * static_cast<size_t>(s0),
+                                L.subtet_rst.begin() + 12 * static_cast<size_t>(s0 + ns),
+                                B.subtet_rst.begin() + 12 * static_cast<size_t>(t0)))
+      return false;
+  }
+  return true;
+}
+
+// First rotation slot of each element, (nelem + 1): slots are numbered element by element.
+std::vector<int> element_slot_ptr(const Model& m) {
+  std::vector<int> ptr(m.nelem + 1, 0);
+  for (int r = 0; r < m.nrot; ++r) ++ptr[m.rot_elem[r] + 1];
+  for (int e = 0; e < m.nelem; ++e) ptr[e + 1] += ptr[e];
+  return ptr;
+}
+
+// Per element: DOF nodes (its nodes, then the enriched DOF nodes its pieces
+// use), quadrature points over every piece's sub-tetrahedra with the
+// gradients of each DOF node's shape function in that piece (preprint eq. 64:
+// an enriched DOF node carries N_a in the pieces of its region, 0 elsewhere),
+// and rotation slots: per cubature point (tet10 per_point), else one per
+// piece (tet4, tet10SR; the preprint's one rotation per side, eq. 64-71).
+//
+// With `base` (same mesh and scene), an element whose pieces are unchanged
+// copies its DOF nodes, points and slots from base; slot_src (nrot) then gives
+// each slot's base slot (-1: integrated here) for build_slot_stiffness.
+void build_elements(Model& m, const Scene& scene, const Model* base, std::vector<int>& slot_src) {
+  const Mesh& mesh = m.mesh;
+  const int npe = mesh.npe();
+  const Cubature& cub = npe == 4 ? cubature_tet1() : cubature_tet4();
+  const bool per_point = npe == 10 && scene.material.rotation == RotationMode::PerPoint;
+  m.nelem = mesh.ntet();
+  m.elem_dof_ptr.assign(1, 0);
+  m.elem_qp_ptr.assign(1, 0);
+  m.qp_grad_ptr.assign(1, 0);
+  m.rot_grad_ptr.assign(1, 0);
+  m.elem_volume.assign(m.nelem, 0.0);
+  std::vector<double> Xe(3 * npe), grad(3 * npe), gmask;
+  std::vector<int> local;  // DOF node list of the element
+  slot_src.clear();
+  const std::vector<int> base_slot = base ? element_slot_ptr(*base) : std::vector<int>{};
+  if (base) {  // about base's sizes: no regrowth copies of these (MB-sized) arrays
+    const auto room = [](auto& v, size_t n) { v.reserve(n + n / 8 + 64); };
+    room(m.elem_dof_node, base->elem_dof_node.size());
+    room(m.qp_weight, base->qp_weight.size());
+    room(m.qp_grad, base->qp_grad.size());
+    room(m.qp_grad_ptr, base->qp_grad_ptr.size());
+    room(m.qp_rot, base->qp_rot.size());
+    room(m.rot_elem, base->rot_elem.size());
+    room(slot_src, base->rot_elem.size());
+    room(m.rot_grad, base->rot_grad.size());
+    room(m.rot_grad_ptr, base->rot_grad_ptr.size());
+  }
+  for (int e = 0; e < m.nelem; ++e) {
+    const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
+    for (int a = 0; a < npe; ++a)
+      for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
+    const std::vector<PieceView> pieces = pieces_of(m, e);
+    local.assign(nodes, nodes + npe);
+    for (const PieceView& P : pieces)
+      for (int a = 0; P.enr && a < npe; ++a)
+        if (P.enr[a] >= 0 && std::find(local.begin() + npe, local.end(), P.enr[a]) == local.end())
+          local.push_back(P.enr[a]);
+    const int n = static_cast<int>(local.size());
+    m.elem_dof_node.insert(m.elem_dof_node.end(), local.begin(), local.end());
+    m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
+    if (base && same_pieces(m, *base, e)) {
+      const Model& B = *base;
+      const int shift = static_cast<int>(m.rot_elem.size()) - base_slot[e];  // new slot id - base slot id
+      for (int r = base_slot[e]; r < base_slot[e + 1]; ++r) {
+        m.rot_elem.push_back(e);
+        slot_src.push_back(r);
+        m.rot_grad.insert(m.rot_grad.end(), B.rot_grad.begin() + B.rot_grad_ptr[r], B.rot_grad.begin() + B.rot_grad_ptr[r + 1]);
+        m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+      }
+      for (int q = B.elem_qp_ptr[e]; q < B.elem_qp_ptr[e + 1]; ++q) {
+        m.qp_weight.push_back(B.qp_weight[q]);
+        m.qp_grad.insert(m.qp_grad.end(), B.qp_grad.begin() + B.qp_grad_ptr[q], B.qp_grad.begin() + B.qp_grad_ptr[q + 1]);
+        m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
+        m.qp_rot.push_back(B.qp_rot[q] + shift);
+      }
+      m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
+      m.elem_volume[e] = B.elem_volume[e];
+      continue;
+    }
+    // Gradients g (npe, 3) spread over the element's DOF nodes for one piece.
+    auto spread = [&](const PieceView& P, const double* g) {
+      gmask.assign(3 * n, 0.0);
+      for (int a = 0; a < npe; ++a)
+        for (int d = 0; d < 3; ++d) gmask[3 * a + d] = g[3 * a + d];
+      for (int a = 0; P.enr && a < npe; ++a)
+        if (P.enr[a] >= 0) {
+          const int j = static_cast<int>(std::find(local.begin() + npe, local.end(), P.enr[a]) - local.begin());
+          for (int d = 0; d < 3; ++d) gmask[3 * j + d] = g[3 * a + d];
+        }
+    };
+    // Rotation source. Whole elements: per cubature point (tet10 per_point) or
+    // the corner-linear gradient (tet4, tet10SR). Pieces of a split element:
+    // one rotation per piece from its volume-averaged gradient (preprint eq.
+    // 64-71: one rotation per side). A whole element that only carries
+    // enrichment keeps its per-point rotations, so a cut along element faces
+    // is exactly the node-duplicated mesh (tests/cutting).
+    const bool split = m.has_cuts() && m.cuts.elem_split[e];
+    const bool point_rot = per_point && !split;
+    double gc[30] = {0};  // corner-linear gradients
+    if (!per_point && !split) {
+      double Xc[12];
+      std::copy(Xe.begin(), Xe.begin() + 12, Xc);
+      const double mid[3] = {0.25, 0.25, 0.25};
+      shape_global_gradients(4, Xc, mid, gc);
+    }
+    for (const PieceView& P : pieces) {
+      const int q_first = static_cast<int>(m.qp_weight.size());
+      if (!point_rot) m.rot_elem.push_back(e), slot_src.push_back(-1);  // the piece's slot; gradients below
+      const int slot = static_cast<int>(m.rot_elem.size()) - 1;
+      for (int sidx = 0; sidx < P.nsub; ++sidx) {
+        const double* sub = P.rst ? P.rst + 12 * sidx : kRefTet;
+        const double jac = 6.0 * subtet_ref_volume(sub);  // reference tet -> sub-tet
+        for (int q = 0; q < cub.npoint(); ++q) {
+          double r[3];
+          map_to_element(sub, &cub.rst[3 * q], r);
+          const double detJ = shape_global_gradients(npe, Xe.data(), r, grad.data());
+          if (!(detJ > 0.0)) {
+            std::ostringstream os;
+            os << mesh.source << ": element " << e << " has a non-positive Jacobian (" << detJ
+               << ") at a cubature point: inverted or badly curved";
+            throw Error(os.str());
+          }
+          spread(P, grad.data());
+          m.qp_weight.push_back(cub.weight[q] * jac * detJ);
+          m.elem_volume[e] += cub.weight[q] * jac * detJ;
+          m.qp_grad.insert(m.qp_grad.end(), gmask.begin(), gmask.end());
+          m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
+          if (point_rot) {
+            m.rot_elem.push_back(e);
+            slot_src.push_back(-1);
+            m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
+            m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+          }
+          m.qp_rot.push_back(point_rot ? static_cast<int>(m.rot_elem.size()) - 1 : slot);
+        }
+      }
+      if (point_rot) continue;
+      if (split) {  // volume average of the piece's point gradients
+        std::vector<double> avg(3 * n, 0.0);
+        double vol = 0.0;
+        for (int q = q_first; q < static_cast<int>(m.qp_weight.size()); ++q) {
+          for (int k = 0; k < 3 * n; ++k) avg[k] += m.qp_weight[q] * m.qp_grad[m.qp_grad_ptr[q] + k];
+          vol += m.qp_weight[q];
+        }
+        for (double& v : avg) v /= vol;
+        m.rot_grad.insert(m.rot_grad.end(), avg.begin(), avg.end());
+      } else {
+        spread(P, gc);  // mid-edge entries of gc are 0
+        m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
+      }
+      m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+    }
+    m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
+  }
+  m.nrot = static_cast<int>(m.rot_elem.size());
+}
+
+// Rest stiffness of each piece of a split element (Model::rot_K0): K0 =
+// sum_q w (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I) over the
+// piece's points (the corotated point stiffness with R = I, book eq. 4.22
+// form). Split elements hold 12-50 sub-element points per piece and twice the
+// DOF nodes of a whole one; rotating K0 per frame costs a tenth of integrating them.
+// A slot with slot_src >= 0 copies base's matrix of that slot.
+void build_slot_stiffness(Model& m, const Model* base, const std::vector<int>& slot_src) {
+  m.rot_K0_ptr.assign(m.nrot + 1, 0);
+  m.rot_K0.clear();
+  m.rot_K0_partner.clear();
+  if (!m.has_cuts()) return;
+  const int npe = m.mesh.npe(), nb = npe * (npe + 1) / 2;
+  std::vector<int> first_q(m.nrot, -1), last_q(m.nrot, -1), partner(m.nrot * static_cast<size_t>(npe), -1);
+  const std::vector<int> slot_ptr = element_slot_ptr(m);
+  for (int e = 0; e < m.nelem; ++e) {
+    if (!m.cuts.elem_split[e]) continue;
+    for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
+      const int r = m.qp_rot[q];
+      if (first_q[r] < 0) first_q[r] = q;
+      last_q[r] = q + 1;
+    }
+    // A split element's slots are its pieces, in order (build_elements).
+    const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
+    const std::vector<PieceView> pieces = pieces_of(m, e);
+    for (size_t p = 0; p < pieces.size() && slot_ptr[e] + static_cast<int>(p) < slot_ptr[e + 1]; ++p)
+      for (int a = 0; pieces[p].enr && a < npe; ++a)
+        for (int j = npe; j < n && pieces[p].enr[a] >= 0; ++j)
+          if (m.elem_dof_node[b0 + j] == pieces[p].enr[a]) partner[(slot_ptr[e] + p) * npe + a] = j;
+  }
+  const double mu = m.mu, lambda = m.lambda;
+  for (int r = 0; r < m.nrot; ++r) {
+    const int src = base ? slot_src[r] : -1;
+    if (first_q[r] >= 0 && src >= 0 && base->rot_K0_ptr[src + 1] > base->rot_K0_ptr[src]) {
+      m.rot_K0.insert(m.rot_K0.end(), base->rot_K0.begin() + base->rot_K0_ptr[src],
+                      base->rot_K0.begin() + base->rot_K0_ptr[src + 1]);
+    } else if (first_q[r] >= 0) {
+      // Z = sum_q w_q vec(G_q) vec(G_q)^T (3 npe x 3 npe, G_q the point's
+      // gradients of the mesh nodes' shape functions (npe, 3): a piece's
+      // q_a carries the same gradient as u_a) as one matrix product, then
+      //   K0_ab(i, j) = lambda Z(3a+i, 3b+j) + mu Z(3b+i, 3a+j) + mu delta_ij sum_k Z(3a+k, 3b+k):
+      // 5-8x faster than the point-by-point blocks for the 12-50 points of a piece.
+      int nq = 0;
+      for (int q = first_q[r]; q < last_q[r]; ++q) nq += m.qp_rot[q] == r;
+      Eigen::MatrixXd G(nq, 3 * npe), Gw(nq, 3 * npe);
+      for (int q = first_q[r], row = 0; q < last_q[r]; ++q) {
+        if (m.qp_rot[q] != r) continue;
+        const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
+        for (int k = 0; k < 3 * npe; ++k) {
+          G(row, k) = g[k];
+          Gw(row, k) = m.qp_weight[q] * g[k];
+        }
+        ++row;
+      }
+      const Eigen::MatrixXd Z = G.transpose() * Gw;
+      const size_t at = m.rot_K0.size();
+      m.rot_K0.resize(at + 9 * static_cast<size_t>(nb), 0.0);
+      double* blk = &m.rot_K0[at];
+      for (int a = 0; a < npe; ++a)
+        for (int b = a; b < npe; ++b, blk += 9) {
+          const double gg = mu * (Z(3 * a, 3 * b) + Z(3 * a + 1, 3 * b + 1) + Z(3 * a + 2, 3 * b + 2));
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+              blk[3 * i + j] = lambda * Z(3 * a + i, 3 * b + j) + mu * Z(3 * b + i, 3 * a + j) + (i == j ? gg : 0.0);
+        }
+    }
+    if (m.rot_K0.size() > static_cast<size_t>(m.rot_K0_ptr[r]))
+      m.rot_K0_partner.insert(m.rot_K0_partner.end(), partner.begin() + static_cast<size_t>(r) * npe,
+                              partner.begin() + static_cast<size_t>(r + 1) * npe);
+    m.rot_K0_ptr[r + 1] = static_cast<int>(m.rot_K0.size());
+  }
+}
+
+// A face is on the boundary when no other tetrahedron has the same corners;
+// the others pair up (Model::tet_face_pair). Also each node's elements.
+void build_boundary_faces(Model& m) {
+  const Mesh& mesh = m.mesh;
+  const int npe = mesh.npe();
+  std::vector<std::array<int, 4>> faces;  // sorted corners + (elem * 4 + k)
+  faces.reserve(4 * static_cast<size_t>(mesh.ntet()));
+  for (int e = 0; e < mesh.ntet(); ++e)
+    for (int k = 0; k < 4; ++k) {
+      std::array<int, 4> f;
+      for (int j = 0, c = 0; j < 4; ++j)
+        if (j != k) f[c++] = mesh.tet[static_cast<size_t>(e) * npe + j];
+      std::sort(f.begin(), f.begin() + 3);
+      f[3] = 4 * e + k;
+      faces.push_back(f);
+    }
+  std::sort(faces.begin(), faces.end());
+  m.tet_face_boundary.assign(4 * static_cast<size_t>(mesh.ntet()), 0);
+  m.tet_face_pair.clear();
+  for (size_t i = 0; i < faces.size();) {
+    size_t j = i + 1;
+    while (j < faces.size() && std::equal(faces[j].begin(), faces[j].begin() + 3, faces[i].begin())) ++j;
+    if (j - i == 1) m.tet_face_boundary[faces[i][3]] = 1;
+    for (size_t k = i; k + 1 < j; ++k)  // a conforming mesh has j - i <= 2
+      m.tet_face_pair.insert(m.tet_face_pair.end(),
+                             {faces[k][3] / 4, faces[k][3] % 4, faces[k + 1][3] / 4, faces[k + 1][3] % 4});
+    i = j;
+  }
+  m.node_elem_ptr.assign(mesh.nnode() + 1, 0);
+  for (int node : mesh.tet) ++m.node_elem_ptr[node + 1];
+  for (int n = 0; n < mesh.nnode(); ++n) m.node_elem_ptr[n + 1] += m.node_elem_ptr[n];
+  m.node_elem.assign(mesh.tet.size(), 0);
+  std::vector<int> next(m.node_elem_ptr.begin(), m.node_elem_ptr.end() - 1);
+  for (int e = 0; e < mesh.ntet(); ++e)
+    for (int a = 0; a < npe; ++a) m.node_elem[next[mesh.tet[static_cast<size_t>(e) * npe + a]]++] = e;
+}
+
+// build_pattern for a model of the same mesh as `base` (a cut rebuild). The
+// columns of mesh nodes only have mesh-node rows, which cuts never change,
+// so they are copied; the enriched DOF nodes' columns are built from the
+// elements that carry enrichment, and the scatter of an element with the same
+// DOF nodes and no enrichment is copied. The result equals build_pattern's
+// (Xfem.RebuildFromTheBaseModelEqualsAFreshBuild).
+void build_pattern_from_base(Model& m, const Model& base) {
+  const int nstd = m.nnode, cstd = 3 * nstd;
+  m.Ap.assign(base.Ap.begin(), base.Ap.begin() + cstd + 1);
+  m.Ai.assign(base.Ai.begin(), base.Ai.begin() + base.Ap[cstd]);
+  m.Ap.resize(m.ndof() + 1);
+  // Node-level rows of the enriched columns c >= nstd (index c - nstd).
+  const int nenr = m.ndofnode - nstd;
+  std::vector<char> enriched_elem(m.nelem, 0);
+  for (int e = 0; e < m.nelem; ++e)
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+      if (m.elem_dof_node[k] >= nstd) enriched_elem[e] = 1;
+  // visit(na, nc) for every pair of DOF nodes na <= nc of an element, nc enriched.
+  const auto for_each_enriched_pair = [&](auto visit) {
+    for (int e = 0; e < m.nelem; ++e) {
+      if (!enriched_elem[e]) continue;
+      const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+      for (int a = 0; a < n; ++a)
+        for (int c = 0; c < n; ++c) {
+          const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+          if (nc >= nstd && na <= nc) visit(na, nc);
+        }
+    }
+  };
+  std::vector<int> cnt(nenr + 1, 1);
+  cnt[0] = 0;
+  for_each_enriched_pair([&](int, int nc) { ++cnt[nc - nstd + 1]; });
+  for (int c = 0; c < nenr; ++c) cnt[c + 1] += cnt[c];
+  std::vector<int> rows(cnt.back()), fill(cnt.begin(), cnt.end() - 1);
+  for (int c = 0; c < nenr; ++c) rows[fill[c]++] = nstd + c;
+  for_each_enriched_pair([&](int na, int nc) { rows[fill[nc - nstd]++] = na; });
+  std::vector<int> rp(nenr + 1, 0);
+  int w = 0;
+  for (int c = 0; c < nenr; ++c) {
+    const auto first = rows.begin() + cnt[c], last = rows.begin() + cnt[c + 1];
+    std::sort(first, last);
+    const int k = static_cast<int>(std::unique(first, last) - first);
+    std::copy(first, first + k, rows.begin() + w);
+    rp[c] = w;
+    w += k;
+    rp[c + 1] = w;
+  }
+  for (int c = 0; c < nenr; ++c) {
+    const int nr = rp[c + 1] - rp[c], col = 3 * (nstd + c);
+    for (int j = 0; j < 3; ++j) m.Ap[col + j + 1] = m.Ap[col + j] + 3 * (nr - 1) + j + 1;
+  }
+  m.Ai.resize(m.Ap.back());
+  for (int c = 0; c < nenr; ++c)
+    for (int j = 0; j < 3; ++j) {
+      int k = m.Ap[3 * (nstd + c) + j];
+      for (int t = rp[c]; t < rp[c + 1]; ++t) {
+        const int last = rows[t] < nstd + c ? 2 : j;
+        for (int i = 0; i <= last; ++i) m.Ai[k++] = 3 * rows[t] + i;
+      }
+    }
+  m.diag.resize(m.ndof());
+  for (int d = 0; d < m.ndof(); ++d) m.diag[d] = m.Ap[d + 1] - 1;
+  // Index t of row node na among column node nc's row nodes.
+  const auto row_index = [&](int na, int nc) {
+    if (nc >= nstd) {
+      const auto first = rows.begin() + rp[nc - nstd];
+      return static_cast<int>(std::lower_bound(first, rows.begin() + rp[nc - nstd + 1], na) - first);
+    }
+    // A mesh node's column 3 nc lists 3 r for each row node r at stride 3.
+    int lo = 0, hi = (m.Ap[3 * nc + 1] - m.Ap[3 * nc] - 1) / 3 + 1;
+    while (lo < hi) {
+      const int mid = (lo + hi) / 2;
+      if (m.Ai[m.Ap[3 * nc] + 3 * mid] < 3 * na) lo = mid + 1;
+      else hi = mid;
+    }
+    return lo;
+  };
+  m.elem_scatter_ptr.assign(1, 0);
+  m.elem_scatter_ptr.reserve(m.nelem + 1);
+  m.elem_scatter.clear();
+  m.elem_scatter.reserve(base.elem_scatter.size() + base.elem_scatter.size() / 8);
+  for (int e = 0; e < m.nelem; ++e) {
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    const bool same = !enriched_elem[e] && base.elem_dof_ptr[e + 1] - base.elem_dof_ptr[e] == n &&
+                      std::equal(m.elem_dof_node.begin() + b, m.elem_dof_node.begin() + b + n,
+                                 base.elem_dof_node.begin() + base.elem_dof_ptr[e]);
+    if (same) {
+      m.elem_scatter.insert(m.elem_scatter.end(), base.elem_scatter.begin() + base.elem_scatter_ptr[e],
+                            base.elem_scatter.begin() + base.elem_scatter_ptr[e + 1]);
+    } else {
+      for (int a = 0; a < n; ++a)
+        for (int c = a; c < n; ++c) {
+          int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+          const bool swapped = na > nc;
+          if (swapped) std::swap(na, nc);
+          const int t = row_index(na, nc);
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) {
+              if (a == c && i > j) {
+                m.elem_scatter.push_back(-1);
+                continue;
+              }
+              const int R = swapped ? j : i, C = swapped ? i : j;
+              m.elem_scatter.push_back(m.Ap[3 * nc + C] + 3 * t + R);
+            }
+        }
+    }
+    m.elem_scatter_ptr.push_back(static_cast<int>(m.elem_scatter.size()));
+  }
+}
+
+void build_pattern(Model& m) {
+  // Upper triangle at DOF-node level: rows(c) = DOF nodes r <= c sharing an
+  // element, as a node-level CSR built by counting (a cut rebuild redoes this,
+  // so it avoids per-node allocations).
+  // Every DOF node keeps its diagonal block, also a node no element uses
+  // (build_constraints fixes those).
+  std::vector<int> cnt(m.ndofnode + 1, 1);
+  cnt[0] = 0;
+  for (int e = 0; e < m.nelem; ++e) {
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    for (int a = 0; a < n; ++a)
+      for (int c = 0; c < n; ++c)
+        if (m.elem_dof_node[b + a] <= m.elem_dof_node[b + c]) ++cnt[m.elem_dof_node[b + c] + 1];
+  }
+  for (int c = 0; c < m.ndofnode; ++c) cnt[c + 1] += cnt[c];
+  std::vector<int> rows(cnt.back()), fill(cnt.begin(), cnt.end() - 1);
+  for (int c = 0; c < m.ndofnode; ++c) rows[fill[c]++] = c;
+  for (int e = 0; e < m.nelem; ++e) {
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    for (int a = 0; a < n; ++a)
+      for (int c = 0; c < n; ++c) {
+        const int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+        if (na <= nc) rows[fill[nc]++] = na;
+      }
+  }
+  std::vector<int> rp(m.ndofnode + 1, 0);  // unique sorted rows of node c: rows[rp[c] .. rp[c+1])
+  int w = 0;
+  for (int c = 0; c < m.ndofnode; ++c) {
+    const auto first = rows.begin() + cnt[c], last = rows.begin() + cnt[c + 1];
+    std::sort(first, last);
+    const int k = static_cast<int>(std::unique(first, last) - first);
+    std::copy(first, first + k, rows.begin() + w);  // w <= cnt[c]: moves left only
+    rp[c] = w;
+    w += k;
+    rp[c + 1] = w;
+  }
+  // Column 3c + j holds, for each row node r of c in order, rows 3r..3r+2
+  // (r < c) or 3c..3c+j (r = c, the last one).
+  m.Ap.assign(m.ndof() + 1, 0);
+  for (int c = 0; c < m.ndofnode; ++c) {
+    const int nr = rp[c + 1] - rp[c];
+    for (int j = 0; j < 3; ++j) m.Ap[3 * c + j + 1] = m.Ap[3 * c + j] + 3 * (nr - 1) + j + 1;
+  }
+  m.Ai.resize(m.Ap.back());
+  for (int c = 0; c < m.ndofnode; ++c)
+    for (int j = 0; j < 3; ++j) {
+      int k = m.Ap[3 * c + j];
+      for (int t = rp[c]; t < rp[c + 1]; ++t) {
+        const int last = rows[t] < c ? 2 : j;
+        for (int i = 0; i <= last; ++i) m.Ai[k++] = 3 * rows[t] + i;
+      }
+    }
+  m.diag.resize(m.ndof());
+  for (int d = 0; d < m.ndof(); ++d) m.diag[d] = m.Ap[d + 1] - 1;  // the diagonal ends its column
+  // Scatter: entry (3r + i, 3c + j), r <= c, sits at Ap[3c + j] + 3 t + i with
+  // t the index of r among c's row nodes: one search per node pair.
+  m.elem_scatter_ptr.assign(1, 0);
+  m.elem_scatter.clear();
+  for (int e = 0; e < m.nelem; ++e) {
+    const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
+    for (int a = 0; a < n; ++a)
+      for (int c = a; c < n; ++c) {
+        int na = m.elem_dof_node[b + a], nc = m.elem_dof_node[b + c];
+        const bool swapped = na > nc;
+        if (swapped) std::swap(na, nc);
+        const int t = static_cast<int>(std::lower_bound(rows.begin() + rp[nc], rows.begin() + rp[nc + 1], na) -
+                                       (rows.begin() + rp[nc]));
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) {
+            if (a == c && i > j) {
+              m.elem_scatter.push_back(-1);  // the symmetric twin is added once
+              continue;
+            }
+            // the local block (a, c) entry (i, j) is the global (3 na + i, 3 nc + j), transposed when swapped
+            const int R = swapped ? j : i, C = swapped ? i : j;
+            m.elem_scatter.push_back(m.Ap[3 * nc + C] + 3 * t + R);
+          }
+      }
+    m.elem_scatter_ptr.push_back(static_cast<int>(m.elem_scatter.size()));
+  }
+}
+
+// Mass per piece in the "piece DOF" space d_a = u_a + q_enr(a) (the
+// displacement of node a as the piece sees it), then mapped to (u, q):
+// consistent M_ab = int_P rho N_a N_b, or lumped: the element's HRZ diagonal
+// (positive for tet10, where row sums give -1/20 rho V at corners) times the
+// piece's volume fraction. Lumping per piece and mapping keeps the coupling
+// M(u_a, q) = M(q, q) = m_a^P: the diagonal is the preprint's X-FEM lumping
+// (eq. 81-82 with Psi = chi_region), the coupling makes a separated piece fall
+// freely at exactly g. Without enrichment the lumped mass is diagonal.
+void build_mass(Model& m, const Scene& scene, const Model* base) {
+  const Mesh& mesh = m.mesh;
+  const int npe = mesh.npe();
+  const double rho = scene.material.density;
+  // rho N_a N_b det J: degree 2p in the shape functions plus 3 for a curved tet10 map.
+  const Cubature cub = cubature_duffy(npe == 4 ? 2 : 7);
+  const bool enriched = m.ndofnode > m.nnode;
+  const bool sparse = m.mass_kind == MassKind::Consistent || enriched;
+  m.mass_lumped.assign(m.ndof(), 0.0);
+  if (sparse) m.mass_csc.assign(m.nnz(), 0.0);
+  std::vector<double> Xe(3 * npe), N(npe), grad(3 * npe), Me(npe * npe), Mp(npe * npe), hrz(npe);
+  const bool reuse = base && base->elem_mass.size() == static_cast<size_t>(m.nelem) * npe * npe;
+  if (reuse) m.elem_mass = base->elem_mass;
+  else m.elem_mass.assign(static_cast<size_t>(m.nelem) * npe * npe, 0.0);
+  const bool lumped = m.mass_kind == MassKind::Lumped;
+  // Lumped: a mesh node's own DOFs get the element's whole HRZ mass (the
+  // pieces' shares sum to it), so they are the uncut mesh's, whatever the
+  // cuts: a rebuild copies them from base and visits only the elements that
+  // carry enrichment (the q DOFs and their couplings). Same sums, in the same
+  // order, as a fresh build.
+  const int nstd = 3 * m.nnode;
+  const bool incremental = lumped && reuse && base->mass_kind == MassKind::Lumped && base->nnode == m.nnode &&
+                           base->mass_lumped.size() >= static_cast<size_t>(nstd);
+  if (incremental) std::copy(base->mass_lumped.begin(), base->mass_lumped.begin() + nstd, m.mass_lumped.begin());
+  for (int e = 0; e < m.nelem; ++e) {
+    const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
+    if (incremental && m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e] == npe) continue;  // no enrichment
+    for (int a = 0; a < npe; ++a)
+      for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
+    // rho int N_a N_b over a set of sub-tets (null: the whole element)
+    auto integrate = [&](const double* subs, int nsub, std::vector<double>& out) {
+      std::fill(out.begin(), out.end(), 0.0);
+      double vol = 0.0;
+      for (int k = 0; k < nsub; ++k) {
+        const double* sub = subs ? subs + 12 * k : kRefTet;
+        const double jac = 6.0 * subtet_ref_volume(sub);
+        for (int q = 0; q < cub.npoint(); ++q) {
+          double r[3];
+          map_to_element(sub, &cub.rst[3 * q], r);
+          const double w = cub.weight[q] * jac * shape_global_gradients(npe, Xe.data(), r, grad.data());
+          shape_values(npe, r, N.data());
+          vol += w;
+          for (int a = 0; a < npe; ++a)
+            for (int b = 0; b < npe; ++b) out[a * npe + b] += rho * w * N[a] * N[b];
+        }
+      }
+      return vol;
+    };
+    double* Mcache = &m.elem_mass[static_cast<size_t>(e) * npe * npe];
+    if (!reuse) {
+      integrate(nullptr, 1, Me);
+      std::copy(Me.begin(), Me.end(), Mcache);
+    } else {
+      std::copy(Mcache, Mcache + npe * npe, Me.begin());
+    }
+    double vol = 0.0;  // rho V = sum of the entries (partition of unity)
+    for (double v : Me) vol += v;
+    vol /= rho;
+    double trace = 0.0;
+    for (int a = 0; a < npe; ++a) trace += Me[a * npe + a];
+    for (int a = 0; a < npe; ++a) hrz[a] = rho * vol * Me[a * npe + a] / trace;
+    const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
+    const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+    // Adds value to the (i, j) entries (i, j: local DOF nodes) of every component.
+    auto add = [&](int i, int j, double value) {
+      if (i > j) std::swap(i, j);
+      const int blk = i * n - i * (i - 1) / 2 + (j - i);  // index of block (i, j), i <= j
+      for (int c = 0; c < 3; ++c) m.mass_csc[sc[9 * blk + 4 * c]] += value;
+    };
+    if (lumped && !incremental)  // the mesh nodes' own DOFs: the whole element's HRZ mass
+      for (int a = 0; a < npe; ++a) {
+        for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += hrz[a];
+        if (sparse) add(a, a, hrz[a]);
+      }
+    for (const PieceView& P : pieces_of(m, e)) {
+      const bool whole = P.rst == nullptr;
+      double frac = 1.0;
+      if (!whole) {
+        frac = 0.0;
+        for (int k = 0; k < P.nsub; ++k) frac += 6.0 * subtet_ref_volume(P.rst + 12 * k);
+      }
+      if (m.mass_kind == MassKind::Consistent) {
+        if (whole) Mp = Me;
+        else integrate(P.rst, P.nsub, Mp);
+      }
+      // local DOF indices of d_a: u_a (index a) and, if enriched, q (index j)
+      int lq[10];
+      for (int a = 0; a < npe; ++a) {
+        lq[a] = -1;
+        if (P.enr && P.enr[a] >= 0)
+          for (int j = npe; j < n; ++j)
+            if (m.elem_dof_node[b0 + j] == P.enr[a]) lq[a] = j;
+      }
+      for (int a = 0; a < npe; ++a) {
+        // The lumped masses are kept in both modes (reported, and used by lumped-mass policies).
+        const double ma = frac * hrz[a];
+        if (!lumped)
+          for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += ma;
+        if (lq[a] >= 0)
+          for (int d = 0; d < 3; ++d) m.mass_lumped[3 * P.enr[a] + d] += ma;
+        if (lumped) {
+          if (!sparse) continue;
+          if (lq[a] >= 0) {
+            add(a, lq[a], ma);
+            add(lq[a], lq[a], ma);
+          }
+          continue;
+        }
+        for (int b = a; b < npe; ++b) {
+          const double v = Mp[a * npe + b];
+          const int ia[2] = {a, lq[a]}, ib[2] = {b, lq[b]};
+          for (int x : ia)
+            for (int y : ib) {
+              if (x < 0 || y < 0) continue;
+              // (a, b) and (b, a) both map here when a != b; the block is
+              // symmetric, so add once per unordered pair of local indices.
+              if (a == b && x > y) continue;
+              add(x, y, v);
+            }
+        }
+      }
+    }
+  }
+  if (incremental && sparse)
+    for (int d = 0; d < nstd; ++d) m.mass_csc[m.diag[d]] = m.mass_lumped[d];
+  // Lumped: the standard block is diagonal (add(a, a) only above), so the
+  // off-diagonal nonzeros are the u-q couplings in the enriched columns, and
+  // the diagonal is mass_lumped (the same sums in the same order). Products
+  // with M then cost O(ndof) instead of a pass over the whole pattern.
+  m.mass_coupling.clear();
+  m.mass_coupling_col.clear();
+  if (lumped && sparse)
+    for (int c = nstd; c < m.ndof(); ++c)
+      for (int k = m.Ap[c]; k < m.diag[c]; ++k)
+        if (m.mass_csc[k] != 0.0) {
+          m.mass_coupling.push_back(k);
+          m.mass_coupling_col.push_back(c);
+        }
+  // Gravity load f = M g with g on the standard DOFs only: the field u = g t^2/2,
+  // q = 0 is exact free fall for every piece.
+  m.f_gravity.assign(m.ndof(), 0.0);
+  if (m.mass_kind == MassKind::Lumped) {
+    // Lumped with enrichment, M couples only u_a and q of the same node and
+    // component with M_uq = M_qq = m_q (above), so M g (g on the u's) is
+    // m_q g on q and the u's own diagonal (every piece's share) times g:
+    // mass_lumped times g on every DOF, the DOF's component of g.
+    for (int d = 0; d < m.ndof(); ++d) m.f_gravity[d] = m.mass_lumped[d] * scene.gravity[d % 3];
+  } else {  // consistent: the sparse product
+    std::vector<double> g(m.ndof(), 0.0);
+    for (int d = 0; d < 3 * m.nnode; ++d) g[d] = scene.gravity[d % 3];
+    sym_matvec(m, m.mass_csc.data(), g.data(), m.f_gravity.data());
+  }
+}
+
+void build_constraints(Model& m, const Scene& scene, const Model* base) {
+  // A rebuild (same mesh, base's standard columns copied by
+  // build_pattern_from_base): the regions select mesh nodes only, so the
+  // standard DOFs' flags, the prescribed list and the constrained entries of
+  // the standard columns are base's; only the enriched columns are scanned.
+  const int nstd = 3 * m.nnode;
+  if (base && base->nnode == m.nnode && base->constrained.size() >= static_cast<size_t>(nstd) &&
+      base->Ap.size() > static_cast<size_t>(nstd) && base->Ap[nstd] == m.Ap[nstd]) {
+    m.constrained.assign(m.ndof(), 0);
+    std::copy(base->constrained.begin(), base->constrained.begin() + nstd, m.constrained.begin());
+    m.prescribed = base->prescribed;
+    m.fixed_dofs.clear();
+    for (int d : base->fixed_dofs)
+      if (d < nstd) m.fixed_dofs.push_back(d);
+    std::vector<char> used(m.ndofnode, 0);
+    for (int node : m.elem_dof_node) used[node] = 1;
+    for (int node = m.nnode; node < m.ndofnode; ++node)
+      if (!used[node])
+        for (int i = 0; i < 3; ++i) m.constrained[3 * node + i] = 1, m.fixed_dofs.push_back(3 * node + i);
+    m.constrained_entries.clear();
+    for (int k : base->constrained_entries) {
+      if (k >= m.Ap[nstd]) break;  // base's list is in column order
+      m.constrained_entries.push_back(k);
+    }
+    for (int c = nstd; c < m.ndof(); ++c)
+      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+        if (m.Ai[k] != c && (m.constrained[m.Ai[k]] || m.constrained[c])) m.constrained_entries.push_back(k);
+    return;
+  }
+  m.constrained.assign(m.ndof(), 0);
+  std::vector<double> value(m.ndof(), 0.0), ramp(m.ndof(), 0.0);
+  std::vector<char> is_prescribed(m.ndof(), 0);
+  for (const Region& r : scene.fixed)
+    for (int n : select_nodes(m.mesh, r, scene.path))
+      for (int i = 0; i < 3; ++i) m.constrained[3 * n + i] = 1;
+  // A prescribed component overrides a fixed one on the same node (documented).
+  for (const Prescribed& p : scene.prescribed)
+    for (int n : select_nodes(m.mesh, p.region, scene.path))
+      for (int i = 0; i < 3; ++i)
+        if (p.active[i]) {
+          m.constrained[3 * n + i] = 1;
+          is_prescribed[3 * n + i] = 1;
+          value[3 * n + i] = p.displacement[i];
+          ramp[3 * n + i] = p.ramp;
+        }
+  m.fixed_dofs.clear();
+  m.prescribed.clear();
+  for (int d = 0; d < m.ndof(); ++d) {
+    if (is_prescribed[d]) m.prescribed.push_back({d, value[d], ramp[d]});
+    else if (m.constrained[d]) m.fixed_dofs.push_back(d);
+  }
+  // A node no element uses has no mass or stiffness: it is held fixed.
+  std::vector<char> used(m.ndofnode, 0);
+  for (int node : m.elem_dof_node) used[node] = 1;
+  for (int node = 0; node < m.ndofnode; ++node)
+    if (!used[node])
+      for (int i = 0; i < 3; ++i)
+        if (!m.constrained[3 * node + i]) m.constrained[3 * node + i] = 1, m.fixed_dofs.push_back(3 * node + i);
+  std::sort(m.fixed_dofs.begin(), m.fixed_dofs.end());
+  m.constrained_entries.clear();
+  for (int c = 0; c < m.ndof(); ++c)
+    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+      if (m.Ai[k] != c && (m.constrained[m.Ai[k]] || m.constrained[c])) m.constrained_entries.push_back(k);
+}
+
+}  // namespace
+
+std::vector<int> select_nodes(const Mesh& mesh, const Region& region, const std::string& scene_path) {
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (int n = 0; n < mesh.nnode(); ++n)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], mesh.X[3 * n + d]);
+      hi[d] = std::max(hi[d], mesh.X[3 * n + d]);
+    }
+  const double tol = 1e-9 * std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                      (hi[2] - lo[2]) * (hi[2] - lo[2]));
+  std::vector<int> out;
+  if (region.kind == Region::Kind::Nodes) {
+    for (int n : region.nodes) {
+      if (n < 0 || n >= mesh.nnode()) {
+        std::ostringstream os;
+        os << scene_path << ": " << region.json_path << ".nodes: node " << n << " is out of range; the mesh has "
+           << mesh.nnode() << " nodes (0-based ids 0.." << mesh.nnode() - 1 << ")";
+        throw Error(os.str());
+      }
+      out.push_back(n);
+    }
+  } else {
+    const double nn = std::sqrt(region.normal[0] * region.normal[0] + region.normal[1] * region.normal[1] +
+                                region.normal[2] * region.normal[2]);
+    for (int n = 0; n < mesh.nnode(); ++n) {
+      const double* x = &mesh.X[3 * n];
+      bool in = true;
+      if (region.kind == Region::Kind::Box) {
+        for (int d = 0; d < 3; ++d) in = in && x[d] >= region.lo[d] - tol && x[d] <= region.hi[d] + tol;
+      } else {
+        double s = 0.0;
+        for (int d = 0; d < 3; ++d) s += (x[d] - region.point[d]) * region.normal[d] / nn;
+        in = s <= tol;
+      }
+      if (in) out.push_back(n);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  if (out.empty())
+    throw Error(scene_path + ": " + region.json_path + ": selects no mesh node; check the region against the mesh's bounding box");
+  return out;
+}
+
+Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts, const Model* base) {
+  Model m;
+  if (base) {
+    m.mesh = base->mesh;  // checked and raised already
+  } else {
+    check_mesh(mesh_in);
+    if (scene.order == 1 && mesh_in.order == 2)
+      throw Error(scene.path + ": mesh.order is 1 but " + mesh_in.source +
+                  " holds tet10 elements; use order 2 or a tet4 mesh");
+    m.mesh = scene.order == 2 ? raise_to_tet10(mesh_in) : mesh_in;
+  }
+  m.material = scene.material;
+  const double E = scene.material.young, nu = scene.material.poisson;
+  m.mu = E / (2.0 * (1.0 + nu));
+  m.lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+  m.mass_kind = scene.mass;
+  m.dt = scene.dt;
+  m.newton_iterations = scene.newton_iterations;
+  m.max_newton_iterations = std::max(scene.max_newton_iterations, scene.newton_iterations);
+  m.rotation_tolerance = scene.rotation_tolerance;
+  m.newmark_gamma = scene.newmark_gamma;
+  m.newmark_beta = scene.newmark_beta;
+  m.consistent_tangent = scene.consistent_tangent;
+  m.tangent_reuse = scene.tangent_reuse;
+  if (!(m.newmark_gamma >= 0.5 && m.newmark_beta >= 0.5 * m.newmark_gamma))
+    throw Error(scene.path + ": integrator: newmark_gamma must be >= 0.5 and newmark_beta >= newmark_gamma / 2 (got " +
+                std::to_string(m.newmark_gamma) + ", " + std::to_string(m.newmark_beta) + ")");
+  m.solver = scene.solver;
+  m.nnode = m.ndofnode = m.mesh.nnode();
+  m.X = m.mesh.X;
+  if (cuts && cuts->npiece() > 0) {
+    m.cuts = *cuts;
+    m.ndofnode += cuts->n_enriched;
+    m.X.resize(3 * static_cast<size_t>(m.ndofnode), 0.0);  // enriched DOF nodes: X = 0 (preprint eq. 64)
+  }
+  // base's per-element data is reusable when it was built for the same mesh and rotation mode.
+  const Model* same = base && base->nelem == m.mesh.ntet() && base->nnode == m.nnode &&
+                              base->material.rotation == m.material.rotation && base->mu == m.mu &&
+                              base->lambda == m.lambda
+                          ? base
+                          : nullptr;
+  std::vector<int> slot_src;
+  build_elements(m, scene, same, slot_src);
+  build_slot_stiffness(m, same, slot_src);
+  if (base) {
+    m.tet_face_boundary = base->tet_face_boundary;
+    m.tet_face_pair = base->tet_face_pair;
+    m.node_elem_ptr = base->node_elem_ptr;
+    m.node_elem = base->node_elem;
+  } else {
+    build_boundary_faces(m);
+  }
+  if (base && base->nnode == m.nnode && base->nelem == m.nelem) build_pattern_from_base(m, *base);
+  else build_pattern(m);
+  build_mass(m, scene, base);
+  if (!base || model_needs_rest_stiffness(m)) m.K0_csc = rest_stiffness(m);
+  build_constraints(m, scene, base && base->nnode == m.nnode && base->nelem == m.nelem ? base : nullptr);
+  return m;
+}
+
+NewmarkCoefficients newmark_coefficients(const Model& m) {
+  const double dt = m.dt, b = m.newmark_beta, g = m.newmark_gamma;
+  NewmarkCoefficients c;
+  c.a_d = 1.0 / (b * dt * dt);
+  c.a_v = -1.0 / (b * dt);
+  c.a_a = 1.0 - 0.5 / b;
+  // v1 = v + dt ((1 - gamma) a + gamma a1)
+  c.v_d = g / (b * dt);
+  c.v_v = 1.0 - g / b;
+  c.v_a = dt * (1.0 - 0.5 * g / b);
+  c.cM = c.a_d + m.material.rayleigh_mass * c.v_d;
+  c.cK = 1.0 + m.material.rayleigh_stiffness * c.v_d;
+  return c;
+}
+
+std::vector<double> rest_stiffness(const Model& m) {
+  std::vector<double> K0(m.nnz(), 0.0), u(m.ndof(), 0.0), f(m.ndof()), R(9 * static_cast<size_t>(m.nrot), 0.0);
+  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  assemble_internal(m, u.data(), R.data(), f.data(), K0.data());
+  return K0;
+}
+
+bool same_element_pieces(const Model& m, const Model& base, int e) { return same_pieces(m, base, e); }
+
+bool model_needs_rest_stiffness(const Model& m) {
+  return m.material.model == MaterialModel::Linear || m.solver.policy == SolverPolicy::Warped ||
+         m.solver.policy == SolverPolicy::WarpedCG;
+}
+
+}  // namespace incise

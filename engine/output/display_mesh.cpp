@@ -1,0 +1,95 @@
+#include "engine/output/display_mesh.h"
+
+#include "engine/fem/element.h"
+
+namespace incise {
+
+DisplayMesh display_mesh(const Model& m, const State& s) {
+  DisplayMesh d;
+  d.order = m.mesh.order;
+  const int nn = m.nnode, npe = m.mesh.npe(), nt = m.mesh.ntet();
+  d.X.assign(m.X.begin(), m.X.begin() + 3 * nn);
+  d.u.assign(s.u.begin(), s.u.begin() + 3 * nn);
+  d.v.assign(s.v.begin(), s.v.begin() + 3 * nn);
+  if (!m.has_cuts()) {
+    d.cells = m.mesh.tet;
+    d.cell_elem.resize(nt);
+    for (int e = 0; e < nt; ++e) d.cell_elem[e] = e;
+    d.face_flags.assign(m.tet_face_boundary.begin(), m.tet_face_boundary.end());  // kFaceBoundary == 1
+    return d;
+  }
+  const CutLayout& L = m.cuts;
+  double N[10];
+  for (int e = 0; e < nt; ++e) {
+    const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * npe];
+    if (!L.elem_split[e] && L.elem_piece_ptr[e + 1] - L.elem_piece_ptr[e] == 1) {
+      // Whole element: its own nodes, moved with its piece's field (an
+      // enriched node shows the value of this element's region).
+      const int P = L.elem_piece_ptr[e];
+      const int* enr = &L.piece_enr[static_cast<size_t>(P) * npe];
+      bool plain = true;
+      for (int a = 0; a < npe; ++a) plain = plain && enr[a] < 0;
+      for (int a = 0; a < npe; ++a) {
+        if (plain) {
+          d.cells.push_back(nodes[a]);
+          continue;
+        }
+        d.cells.push_back(d.npoint());
+        for (int c = 0; c < 3; ++c) {
+          d.X.push_back(m.X[3 * nodes[a] + c]);
+          d.u.push_back(s.u[3 * nodes[a] + c] + (enr[a] >= 0 ? s.u[3 * enr[a] + c] : 0.0));
+          d.v.push_back(s.v[3 * nodes[a] + c] + (enr[a] >= 0 ? s.v[3 * enr[a] + c] : 0.0));
+        }
+      }
+      d.cell_elem.push_back(e);
+      for (int k = 0; k < 4; ++k)
+        d.face_flags.push_back((m.tet_face_boundary[4 * e + k] ? kFaceBoundary : 0) |
+                               (L.elem_face_cut[4 * e + k] ? kFaceCut : 0));
+      continue;
+    }
+    // Split element: each piece's sub-tetrahedra, their points mapped by the
+    // element's shape functions and moved with the piece's own field.
+    for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
+      const int* enr = &L.piece_enr[static_cast<size_t>(P) * npe];
+      for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
+        const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
+        for (int a = 0; a < npe; ++a) {
+          double r[3];
+          if (a < 4) {
+            for (int c = 0; c < 3; ++c) r[c] = v[3 * a + c];
+          } else {
+            const int i = kTet10Edge[a - 4][0], j = kTet10Edge[a - 4][1];
+            for (int c = 0; c < 3; ++c) r[c] = 0.5 * (v[3 * i + c] + v[3 * j + c]);
+          }
+          shape_values(npe, r, N);
+          double X[3] = {0, 0, 0}, u[3] = {0, 0, 0}, vel[3] = {0, 0, 0};
+          for (int b = 0; b < npe; ++b)
+            for (int c = 0; c < 3; ++c) {
+              X[c] += N[b] * m.X[3 * nodes[b] + c];
+              u[c] += N[b] * (s.u[3 * nodes[b] + c] + (enr[b] >= 0 ? s.u[3 * enr[b] + c] : 0.0));
+              vel[c] += N[b] * (s.v[3 * nodes[b] + c] + (enr[b] >= 0 ? s.v[3 * enr[b] + c] : 0.0));
+            }
+          d.cells.push_back(d.npoint());
+          d.X.insert(d.X.end(), X, X + 3);
+          d.u.insert(d.u.end(), u, u + 3);
+          d.v.insert(d.v.end(), vel, vel + 3);
+        }
+        d.cell_elem.push_back(e);
+        for (int k = 0; k < 4; ++k) {
+          const signed char tag = L.subtet_face[4 * static_cast<size_t>(t) + k];
+          unsigned char flag = 0;
+          if (tag >= 0 && tag < 4) {
+            if (m.tet_face_boundary[4 * e + tag]) flag |= kFaceBoundary;
+            if (L.elem_face_cut[4 * e + tag]) flag |= kFaceCut;
+          } else if (tag == 4) {
+            flag |= kFaceCut;
+          }
+          d.face_flags.push_back(flag);
+        }
+      }
+    }
+  }
+  return d;
+}
+
+}  // namespace incise

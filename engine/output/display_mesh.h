@@ -1,0 +1,38 @@
+#pragma once
+// What a viewer shows: the deformed body as cells with their own points. An
+// uncut element is one cell on the mesh's shared points; an X-FEM element is
+// written as its sub-elements, each on points of its own side moved with that
+// side's displacement field, so a cut opens as a gap. Faces lying on a cut
+// surface are flagged so renderers colour them as tissue interior. Used by the
+// .vtu output (engine/result_grid) and the renderer (render/).
+#include <vector>
+
+#include "engine/model/model.h"
+#include "engine/dynamics/state.h"
+
+namespace incise {
+
+struct DisplayMesh {
+  int order = 1;                   // cells are tet4 (1) or tet10 (2), ordering of engine/mesh/mesh.h
+  std::vector<double> X;           // (npoint, 3) reference positions
+  std::vector<double> u;           // (npoint, 3) displacement
+  std::vector<double> v;           // (npoint, 3) velocity
+  std::vector<int> cells;          // (ncell, npe) point ids
+  std::vector<int> cell_elem;      // (ncell) model element the cell belongs to
+  // (ncell, 4) flags of face k (the face opposite corner k): kFaceBoundary =
+  // on the body's outer surface, kFaceCut = on a cut surface. Faces with no
+  // flag are inside the body; a renderer draws the flagged ones only.
+  std::vector<unsigned char> face_flags;
+
+  int npe() const { return order == 2 ? 10 : 4; }
+  int npoint() const { return static_cast<int>(X.size() / 3); }
+  int ncell() const { return static_cast<int>(cell_elem.size()); }
+  double x(int p, int d) const { return X[3 * p + d] + u[3 * p + d]; }  // current position
+};
+
+inline constexpr unsigned char kFaceBoundary = 1, kFaceCut = 2;
+
+DisplayMesh display_mesh(const Model& model, const State& state);
+
+
+}  // namespace incise

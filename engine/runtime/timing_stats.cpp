@@ -1,0 +1,88 @@
+#include "engine/runtime/timing_stats.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace incise {
+
+Percentiles percentiles(std::vector<double> x) {
+  Percentiles p;
+  p.count = static_cast<int>(x.size());
+  if (x.empty()) return p;
+  std::sort(x.begin(), x.end());
+  auto rank = [&](double q) {
+    const size_t k = static_cast<size_t>(std::ceil(q * x.size()));
+    return x[std::min(x.size() - 1, k == 0 ? 0 : k - 1)];
+  };
+  p.median_ms = x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
+  p.p95_ms = rank(0.95);
+  p.p99_ms = rank(0.99);
+  p.max_ms = x.back();
+  return p;
+}
+
+TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms) {
+  TimingSummary s;
+  s.budget_ms = budget_ms;
+  std::vector<double> f, cut, plain;
+  std::vector<double> st[kNumStages], parts[kNumCutParts];
+  int over = 0;
+  for (const auto& t : frames) {
+    f.push_back(t.frame_ms);
+    (t.cut_frame ? cut : plain).push_back(t.frame_ms);
+    over += t.frame_ms > budget_ms;
+    for (int k = 0; k < kNumStages; ++k) st[k].push_back(t.ms[k]);
+    for (int k = 0; t.cut_frame && k < kNumCutParts; ++k) parts[k].push_back(t.cut_ms[k]);
+    s.cut_ahead += t.cut_frame && t.cut_ahead;
+  }
+  for (const auto& t : frames) {
+    s.newton_mean += t.newton;
+    s.newton_max = std::max(s.newton_max, t.newton);
+  }
+  if (!frames.empty()) s.newton_mean /= frames.size();
+  s.frame = percentiles(f);
+  s.cut_frames = percentiles(cut);
+  s.plain_frames = percentiles(plain);
+  for (int k = 0; k < kNumStages; ++k) s.stages[k] = percentiles(st[k]);
+  for (int k = 0; k < kNumCutParts; ++k) s.cut_parts[k] = percentiles(parts[k]);
+  s.over_budget = frames.empty() ? 0.0 : static_cast<double>(over) / frames.size();
+  return s;
+}
+
+std::string format_summary(const TimingSummary& s) {
+  std::string out;
+  char line[160];
+  std::snprintf(line, sizeof line, "%-14s %10s %10s %10s %10s\n", "stage (ms)", "median", "p95", "p99", "max");
+  out += line;
+  auto row = [&](const char* name, const Percentiles& p) {
+    std::snprintf(line, sizeof line, "%-14s %10.3f %10.3f %10.3f %10.3f\n", name, p.median_ms, p.p95_ms, p.p99_ms,
+                  p.max_ms);
+    out += line;
+  };
+  for (int k = 0; k < kNumStages; ++k) {
+    row(kStageNames[k], s.stages[k]);
+    // The cutting stage's parts, over the cut frames only.
+    for (int j = 0; k == kStageCutting && s.cut_frames.count > 0 && j < kNumCutParts; ++j)
+      row(kCutPartNames[j], s.cut_parts[j]);
+  }
+  row("frame", s.frame);
+  if (s.cut_frames.count > 0) {
+    row("cut frame", s.cut_frames);
+    row("other frames", s.plain_frames);
+  }
+  std::snprintf(line, sizeof line, "Newton iterations per frame: mean %.2f, max %d\n", s.newton_mean, s.newton_max);
+  out += line;
+  std::snprintf(line, sizeof line, "frames over the %.1f ms budget: %.1f%% of %d (%d cut frames)\n", s.budget_ms,
+                100.0 * s.over_budget, s.frame.count, s.cut_frames.count);
+  out += line;
+  if (s.cut_frames.count > 0) {
+    std::snprintf(line, sizeof line,
+                  "cut frames whose layout and model were built during the previous frame's step: %d of %d\n",
+                  s.cut_ahead, s.cut_frames.count);
+    out += line;
+  }
+  return out;
+}
+
+}  // namespace incise

@@ -1,0 +1,33 @@
+#pragma once
+// Summaries of per-frame stage timings: median, p95, p99, max.
+#include <string>
+#include <vector>
+
+#include "engine/runtime/timing.h"
+
+namespace incise {
+
+struct Percentiles {
+  double median_ms = 0, p95_ms = 0, p99_ms = 0, max_ms = 0;
+  int count = 0;
+};
+// Nearest-rank percentiles of the samples.
+Percentiles percentiles(std::vector<double> samples);
+
+struct TimingSummary {
+  Percentiles frame;
+  Percentiles stages[kNumStages];
+  double over_budget = 0.0;  // share of frames with frame_ms > budget_ms
+  Percentiles cut_frames;    // frames whose DOF set changed (a cut), frame_ms
+  Percentiles plain_frames;  // the other frames
+  Percentiles cut_parts[kNumCutParts];  // parts of the cutting stage, over the cut frames
+  int cut_ahead = 0;         // cut frames whose layout and model were prepared during the previous frame
+  double newton_mean = 0;    // linearised solves per frame
+  int newton_max = 0;
+  double budget_ms = 1000.0 / 30.0;
+};
+TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms = 1000.0 / 30.0);
+// A fixed-width table: stage, median, p95, p99, max (ms).
+std::string format_summary(const TimingSummary& s);
+
+}  // namespace incise

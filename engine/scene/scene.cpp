@@ -1,0 +1,722 @@
+#include "engine/scene/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <climits>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/util/error.h"
+
+namespace incise {
+namespace {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+// A value as it appears in the file, shortened for messages.
+std::string show(const json& v) {
+  std::string s = v.dump();
+  if (s.size() > 60) s = s.substr(0, 57) + "...";
+  return s;
+}
+
+// "number", "integer", "string", ... with the value itself where short.
+std::string describe(const json& v) {
+  if (v.is_null()) return "null";
+  std::string type = v.is_number() ? "number" : v.type_name();
+  return type + " " + show(v);
+}
+
+std::string join(const std::vector<std::string>& items, const char* sep = ", ") {
+  std::string out;
+  for (size_t i = 0; i < items.size(); ++i) {
+    if (i) out += sep;
+    out += items[i];
+  }
+  return out;
+}
+
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      size_t sub = prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1);
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, sub});
+    }
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+// Builds JSON paths and throws errors that start with the scene path.
+class Parser {
+ public:
+  explicit Parser(std::string scene_path) : path_(std::move(scene_path)) {}
+
+  [[noreturn]] void fail(const std::string& where, const std::string& what) const {
+    // `what` starts with " must ..." or ": ...".
+    throw Error(path_ + ": " + where + what);
+  }
+
+  static std::string key(const std::string& parent, const std::string& k) {
+    return parent.empty() ? k : parent + "." + k;
+  }
+  static std::string index(const std::string& parent, size_t i) {
+    return parent + "[" + std::to_string(i) + "]";
+  }
+
+  // --- structure -----------------------------------------------------------
+
+  const json& object(const json& v, const std::string& where) const {
+    if (!v.is_object()) fail(where, " must be an object, got " + describe(v));
+    return v;
+  }
+
+  void allowed_keys(const json& obj, const std::string& where,
+                    const std::vector<std::string>& allowed) const {
+    for (auto it = obj.begin(); it != obj.end(); ++it) {
+      if (std::find(allowed.begin(), allowed.end(), it.key()) != allowed.end()) continue;
+      std::string msg = ": unknown key; allowed: " + join(allowed);
+      // Suggest the closest allowed key for a likely typo.
+      std::string best;
+      size_t best_d = 3;
+      for (const auto& a : allowed) {
+        size_t d = edit_distance(it.key(), a);
+        size_t len = std::max(it.key().size(), a.size());
+        if (d < best_d && 3 * d <= len) best_d = d, best = a;
+      }
+      if (!best.empty()) msg += "; did you mean \"" + best + "\"?";
+      fail(key(where, it.key()), msg);
+    }
+  }
+
+  const json& required(const json& obj, const std::string& where, const std::string& k,
+                       const std::string& expected) const {
+    auto it = obj.find(k);
+    if (it == obj.end()) fail(key(where, k), ": required key is missing (expected " + expected + ")");
+    return *it;
+  }
+
+  const json& array(const json& v, const std::string& where) const {
+    if (!v.is_array()) fail(where, " must be an array, got " + describe(v));
+    return v;
+  }
+
+  // --- scalars -------------------------------------------------------------
+
+  double number(const json& v, const std::string& where) const {
+    if (!v.is_number()) fail(where, " must be a number, got " + describe(v));
+    double x = v.get<double>();
+    if (!std::isfinite(x)) fail(where, " must be a finite number, got " + show(v));
+    return x;
+  }
+
+  int integer(const json& v, const std::string& where) const {
+    if (!v.is_number()) fail(where, " must be an integer, got " + describe(v));
+    if (v.is_number_unsigned()) {
+      if (v.get<unsigned long long>() > static_cast<unsigned long long>(INT_MAX))
+        fail(where, " is too large, got " + show(v));
+      return static_cast<int>(v.get<unsigned long long>());
+    }
+    if (v.is_number_integer()) {
+      long long x = v.get<long long>();
+      if (x > INT_MAX || x < INT_MIN) fail(where, " is out of range, got " + show(v));
+      return static_cast<int>(x);
+    }
+    double x = v.get<double>();  // accept 3.0, not 3.5
+    if (!std::isfinite(x) || x != std::floor(x)) fail(where, " must be an integer, got " + show(v));
+    if (x > INT_MAX || x < INT_MIN) fail(where, " is out of range, got " + show(v));
+    return static_cast<int>(x);
+  }
+
+  bool boolean(const json& v, const std::string& where) const {
+    if (!v.is_boolean()) fail(where, " must be a boolean (true or false), got " + describe(v));
+    return v.get<bool>();
+  }
+
+  std::string string(const json& v, const std::string& where) const {
+    if (!v.is_string()) fail(where, " must be a string, got " + describe(v));
+    return v.get<std::string>();
+  }
+
+  std::string nonempty_string(const json& v, const std::string& where) const {
+    std::string s = string(v, where);
+    if (s.empty()) fail(where, " must be a non-empty string, got \"\"");
+    return s;
+  }
+
+  // One of a fixed set of strings; returns its position in `allowed`.
+  size_t choice(const json& v, const std::string& where,
+                const std::vector<std::string>& allowed) const {
+    std::vector<std::string> quoted;
+    for (const auto& a : allowed) quoted.push_back("\"" + a + "\"");
+    if (!v.is_string())
+      fail(where, " must be one of " + join(quoted) + ", got " + describe(v));
+    auto it = std::find(allowed.begin(), allowed.end(), v.get<std::string>());
+    if (it == allowed.end()) fail(where, " must be one of " + join(quoted) + ", got " + show(v));
+    return static_cast<size_t>(it - allowed.begin());
+  }
+
+  double positive(const json& v, const std::string& where) const {
+    double x = number(v, where);
+    if (!(x > 0.0)) fail(where, " must be > 0, got " + show(v));
+    return x;
+  }
+
+  double nonnegative(const json& v, const std::string& where) const {
+    double x = number(v, where);
+    if (!(x >= 0.0)) fail(where, " must be >= 0, got " + show(v));
+    return x;
+  }
+
+  int nonnegative_int(const json& v, const std::string& where) const {
+    int n = integer(v, where);
+    if (n < 0) fail(where, " must be an integer >= 0, got " + show(v));
+    return n;
+  }
+
+  int at_least_one(const json& v, const std::string& where) const {
+    int n = integer(v, where);
+    if (n < 1) fail(where, " must be an integer >= 1, got " + show(v));
+    return n;
+  }
+
+  Vec3 vec3(const json& v, const std::string& where) const {
+    if (!v.is_array() || v.size() != 3) {
+      std::string got = v.is_array() ? "array of " + std::to_string(v.size()) + " values"
+                                     : describe(v);
+      fail(where, " must be an array of 3 numbers [x, y, z], got " + got);
+    }
+    Vec3 out{};
+    for (size_t i = 0; i < 3; ++i) out[i] = number(v[i], index(where, i));
+    return out;
+  }
+
+  // --- paths ---------------------------------------------------------------
+
+  // Relative paths are taken from the scene file's folder.
+  std::string resolve(const std::string& p) const {
+    fs::path file(p);
+    if (file.is_absolute()) return file.lexically_normal().string();
+    fs::path base = fs::path(path_).parent_path();
+    return (base / file).lexically_normal().string();
+  }
+
+  const std::string& scene_path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+// --- sections ----------------------------------------------------------------
+
+void parse_mesh(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "mesh";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"file", "order"});
+  std::string file =
+      p.nonempty_string(p.required(v, at, "file", "a mesh file path string"), at + ".file");
+  s.mesh_file = p.resolve(file);
+  std::error_code ec;
+  auto st = fs::status(s.mesh_file, ec);
+  if (ec || !fs::exists(st)) p.fail(at + ".file", ": file not found: " + s.mesh_file);
+  if (fs::is_directory(st)) p.fail(at + ".file", ": is a directory, not a mesh file: " + s.mesh_file);
+  if (auto it = v.find("order"); it != v.end()) {
+    int order = p.integer(*it, at + ".order");
+    if (order != 1 && order != 2) p.fail(at + ".order", " must be 1 or 2, got " + show(*it));
+    s.order = order;
+  }
+}
+
+void parse_material(const Parser& p, const json& v, Material& m) {
+  const std::string at = "material";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"model", "rotation", "young", "poisson", "density", "rayleigh"});
+  if (auto it = v.find("model"); it != v.end())
+    m.model = p.choice(*it, at + ".model", {"linear", "corotated"}) == 0
+                  ? MaterialModel::Linear
+                  : MaterialModel::Corotated;
+  if (auto it = v.find("rotation"); it != v.end())
+    m.rotation = p.choice(*it, at + ".rotation", {"per_point", "single"}) == 0
+                     ? RotationMode::PerPoint
+                     : RotationMode::Single;
+  m.young = p.positive(p.required(v, at, "young", "a number > 0"), at + ".young");
+  {
+    const json& nu = p.required(v, at, "poisson", "a number in (-1, 0.5)");
+    m.poisson = p.number(nu, at + ".poisson");
+    if (!(m.poisson > -1.0 && m.poisson < 0.5))
+      p.fail(at + ".poisson", " must be in (-1, 0.5), got " + show(nu));
+  }
+  m.density = p.positive(p.required(v, at, "density", "a number > 0"), at + ".density");
+  if (auto it = v.find("rayleigh"); it != v.end()) {
+    const std::string r = at + ".rayleigh";
+    p.object(*it, r);
+    p.allowed_keys(*it, r, {"mass", "stiffness"});
+    if (auto m_it = it->find("mass"); m_it != it->end())
+      m.rayleigh_mass = p.nonnegative(*m_it, r + ".mass");
+    if (auto k_it = it->find("stiffness"); k_it != it->end())
+      m.rayleigh_stiffness = p.nonnegative(*k_it, r + ".stiffness");
+  }
+}
+
+// Reads the one region key (box, plane or nodes) of a fixed/prescribed entry.
+Region parse_region(const Parser& p, const json& v, const std::string& at) {
+  Region r;
+  r.json_path = at;
+  std::vector<std::string> present;
+  for (const char* k : {"box", "plane", "nodes"})
+    if (v.contains(k)) present.push_back(k);
+  if (present.size() != 1) {
+    p.fail(at, present.empty()
+                   ? ": needs exactly one of box, plane, nodes; got none"
+                   : ": needs exactly one of box, plane, nodes; got " + join(present, " and "));
+  }
+  const std::string k = present[0];
+  const std::string rp = Parser::key(at, k);
+  const json& rv = v.at(k);
+  if (k == "box") {
+    r.kind = Region::Kind::Box;
+    if (!rv.is_array() || rv.size() != 2) {
+      std::string got = rv.is_array() ? "array of " + std::to_string(rv.size()) + " values"
+                                      : describe(rv);
+      p.fail(rp, " must be [[xmin, ymin, zmin], [xmax, ymax, zmax]], got " + got);
+    }
+    r.lo = p.vec3(rv[0], Parser::index(rp, 0));
+    r.hi = p.vec3(rv[1], Parser::index(rp, 1));
+    static const char* axis = "xyz";
+    for (size_t i = 0; i < 3; ++i) {
+      if (r.lo[i] > r.hi[i]) {
+        p.fail(rp, ": min must be <= max in each component; got " + std::string(1, axis[i]) +
+                       " min " + show(rv[0][i]) + " > max " + show(rv[1][i]));
+      }
+    }
+  } else if (k == "plane") {
+    r.kind = Region::Kind::Plane;
+    p.object(rv, rp);
+    p.allowed_keys(rv, rp, {"point", "normal"});
+    r.point = p.vec3(p.required(rv, rp, "point", "[x, y, z]"), rp + ".point");
+    const json& nj = p.required(rv, rp, "normal", "[nx, ny, nz], nonzero");
+    Vec3 n = p.vec3(nj, rp + ".normal");
+    double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || !std::isfinite(len))
+      p.fail(rp + ".normal", " must be a nonzero vector, got " + show(nj));
+    for (double& c : n) c /= len;  // unit length: the selection tolerance is a distance
+    r.normal = n;
+  } else {
+    r.kind = Region::Kind::Nodes;
+    p.array(rv, rp);
+    if (rv.empty()) p.fail(rp, " must list at least one node id, got []");
+    for (size_t i = 0; i < rv.size(); ++i) {
+      const std::string ip = Parser::index(rp, i);
+      int id = p.integer(rv[i], ip);
+      if (id < 0) p.fail(ip, " must be a non-negative node id (0-based), got " + show(rv[i]));
+      r.nodes.push_back(id);
+    }
+  }
+  return r;
+}
+
+void parse_fixed(const Parser& p, const json& v, Scene& s) {
+  p.array(v, "fixed");
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string at = Parser::index("fixed", i);
+    p.object(v[i], at);
+    p.allowed_keys(v[i], at, {"box", "plane", "nodes"});
+    s.fixed.push_back(parse_region(p, v[i], at));
+  }
+}
+
+void parse_prescribed(const Parser& p, const json& v, Scene& s) {
+  p.array(v, "prescribed");
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string at = Parser::index("prescribed", i);
+    const json& e = v[i];
+    p.object(e, at);
+    p.allowed_keys(e, at, {"box", "plane", "nodes", "displacement", "ramp"});
+    Prescribed pr;
+    pr.region = parse_region(p, e, at);
+    const std::string dp = at + ".displacement";
+    const json& d = p.required(e, at, "displacement", "an object with x, y and/or z");
+    p.object(d, dp);
+    p.allowed_keys(d, dp, {"x", "y", "z"});
+    static const char* names[3] = {"x", "y", "z"};
+    for (size_t c = 0; c < 3; ++c) {
+      if (auto it = d.find(names[c]); it != d.end()) {
+        pr.active[c] = true;
+        pr.displacement[c] = p.number(*it, dp + "." + names[c]);
+      }
+    }
+    if (!pr.active[0] && !pr.active[1] && !pr.active[2])
+      p.fail(dp, ": needs at least one of x, y, z (an absent component stays free), got {}");
+    if (auto it = e.find("ramp"); it != e.end()) pr.ramp = p.nonnegative(*it, at + ".ramp");
+    s.prescribed.push_back(std::move(pr));
+  }
+}
+
+void parse_integrator(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "integrator";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance", "newmark_gamma",
+                          "newmark_beta", "tangent", "tangent_reuse"});
+  if (auto it = v.find("dt"); it != v.end()) {
+    double dt = p.number(*it, at + ".dt");
+    if (!(dt > 0.0 && dt <= 1.0))
+      p.fail(at + ".dt", " must be in (0, 1] seconds, got " + show(*it));
+    s.dt = dt;
+  }
+  if (auto it = v.find("newton_iterations"); it != v.end())
+    s.newton_iterations = p.at_least_one(*it, at + ".newton_iterations");
+  if (auto it = v.find("max_newton_iterations"); it != v.end())
+    s.max_newton_iterations = p.at_least_one(*it, at + ".max_newton_iterations");
+  if (auto it = v.find("rotation_tolerance"); it != v.end())
+    s.rotation_tolerance = p.nonnegative(*it, at + ".rotation_tolerance");
+  if (auto it = v.find("tangent"); it != v.end())
+    s.consistent_tangent = p.choice(*it, at + ".tangent", {"frozen_rotation", "consistent"}) == 1;
+  if (auto it = v.find("tangent_reuse"); it != v.end()) {
+    s.tangent_reuse = p.nonnegative(*it, at + ".tangent_reuse");
+    if (!(s.tangent_reuse < 0.5))
+      p.fail(at + ".tangent_reuse", " must be in [0, 0.5) (a change of the deformation gradient; 0 = off), got " + show(*it));
+  }
+  if (auto it = v.find("newmark_gamma"); it != v.end()) {
+    const double g = p.number(*it, at + ".newmark_gamma");
+    if (!(g >= 0.5 && g <= 1.0)) p.fail(at + ".newmark_gamma", " must be in [0.5, 1] (0.5 = no numerical damping), got " + show(*it));
+    s.newmark_gamma = g;
+  }
+  // beta defaults to (gamma + 1/2)^2 / 4: unconditionally stable, and the
+  // high-frequency limit of the amplification is then as small as gamma allows.
+  s.newmark_beta = 0.25 * (s.newmark_gamma + 0.5) * (s.newmark_gamma + 0.5);
+  if (auto it = v.find("newmark_beta"); it != v.end()) {
+    const double b = p.number(*it, at + ".newmark_beta");
+    if (!(b >= 0.5 * s.newmark_gamma && b <= 1.0))
+      p.fail(at + ".newmark_beta", " must be in [newmark_gamma / 2, 1] (unconditionally stable), got " + show(*it));
+    s.newmark_beta = b;
+  }
+}
+
+void parse_solver(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "solver";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
+                         "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
+                         "factorization", "ordering", "factor_precision", "initial_guess", "affinity"});
+  SolverSettings& o = s.solver;
+  if (auto it = v.find("policy"); it != v.end())
+    o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
+  if (auto it = v.find("refresh_every"); it != v.end())
+    o.refresh_every = p.at_least_one(*it, at + ".refresh_every");
+  if (auto it = v.find("background"); it != v.end()) o.background = p.boolean(*it, at + ".background");
+  if (auto it = v.find("warp"); it != v.end()) o.warp = p.boolean(*it, at + ".warp");
+  if (auto it = v.find("single_precision"); it != v.end())
+    o.factor_copy = p.boolean(*it, at + ".single_precision") ? FactorCopy::Float : FactorCopy::None;
+  if (auto it = v.find("factor_copy"); it != v.end()) {
+    if (v.contains("single_precision"))
+      p.fail(at + ".factor_copy", ": give either factor_copy or single_precision (the older switch between \"float\" and \"none\"), not both");
+    o.factor_copy = static_cast<FactorCopy>(p.choice(*it, at + ".factor_copy", {"none", "float", "half"}));
+  }
+  if (auto it = v.find("factor_precision"); it != v.end()) {
+    o.single_factorization = p.choice(*it, at + ".factor_precision", {"double", "single"}) == 1;
+    if (o.single_factorization && o.factor_copy != FactorCopy::Float)
+      p.fail(at + ".factor_precision", ": \"single\" factors straight into the float copy, so solver.factor_copy must be "
+                                       "\"float\" (the default), not \"" +
+                                           std::string(o.factor_copy == FactorCopy::Half ? "half" : "none") + "\"");
+  }
+  if (auto it = v.find("rescue_after"); it != v.end()) o.rescue_after = p.nonnegative_int(*it, at + ".rescue_after");
+  if (auto it = v.find("late_factor"); it != v.end())
+    o.skip_late_factor = p.choice(*it, at + ".late_factor", {"wait", "skip"}) == 1;
+  if (auto it = v.find("patch"); it != v.end())
+    o.multiplicative_patch = p.choice(*it, at + ".patch", {"additive", "multiplicative"}) == 1;
+  if (auto it = v.find("cut_ordering"); it != v.end())
+    o.carry_ordering = p.choice(*it, at + ".cut_ordering", {"search", "carried"}) == 1;
+  if (auto it = v.find("background_priority"); it != v.end())
+    o.idle_background = p.choice(*it, at + ".background_priority", {"normal", "idle"}) == 1;
+  if (auto it = v.find("affinity"); it != v.end())
+    o.split_affinity = p.choice(*it, at + ".affinity", {"none", "split"}) == 1;
+  if (auto it = v.find("tolerance"); it != v.end()) {
+    o.tolerance = p.positive(*it, at + ".tolerance");
+    if (!(o.tolerance < 1.0)) p.fail(at + ".tolerance", " must be in (0, 1), got " + show(*it));
+  }
+  if (auto it = v.find("max_iterations"); it != v.end())
+    o.max_iterations = p.at_least_one(*it, at + ".max_iterations");
+  if (auto it = v.find("initial_guess"); it != v.end())
+    o.previous_guess = p.choice(*it, at + ".initial_guess", {"zero", "previous"}) == 1;
+  if (auto it = v.find("threads"); it != v.end()) {
+    o.threads = p.at_least_one(*it, at + ".threads");
+    if (o.threads > 64) p.fail(at + ".threads", " must be an integer in [1, 64], got " + show(*it));
+  }
+  if (auto it = v.find("substitution_threads"); it != v.end()) {
+    o.substitution_threads = p.at_least_one(*it, at + ".substitution_threads");
+    if (o.substitution_threads > 2) p.fail(at + ".substitution_threads", " must be 1 or 2, got " + show(*it));
+  }
+  if (auto it = v.find("factorization"); it != v.end())
+    o.factor = static_cast<FactorMethod>(p.choice(*it, at + ".factorization", {"auto", "supernodal", "simplicial"}));
+  if (auto it = v.find("ordering"); it != v.end())
+    o.ordering = static_cast<OrderingMethod>(p.choice(*it, at + ".ordering", {"auto", "amd", "metis"}));
+  if (o.single_factorization && o.factor == FactorMethod::Simplicial)
+    p.fail(at + ".factor_precision", ": \"single\" factors supernodes; solver.factorization \"simplicial\" has none "
+                                     "(use \"supernodal\" or \"auto\")");
+  const bool iterative = o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG;
+  for (const char* k : {"tolerance", "max_iterations", "initial_guess"})
+    if (v.contains(k) && !iterative)
+      p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
+                                     std::string(policy_name(o.policy)) + "\"");
+  for (const char* k :
+       {"refresh_every", "background", "warp", "single_precision", "factor_copy", "factor_precision", "rescue_after",
+        "late_factor", "patch", "cut_ordering", "background_priority"})
+    if (v.contains(k) && o.policy != SolverPolicy::Lagged)
+      p.fail(Parser::key(at, k), ": only used by solver.policy \"lagged\"; solver.policy is \"" +
+                                     std::string(policy_name(o.policy)) + "\"");
+}
+
+void parse_static(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "static";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"tolerance", "max_iterations"});
+  if (auto it = v.find("tolerance"); it != v.end())
+    s.static_tolerance = p.positive(*it, at + ".tolerance");
+  if (auto it = v.find("max_iterations"); it != v.end())
+    s.static_max_iterations = p.at_least_one(*it, at + ".max_iterations");
+}
+
+void parse_run(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "run";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"frames"});
+  if (auto it = v.find("frames"); it != v.end()) s.frames = p.at_least_one(*it, at + ".frames");
+}
+
+void parse_output(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "output";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"dir", "every", "vtu"});
+  if (auto it = v.find("dir"); it != v.end())
+    s.output.dir = p.resolve(p.nonempty_string(*it, at + ".dir"));
+  if (auto it = v.find("every"); it != v.end())
+    s.output.every = p.at_least_one(*it, at + ".every");
+  if (auto it = v.find("vtu"); it != v.end()) s.output.write_vtu = p.boolean(*it, at + ".vtu");
+}
+
+void parse_cuts(const Parser& p, const json& v, Scene& s) {
+  p.array(v, "cuts");
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string at = Parser::index("cuts", i);
+    const json& e = p.object(v[i], at);
+    CutSpec c;
+    c.json_path = at;
+    const size_t type = p.choice(p.required(e, at, "type", "\"plane\", \"polygon\", \"mesh\" or \"swept\""),
+                                 at + ".type", {"plane", "polygon", "mesh", "swept"});
+    if (auto it = e.find("at_time"); it != e.end()) c.at_time = p.nonnegative(*it, at + ".at_time");
+    if (type == 0) {
+      c.type = CutSpec::Type::Plane;
+      p.allowed_keys(e, at, {"type", "at_time", "point", "normal"});
+      c.point = p.vec3(p.required(e, at, "point", "[x, y, z]"), at + ".point");
+      const json& nj = p.required(e, at, "normal", "[nx, ny, nz], nonzero");
+      Vec3 n = p.vec3(nj, at + ".normal");
+      const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      if (!(len > 0.0)) p.fail(at + ".normal", " must be a nonzero vector, got " + show(nj));
+      for (double& x : n) x /= len;
+      c.normal = n;
+    } else if (type == 1) {
+      c.type = CutSpec::Type::Polygon;
+      p.allowed_keys(e, at, {"type", "at_time", "points"});
+      const json& pts = p.array(p.required(e, at, "points", "an array of >= 3 points [x, y, z]"), at + ".points");
+      if (pts.size() < 3) p.fail(at + ".points", " must list at least 3 points, got " + std::to_string(pts.size()));
+      for (size_t k = 0; k < pts.size(); ++k) c.points.push_back(p.vec3(pts[k], Parser::index(at + ".points", k)));
+    } else if (type == 2) {
+      c.type = CutSpec::Type::Mesh;
+      p.allowed_keys(e, at, {"type", "at_time", "file"});
+      c.file = p.resolve(p.nonempty_string(p.required(e, at, "file", "a triangle surface .obj or .stl"), at + ".file"));
+      std::error_code ec;
+      if (!fs::is_regular_file(c.file, ec)) p.fail(at + ".file", ": file not found: " + c.file);
+    } else {
+      c.type = CutSpec::Type::Swept;
+      p.allowed_keys(e, at, {"type", "at_time", "edge_start", "edge_end", "duration"});
+      auto edge = [&](const char* k) {
+        const std::string ep = Parser::key(at, k);
+        const json& ev = p.required(e, at, k, "[[x, y, z], [x, y, z]], the blade edge's two ends");
+        if (!ev.is_array() || ev.size() != 2) p.fail(ep, " must be two points [[x, y, z], [x, y, z]], got " + describe(ev));
+        return std::array<Vec3, 2>{p.vec3(ev[0], Parser::index(ep, 0)), p.vec3(ev[1], Parser::index(ep, 1))};
+      };
+      c.edge_start = edge("edge_start");
+      c.edge_end = edge("edge_end");
+      if (auto it = e.find("duration"); it != e.end()) c.duration = p.nonnegative(*it, at + ".duration");
+    }
+    s.cuts.push_back(std::move(c));
+  }
+}
+
+void parse_render(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "render";
+  RenderSettings& r = s.render;
+  p.object(v, at);
+  p.allowed_keys(v, at, {"width", "height", "subdivision", "camera", "light", "colors"});
+  auto in_range = [&](const json& x, const std::string& where, int lo, int hi) {
+    const int n = p.integer(x, where);
+    if (n < lo || n > hi)
+      p.fail(where, " must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + show(x));
+    return n;
+  };
+  auto nonzero = [&](const json& x, const std::string& where, bool normalize) {
+    Vec3 d = p.vec3(x, where);
+    const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(len > 0.0) || !std::isfinite(len)) p.fail(where, " must be a nonzero vector, got " + show(x));
+    if (normalize)
+      for (double& c : d) c /= len;
+    return d;
+  };
+  if (auto it = v.find("width"); it != v.end()) r.width = in_range(*it, at + ".width", 16, 8192);
+  if (auto it = v.find("height"); it != v.end()) r.height = in_range(*it, at + ".height", 16, 8192);
+  if (auto it = v.find("subdivision"); it != v.end()) r.subdivision = in_range(*it, at + ".subdivision", 2, 16);
+  if (auto it = v.find("camera"); it != v.end()) {
+    const std::string cp = at + ".camera";
+    p.object(*it, cp);
+    p.allowed_keys(*it, cp, {"position", "target", "up", "fov_deg"});
+    if (auto c = it->find("position"); c != it->end()) r.camera_position = p.vec3(*c, cp + ".position");
+    if (auto c = it->find("target"); c != it->end()) r.camera_target = p.vec3(*c, cp + ".target");
+    if (auto c = it->find("up"); c != it->end()) r.camera_up = nonzero(*c, cp + ".up", true);
+    if (auto c = it->find("fov_deg"); c != it->end()) {
+      r.fov_deg = p.number(*c, cp + ".fov_deg");
+      if (!(r.fov_deg > 0.0 && r.fov_deg < 180.0)) p.fail(cp + ".fov_deg", " must be in (0, 180) degrees, got " + show(*c));
+    }
+    if (r.camera_position && r.camera_target) {
+      const Vec3 &a = *r.camera_position, &b = *r.camera_target;
+      const Vec3 d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+      const Vec3& u = r.camera_up;
+      const Vec3 x{d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]};
+      if (d == Vec3{0.0, 0.0, 0.0}) p.fail(cp + ".target", " must differ from camera.position, got " + show((*it)["target"]));
+      if (x == Vec3{0.0, 0.0, 0.0}) p.fail(cp + ".up", " must not be parallel to the viewing direction target - position");
+    }
+  }
+  if (auto it = v.find("light"); it != v.end()) {
+    const std::string lp = at + ".light";
+    p.object(*it, lp);
+    p.allowed_keys(*it, lp, {"direction", "ambient"});
+    if (auto c = it->find("direction"); c != it->end()) r.light_direction = nonzero(*c, lp + ".direction", true);
+    if (auto c = it->find("ambient"); c != it->end()) {
+      r.ambient = p.number(*c, lp + ".ambient");
+      if (!(r.ambient >= 0.0 && r.ambient <= 1.0)) p.fail(lp + ".ambient", " must be in [0, 1], got " + show(*c));
+    }
+  }
+  if (auto it = v.find("colors"); it != v.end()) {
+    const std::string cp = at + ".colors";
+    p.object(*it, cp);
+    p.allowed_keys(*it, cp, {"tissue", "interior", "background", "instrument"});
+    auto rgb = [&](const char* k, Vec3& out) {
+      auto c = it->find(k);
+      if (c == it->end()) return;
+      const std::string where = Parser::key(cp, k);
+      out = p.vec3(*c, where);
+      for (size_t i = 0; i < 3; ++i)
+        if (!(out[i] >= 0.0 && out[i] <= 1.0))
+          p.fail(Parser::index(where, i), " must be in [0, 1] (colours are [r, g, b] in [0, 1]), got " + show((*c)[i]));
+    };
+    rgb("tissue", r.color_tissue);
+    rgb("interior", r.color_interior);
+    rgb("background", r.color_background);
+    rgb("instrument", r.color_instrument);
+  }
+}
+
+// nlohmann messages start with "[json.exception.parse_error.101] "; drop that.
+std::string strip_id(const std::string& what) {
+  if (what.rfind("[json.exception.", 0) == 0) {
+    size_t end = what.find("] ");
+    if (end != std::string::npos) return what.substr(end + 2);
+  }
+  return what;
+}
+
+// Parses text, rejecting duplicate keys (nlohmann would keep the last one silently).
+json parse_text(const std::string& text, const std::string& path) {
+  std::vector<std::set<std::string>> open;  // keys seen in each enclosing object
+  auto callback = [&](int, json::parse_event_t ev, json& parsed) -> bool {
+    switch (ev) {
+      case json::parse_event_t::object_start:
+        open.emplace_back();
+        break;
+      case json::parse_event_t::object_end:
+        if (!open.empty()) open.pop_back();
+        break;
+      case json::parse_event_t::key:
+        if (!open.empty() && parsed.is_string() &&
+            !open.back().insert(parsed.get<std::string>()).second) {
+          throw Error(path + ": duplicate key \"" + parsed.get<std::string>() +
+                      "\"; each key may appear once per object");
+        }
+        break;
+      default:
+        break;
+    }
+    return true;
+  };
+  try {
+    return json::parse(text, callback, /*allow_exceptions=*/true, /*ignore_comments=*/false);
+  } catch (const json::parse_error& e) {
+    throw Error(path + ": invalid JSON at byte " + std::to_string(e.byte) + ": " +
+                strip_id(e.what()));
+  } catch (const json::exception& e) {  // e.g. a number too large for a double
+    throw Error(path + ": invalid JSON: " + strip_id(e.what()));
+  }
+}
+
+}  // namespace
+
+const char* policy_name(SolverPolicy p) {
+  switch (p) {
+    case SolverPolicy::Exact: return "exact";
+    case SolverPolicy::Lagged: return "lagged";
+    case SolverPolicy::Warped: return "warped";
+    case SolverPolicy::WarpedCG: return "warped_cg";
+  }
+  return "unknown";
+}
+
+Scene parse_scene(const std::string& json_text, const std::string& path) {
+  json root = parse_text(json_text, path);
+  Parser p(path);
+  if (!root.is_object()) throw Error(path + ": the scene must be a JSON object, got " + describe(root));
+  p.allowed_keys(root, "",
+                 {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
+                  "solver", "static", "run", "output", "cuts", "render"});
+
+  Scene s;
+  s.path = path;
+  parse_mesh(p, p.required(root, "", "mesh", "an object with file and order"), s);
+  parse_material(p, p.required(root, "", "material", "an object with young, poisson, density"),
+                 s.material);
+  if (auto it = root.find("mass"); it != root.end())
+    s.mass = p.choice(*it, "mass", {"lumped", "consistent"}) == 0 ? MassKind::Lumped
+                                                                   : MassKind::Consistent;
+  if (auto it = root.find("gravity"); it != root.end()) s.gravity = p.vec3(*it, "gravity");
+  if (auto it = root.find("fixed"); it != root.end()) parse_fixed(p, *it, s);
+  if (auto it = root.find("prescribed"); it != root.end()) parse_prescribed(p, *it, s);
+  if (auto it = root.find("integrator"); it != root.end()) parse_integrator(p, *it, s);
+  if (auto it = root.find("solver"); it != root.end()) parse_solver(p, *it, s);
+  if (auto it = root.find("static"); it != root.end()) parse_static(p, *it, s);
+  if (auto it = root.find("run"); it != root.end()) parse_run(p, *it, s);
+  if (auto it = root.find("output"); it != root.end()) parse_output(p, *it, s);
+  if (auto it = root.find("cuts"); it != root.end()) parse_cuts(p, *it, s);
+  if (auto it = root.find("render"); it != root.end()) parse_render(p, *it, s);
+  return s;
+}
+
+Scene load_scene(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw Error(path + ": cannot open scene file (it is a directory)");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path + ": cannot open scene file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw Error(path + ": cannot read scene file");
+  return parse_scene(text.str(), path);
+}
+
+}  // namespace incise

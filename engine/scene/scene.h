@@ -1,0 +1,161 @@
+#pragma once
+// A scene file (JSON) parsed into plain settings. Loading validates every
+// field; errors name the file, the JSON path and what is allowed. See
+// docs/scene-format.md for the keys and defaults.
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace incise {
+
+using Vec3 = std::array<double, 3>;
+
+// A set of mesh nodes, chosen geometrically or by id.
+struct Region {
+  enum class Kind { Box, Plane, Nodes };
+  Kind kind = Kind::Box;
+  Vec3 lo{}, hi{};            // Box: corners (inclusive, with a tolerance)
+  Vec3 point{}, normal{};     // Plane: nodes with (X - point) . normal <= 0 (tolerance);
+                              // the loader scales normal to unit length
+  std::vector<int> nodes;     // Nodes: 0-based node ids
+  std::string json_path;      // e.g. "fixed[1]", for messages
+};
+
+struct Prescribed {
+  Region region;
+  std::array<bool, 3> active{false, false, false};  // an absent component stays free
+  Vec3 displacement{};                              // final value of each active component
+  double ramp = 0.0;  // seconds; value grows linearly from 0 over [0, ramp], 0 = at once
+};
+
+enum class MaterialModel { Linear, Corotated };
+enum class RotationMode { PerPoint, Single };  // Single = tet10SR (rotation from corners)
+enum class MassKind { Lumped, Consistent };
+
+struct Material {
+  MaterialModel model = MaterialModel::Corotated;
+  RotationMode rotation = RotationMode::PerPoint;
+  double young = 0.0;    // Pa (or consistent units), > 0
+  double poisson = 0.0;  // in (-1, 0.5)
+  double density = 0.0;  // > 0
+  double rayleigh_mass = 0.0;       // a in D = a M + b K, >= 0
+  double rayleigh_stiffness = 0.0;  // b, >= 0
+};
+
+struct OutputSettings {
+  std::string dir;        // resolved; empty = no field output unless --out is given
+  int every = 1;          // write every N-th frame, >= 1
+  bool write_vtu = true;  // ParaView .vtu + .pvd series
+};
+
+// A cut declared in the scene (applied by cutting/ at at_time; static: all at once).
+struct CutSpec {
+  enum class Type { Plane, Polygon, Mesh, Swept };
+  Type type = Type::Plane;
+  Vec3 point{}, normal{};       // plane: infinite plane through point (normal unit length)
+  std::vector<Vec3> points;     // polygon: >= 3 vertices of a planar polygon, in order
+  std::string file;             // mesh: triangle surface (.obj or ASCII .stl), resolved
+  std::array<Vec3, 2> edge_start{}, edge_end{};  // swept: blade edge segment at start and end
+  double duration = 0.0;        // swept: seconds to move from start to end (0 = at once)
+  double at_time = 0.0;         // seconds, >= 0
+  std::string json_path;        // "cuts[2]"
+};
+
+// Linear-solver policy of the dynamics (issue 4). Every policy is measured
+// against `exact` by `incise compare`; none is applied silently.
+enum class SolverPolicy {
+  Exact,     // numeric refactorization of the corotated system every frame
+  Lagged,    // CG on the current system, preconditioned by an older frame's factor
+  Warped,    // factor of the rest system, per-node rotations around the solve
+  WarpedCG,  // CG on the current system, preconditioned by the warped solve
+};
+enum class FactorMethod { Auto, Supernodal, Simplicial };  // CHOLMOD's choice or forced
+enum class OrderingMethod { Auto, Amd, Metis };            // CHOLMOD's default tries both
+// The lagged preconditioner's copy of the factor: none (CHOLMOD's doubles), float, or
+// binary16 scaled per supernode (CholmodSolver::set_factor_copy).
+enum class FactorCopy { None, Float, Half };
+
+struct SolverSettings {
+  SolverPolicy policy = SolverPolicy::Exact;  // solver.policy
+  int refresh_every = 1;       // lagged: refactor every k frames (>= 1)
+  bool background = false;     // lagged: factorize on a second thread, used from the next refresh on
+  bool warp = false;           // lagged: rotate the lagged factor by the node rotations since its frame
+  FactorCopy factor_copy = FactorCopy::Float;  // lagged: the preconditioner substitutes with this copy of the factor
+  bool single_factorization = false;  // lagged: solver.factor_precision "single" (engine/solve/single_factor.h) or "double"
+  int rescue_after = 0;        // lagged: CG iterations after which the current matrix is factored now (0 = never)
+  bool skip_late_factor = false;  // lagged + background: solver.late_factor "skip" (true) or "wait"
+  bool multiplicative_patch = true;  // lagged after cuts: solver.patch "multiplicative" (true) or "additive"
+  bool carry_ordering = true;        // lagged after cuts: solver.cut_ordering "carried" (true) or "search"
+  bool idle_background = true;       // lagged, background: solver.background_priority "idle" (true) or "normal"
+  bool split_affinity = false;       // solver.affinity "split" (engine/runtime/thread_affinity.h) or "none"
+  double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
+  bool previous_guess = true;  // CG: solver.initial_guess "previous" (the last frame's increment, scaled) or "zero"
+  int max_iterations = 50;     // CG iterations per solve (>= 1)
+  int threads = 2;             // assembly workers incl. the calling thread (>= 1)
+  int substitution_threads = 1;  // 1 or 2: threads of each substitution with a supernodal factor
+  FactorMethod factor = FactorMethod::Auto;
+  OrderingMethod ordering = OrderingMethod::Auto;
+};
+const char* policy_name(SolverPolicy p);
+// What `incise render` / `run --render` / `bench --render` draw and how
+// (scene key "render"; docs/scene-format.md). Colours are linear RGB in [0, 1].
+struct RenderSettings {
+  int width = 640, height = 480;        // pixels, each in [16, 8192]
+  int subdivision = 2;                  // segments per tet10 face edge: n^2 flat triangles per face, [2, 16]
+  std::optional<Vec3> camera_position;  // absent: framed from the mesh's bounding box
+  std::optional<Vec3> camera_target;    // absent: the bounding-box centre
+  Vec3 camera_up{0.0, 0.0, 1.0};        // nonzero
+  double fov_deg = 30.0;                // vertical field of view, (0, 180)
+  std::optional<Vec3> light_direction;  // direction the light travels (unit); absent: from above-left of the camera
+  double ambient = 0.25;                // share of light that ignores orientation, [0, 1]
+  Vec3 color_tissue{0.85, 0.55, 0.50};
+  Vec3 color_interior{0.70, 0.10, 0.15};  // faces on a cut surface
+  Vec3 color_background{0.12, 0.12, 0.14};
+  Vec3 color_instrument{0.75, 0.77, 0.80};
+};
+
+struct Scene {
+  std::string path;       // the scene file as given
+  std::string mesh_file;  // resolved relative to the scene file's folder
+  int order = 2;          // element order the model uses (a tet4 mesh is raised to 2)
+  Material material;
+  MassKind mass = MassKind::Lumped;
+  Vec3 gravity{0.0, 0.0, -9.81};
+  std::vector<Region> fixed;
+  std::vector<Prescribed> prescribed;
+  double dt = 1.0 / 30.0;        // integrator.dt, > 0
+  int newton_iterations = 1;     // integrator.newton_iterations, >= 1: linearised solves every step
+  // Extra iterations (up to max_newton_iterations in all) while a rotation moved
+  // more than rotation_tolerance (radians) between the configuration it was
+  // frozen at and the step's result; 0 turns the check off. See docs/numerics.md.
+  int max_newton_iterations = 4;
+  double rotation_tolerance = 0.1;
+  // Newmark parameters (integrator.newmark_gamma / newmark_beta): gamma = 1/2
+  // with beta = 1/4 is the trapezoidal rule (no numerical damping); gamma > 1/2
+  // damps the high frequencies (docs/numerics.md, "Numerical damping").
+  double newmark_gamma = 0.5;
+  double newmark_beta = 0.25;
+  // integrator.tangent: "frozen_rotation" (R K0 R^T) or "consistent" (plus the
+  // dR/dF term of engine/fem/rotation_stiffness.h).
+  bool consistent_tangent = false;
+  // integrator.tangent_reuse (>= 0, 0 = off): an element keeps the tangent
+  // blocks it assembled while every deformation gradient of its rotation
+  // slots stays within this (largest entry of F - F_then) of the one they
+  // were computed at; forces are always exact (docs/numerics.md).
+  double tangent_reuse = 0.0;
+  SolverSettings solver;                // solver.*
+  double static_tolerance = 1e-8;       // static.tolerance: relative residual
+  int static_max_iterations = 50;       // static.max_iterations
+  int frames = 60;                      // run.frames default for `incise run`
+  OutputSettings output;
+  std::vector<CutSpec> cuts;
+  RenderSettings render;
+};
+
+// Reads and validates a scene file. Throws incise::Error.
+Scene load_scene(const std::string& path);
+// Same, from text already read (path used for messages and relative paths).
+Scene parse_scene(const std::string& json_text, const std::string& path);
+
+}  // namespace incise

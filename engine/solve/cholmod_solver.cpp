@@ -1,0 +1,695 @@
+#include "engine/solve/cholmod_solver.h"
+
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+#include <type_traits>
+
+#if defined(__AVX__)
+#include <immintrin.h>
+#endif
+
+#include "engine/solve/block_recycler.h"
+#include "engine/util/error.h"
+#include "engine/solve/half.h"
+#include "engine/util/headroom.h"
+#include "engine/runtime/timing.h"
+
+namespace incise {
+
+namespace {
+const char* ordering_name(int o) {
+  switch (o) {
+    case CHOLMOD_NATURAL: return "natural";
+    case CHOLMOD_GIVEN: return "given";
+    case CHOLMOD_AMD: return "AMD";
+    case CHOLMOD_METIS: return "METIS";
+    case CHOLMOD_NESDIS: return "NESDIS";
+    case CHOLMOD_COLAMD: return "COLAMD";
+    case CHOLMOD_POSTORDERED: return "postordered";
+    default: return "unknown";
+  }
+}
+
+// 4-wide double vectors (GCC/Clang vector extension; AVX with -march=native,
+// pairs of SSE2 registers otherwise). Only used inside function bodies, never
+// passed by value, so no ABI question arises.
+typedef double D4 __attribute__((vector_size(32)));
+typedef float F4 __attribute__((vector_size(16)));
+#if defined(__AVX__)
+// One vcvtps2pd from memory (GCC's generic conversion splits it in halves).
+#define INCISE_LOAD_F4(dst, p) (dst) = _mm256_cvtps_pd(_mm_loadu_ps(p))
+#else
+#define INCISE_LOAD_F4(dst, p)                  \
+  do {                                          \
+    F4 f_;                                      \
+    std::memcpy(&f_, (p), sizeof(F4));          \
+    (dst) = __builtin_convertvector(f_, D4);    \
+  } while (0)
+#endif
+// Four binary16 values (the half copy) as doubles: vcvtph2ps then vcvtps2pd.
+#if defined(__AVX__) && defined(__F16C__)
+#define INCISE_LOAD_H4(dst, p) (dst) = _mm256_cvtps_pd(_mm_cvtph_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))))
+#else
+#define INCISE_LOAD_H4(dst, p)                                                                          \
+  do {                                                                                                  \
+    (dst) = D4{half_bits_to_float((p)[0]), half_bits_to_float((p)[1]), half_bits_to_float((p)[2]),      \
+               half_bits_to_float((p)[3])};                                                             \
+  } while (0)
+#endif
+#define INCISE_LOAD4(dst, p)                                             \
+  do {                                                                   \
+    if constexpr (std::is_same_v<T, double>) {                           \
+      std::memcpy(&(dst), (p), sizeof(D4));                              \
+    } else if constexpr (std::is_same_v<T, float>) {                     \
+      INCISE_LOAD_F4(dst, p);                                            \
+    } else {                                                             \
+      INCISE_LOAD_H4(dst, p);                                            \
+    }                                                                    \
+  } while (0)
+
+// One stored value of L as a double (T = uint16_t: binary16 bits).
+template <class T>
+inline double stored_value(T v) {
+  if constexpr (std::is_same_v<T, uint16_t>) {
+#if defined(__F16C__)
+    return _cvtsh_ss(v);
+#else
+    return half_bits_to_float(v);
+#endif
+  } else {
+    return static_cast<double>(v);
+  }
+}
+
+// Rows i..i+3 of the gathered vector w and of the four columns c0..c3 (both
+// passes of the kernel below read this block).
+template <class T>
+__attribute__((always_inline)) inline void load_rows(const double* w, const T* c0, const T* c1, const T* c2,
+                                                     const T* c3, int i, D4& v, D4& a0, D4& a1, D4& a2, D4& a3) {
+  std::memcpy(&v, w + i, sizeof(D4));
+  INCISE_LOAD4(a0, c0 + i);
+  INCISE_LOAD4(a1, c1 + i);
+  INCISE_LOAD4(a2, c2 + i);
+  INCISE_LOAD4(a3, c3 + i);
+}
+
+// x = (P^T L L^T P)^-1 b with L supernodal: a dense column-major block of
+// nsrow x nscol per supernode (rows Ls[pi[s]..pi[s+1]), the first nscol being
+// the supernode's own columns), its values at Lx + px[s]. T is the stored
+// precision of L (double, float for the float copy, uint16_t for the
+// binary16 copy); y, w and every accumulation are double. y: n, w: the
+// largest nsrow. inv_scale (nsuper, the half copy only, else null): supernode
+// sn stores L_sn / s_sn, and with L_sn = s L' the solves need s only on the
+// supernode's own rows: forward z1 = (L1'^-1 w1) / s with w2 -= L2' (L1'^-1
+// w1), backward z1 = L1'^-T (w1 / s - L2'^T z2).
+// Columns are taken four at a time: the forward pass updates each row of the
+// gathered vector once per four columns, the backward pass runs four dot
+// products (independent dependency chains) over the shared rows, so the loop
+// is limited by reading L rather than by add latency.
+
+// The arrays of a supernodal factor the kernels below read.
+template <class T>
+struct SnFactor {
+  const int* super;  // (nsuper + 1) first column of each supernode
+  const int* pi;     // (nsuper + 1) into Ls
+  const int* px;     // (nsuper + 1) into Lx
+  const int* Ls;     // row indices of each supernode
+  const T* Lx;
+  const double* inv_scale;
+};
+
+template <class T>
+SnFactor<T> sn_factor(const cholmod_factor* L, const T* Lx, const double* inv_scale) {
+  return {static_cast<const int*>(L->super), static_cast<const int*>(L->pi), static_cast<const int*>(L->px),
+          static_cast<const int*>(L->s), Lx, inv_scale};
+}
+
+// Forward step of supernode sn: its columns of L z = y, then the update of the
+// rows below (which belong to its ancestors' columns). w: nsrow scratch.
+template <class T>
+inline void forward_supernode(const SnFactor<T>& F, int sn, double* y, double* w) {
+  auto d = [](T v) { return stored_value(v); };
+  const int k1 = F.super[sn], nscol = F.super[sn + 1] - k1, psi = F.pi[sn], nsrow = F.pi[sn + 1] - psi;
+  (void)k1;
+  const T* B = F.Lx + F.px[sn];
+  const int* Ls = F.Ls;
+  for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+  int j = 0;
+  for (; j + 4 <= nscol; j += 4) {
+    const T* c0 = B + static_cast<size_t>(j) * nsrow;
+    const T* c1 = c0 + nsrow;
+    const T* c2 = c1 + nsrow;
+    const T* c3 = c2 + nsrow;
+    const double w0 = w[j] / d(c0[j]);
+    const double w1 = (w[j + 1] - d(c0[j + 1]) * w0) / d(c1[j + 1]);
+    const double w2 = (w[j + 2] - d(c0[j + 2]) * w0 - d(c1[j + 2]) * w1) / d(c2[j + 2]);
+    const double w3 = (w[j + 3] - d(c0[j + 3]) * w0 - d(c1[j + 3]) * w1 - d(c2[j + 3]) * w2) / d(c3[j + 3]);
+    w[j] = w0;
+    w[j + 1] = w1;
+    w[j + 2] = w2;
+    w[j + 3] = w3;
+    const D4 W0 = {w0, w0, w0, w0}, W1 = {w1, w1, w1, w1}, W2 = {w2, w2, w2, w2}, W3 = {w3, w3, w3, w3};
+    int i = j + 4;
+    for (; i + 4 <= nsrow; i += 4) {
+      D4 v, a0, a1, a2, a3;
+      load_rows(w, c0, c1, c2, c3, i, v, a0, a1, a2, a3);
+      v -= a0 * W0 + a1 * W1 + a2 * W2 + a3 * W3;
+      std::memcpy(w + i, &v, sizeof(D4));
+    }
+    for (; i < nsrow; ++i) w[i] -= d(c0[i]) * w0 + d(c1[i]) * w1 + d(c2[i]) * w2 + d(c3[i]) * w3;
+  }
+  for (; j < nscol; ++j) {
+    const T* col = B + static_cast<size_t>(j) * nsrow;
+    const double wj = w[j] / d(col[j]);
+    w[j] = wj;
+    for (int i = j + 1; i < nsrow; ++i) w[i] -= d(col[i]) * wj;
+  }
+  if (F.inv_scale)
+    for (int jj = 0; jj < nscol; ++jj) w[jj] *= F.inv_scale[sn];
+  for (int i = 0; i < nsrow; ++i) y[Ls[psi + i]] = w[i];
+}
+
+// Backward step of supernode sn: its columns of L^T z = y, reading the rows
+// below (its ancestors' columns, already solved) and writing its own columns.
+template <class T>
+inline void backward_supernode(const SnFactor<T>& F, int sn, double* y, double* w) {
+  auto d = [](T v) { return stored_value(v); };
+  const int k1 = F.super[sn], nscol = F.super[sn + 1] - k1, psi = F.pi[sn], nsrow = F.pi[sn + 1] - psi;
+  const T* B = F.Lx + F.px[sn];
+  const int* Ls = F.Ls;
+  for (int i = 0; i < nsrow; ++i) w[i] = y[Ls[psi + i]];
+  if (F.inv_scale)
+    for (int jj = 0; jj < nscol; ++jj) w[jj] *= F.inv_scale[sn];
+  int j = nscol - 1;
+  for (const int top = nscol - nscol % 4; j >= top; --j) {  // the last nscol % 4 columns one by one
+    const T* col = B + static_cast<size_t>(j) * nsrow;
+    double t = w[j];
+    for (int i = j + 1; i < nsrow; ++i) t -= d(col[i]) * w[i];
+    w[j] = t / d(col[j]);
+  }
+  for (; j >= 3; j -= 4) {  // columns j0..j0+3 = j-3..j
+    const int j0 = j - 3;
+    const T* c0 = B + static_cast<size_t>(j0) * nsrow;
+    const T* c1 = c0 + nsrow;
+    const T* c2 = c1 + nsrow;
+    const T* c3 = c2 + nsrow;
+    D4 A0 = {0, 0, 0, 0}, A1 = A0, A2 = A0, A3 = A0;
+    int i = j + 1;
+    for (; i + 4 <= nsrow; i += 4) {
+      D4 v, a0, a1, a2, a3;
+      load_rows(w, c0, c1, c2, c3, i, v, a0, a1, a2, a3);
+      A0 += a0 * v;
+      A1 += a1 * v;
+      A2 += a2 * v;
+      A3 += a3 * v;
+    }
+    double t0 = (A0[0] + A0[1]) + (A0[2] + A0[3]), t1 = (A1[0] + A1[1]) + (A1[2] + A1[3]);
+    double t2 = (A2[0] + A2[1]) + (A2[2] + A2[3]), t3 = (A3[0] + A3[1]) + (A3[2] + A3[3]);
+    for (; i < nsrow; ++i) {
+      t0 += d(c0[i]) * w[i];
+      t1 += d(c1[i]) * w[i];
+      t2 += d(c2[i]) * w[i];
+      t3 += d(c3[i]) * w[i];
+    }
+    const double x3 = (w[j0 + 3] - t3) / d(c3[j0 + 3]);
+    const double x2 = (w[j0 + 2] - t2 - d(c2[j0 + 3]) * x3) / d(c2[j0 + 2]);
+    const double x1 = (w[j0 + 1] - t1 - d(c1[j0 + 2]) * x2 - d(c1[j0 + 3]) * x3) / d(c1[j0 + 1]);
+    const double x0 = (w[j0] - t0 - d(c0[j0 + 1]) * x1 - d(c0[j0 + 2]) * x2 - d(c0[j0 + 3]) * x3) / d(c0[j0]);
+    w[j0] = x0;
+    w[j0 + 1] = x1;
+    w[j0 + 2] = x2;
+    w[j0 + 3] = x3;
+  }
+  for (int jj = 0; jj < nscol; ++jj) y[k1 + jj] = w[jj];
+}
+
+template <class T>
+void supernodal_substitute(const cholmod_factor* L, const T* Lx, const double* inv_scale, int n, const double* b,
+                           double* x, double* y, double* w) {
+  const SnFactor<T> F = sn_factor(L, Lx, inv_scale);
+  const int* Perm = static_cast<const int*>(L->Perm);
+  const int nsuper = static_cast<int>(L->nsuper);
+  for (int k = 0; k < n; ++k) y[k] = b[Perm[k]];
+  for (int sn = 0; sn < nsuper; ++sn) forward_supernode(F, sn, y, w);  // L z = y
+  for (int sn = nsuper - 1; sn >= 0; --sn) backward_supernode(F, sn, y, w);  // L^T z = y
+  for (int k = 0; k < n; ++k) x[Perm[k]] = y[k];
+}
+
+// The worker's bins (SubstitutionSplit::bins[1]) for split_substitute, on
+// its private copy y2 (the caller's y stays the caller's, so a bin the caller
+// gave up on and redid never races with it). Forward: the bin's columns and
+// its updates of the top rows. Backward: the bin's columns, reading the top
+// ones (y2 is a copy of y after the top was solved).
+template <class T>
+void worker_forward(void* p) {
+  auto& j = *static_cast<SplitJob*>(p);
+  const SnFactor<T> F = sn_factor(j.L, static_cast<const T*>(j.Lx), j.inv_scale);
+  int done = 0;
+  for (const auto& r : j.sp->bins[1])
+    for (int sn = r.first; sn <= r.second; ++sn) {
+      forward_supernode(F, sn, j.y2, j.w2);
+      j.progress.store(++done, std::memory_order_relaxed);
+    }
+}
+
+template <class T>
+void worker_backward(void* p) {
+  auto& j = *static_cast<SplitJob*>(p);
+  const SnFactor<T> F = sn_factor(j.L, static_cast<const T*>(j.Lx), j.inv_scale);
+  int done = 0;
+  for (auto r = j.sp->bins[1].rbegin(); r != j.sp->bins[1].rend(); ++r)
+    for (int sn = r->second; sn >= r->first; --sn) {
+      backward_supernode(F, sn, j.y2, j.w2);
+      j.progress.store(++done, std::memory_order_relaxed);
+    }
+}
+
+template <class T>
+void forward_bin(const SnFactor<T>& F, const SubstitutionSplit& sp, int k, double* y, double* w) {
+  for (const auto& r : sp.bins[k])
+    for (int sn = r.first; sn <= r.second; ++sn) forward_supernode(F, sn, y, w);
+}
+
+template <class T>
+void backward_bin(const SnFactor<T>& F, const SubstitutionSplit& sp, int k, double* y, double* w) {
+  for (auto r = sp.bins[k].rbegin(); r != sp.bins[k].rend(); ++r)
+    for (int sn = r->second; sn >= r->first; --sn) backward_supernode(F, sn, y, w);
+}
+
+void copy_bin_columns(const cholmod_factor* L, const SubstitutionSplit& sp, int k, const double* from, double* to) {
+  const int* super = static_cast<const int*>(L->super);
+  for (const auto& r : sp.bins[k]) {
+    const int c0 = super[r.first], c1 = super[r.second + 1];
+    std::memcpy(to + c0, from + c0, sizeof(double) * (c1 - c0));
+  }
+}
+#undef INCISE_LOAD4
+#undef INCISE_LOAD_F4
+#undef INCISE_LOAD_H4
+
+// Debian's CHOLMOD runs parts of the supernodal factorization in OpenMP
+// teams of a size fixed when it was compiled (4 here), whatever
+// OMP_NUM_THREADS says: on a 2-core machine a factorization then ran four
+// threads whose futex wake-ups and waits made it 2.4-3.8x slower (10k DOF:
+// 130 against 53 ms) and took the stepping thread's core when it ran in the
+// background. The engine's threading is explicit (solver.threads, the
+// background job), so OpenMP regions run on the thread that enters them:
+// max-active-levels 0 makes every parallel region inactive, for the duration
+// of a CHOLMOD call (restored afterwards, so a host application's own OpenMP
+// on that thread is untouched). The setting is per thread (an OpenMP 5
+// data-environment ICV), so every call sets it. Looked up at run time: a
+// CHOLMOD built without OpenMP needs nothing. INCISE_KEEP_OMP=1 in the
+// environment keeps CHOLMOD's teams (to measure the difference).
+class SerialOpenMpRegions {
+ public:
+  SerialOpenMpRegions() {
+    if (!fns().set) return;
+    saved_ = fns().get();
+    fns().set(0);
+  }
+  ~SerialOpenMpRegions() {
+    if (fns().set) fns().set(saved_);
+  }
+  SerialOpenMpRegions(const SerialOpenMpRegions&) = delete;
+  SerialOpenMpRegions& operator=(const SerialOpenMpRegions&) = delete;
+
+ private:
+  struct Fns {
+    void (*set)(int) = nullptr;
+    int (*get)() = nullptr;
+  };
+  static const Fns& fns() {
+    static const Fns f = [] {
+      Fns r;
+      if (std::getenv("INCISE_KEEP_OMP")) return r;
+      r.get = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "omp_get_max_active_levels"));
+      r.set = r.get ? reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels")) : nullptr;
+      return r;
+    }();
+    return f;
+  }
+  int saved_ = 0;
+};
+
+// OpenBLAS's own threads off (one thread per call), once; looked up with
+// dlsym so another BLAS needs nothing.
+void single_thread_blas() {
+  static const bool done = [] {
+    if (auto set = reinterpret_cast<void (*)(int)>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
+    return true;
+  }();
+  (void)done;
+}
+
+}  // namespace
+
+bool blas_concurrency_safe() {
+  static const bool safe = [] {
+    // openblas_get_parallel: 0 sequential build, 1 pthreads, 2 OpenMP.
+    auto parallel = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "openblas_get_parallel"));
+    return parallel && parallel() > 0;
+  }();
+  return safe;
+}
+
+CholmodSolver::CholmodSolver() {
+  install_cholmod_block_recycler();  // before CHOLMOD's first allocation (block_recycler.h)
+  single_thread_blas();
+  cholmod_start(&c_);
+  c_.supernodal = CHOLMOD_SUPERNODAL;
+  c_.print = 0;
+  c_.error_handler = nullptr;  // errors are read from c_.status and thrown
+}
+
+CholmodSolver::~CholmodSolver() {
+  release();  // waits for a bin given up on (the worker outlives this object's use of it)
+  cholmod_finish(&c_);
+}
+
+void CholmodSolver::configure(FactorMethod method, OrderingMethod ordering) {
+  c_.supernodal = method == FactorMethod::Simplicial ? CHOLMOD_SIMPLICIAL : CHOLMOD_SUPERNODAL;
+  if (method == FactorMethod::Simplicial) c_.final_ll = 1;  // L L^T, like the supernodal factor
+  cholmod_common defaults;
+  cholmod_start(&defaults);
+  if (ordering == OrderingMethod::Auto) {
+    c_.nmethods = defaults.nmethods;
+    for (int k = 0; k < CHOLMOD_MAXMETHODS + 1; ++k) c_.method[k] = defaults.method[k];
+  } else {
+    c_.nmethods = 1;
+    c_.method[0].ordering = ordering == OrderingMethod::Amd ? CHOLMOD_AMD : CHOLMOD_METIS;
+  }
+  cholmod_finish(&defaults);
+}
+
+void CholmodSolver::release() {
+  settle();
+  if (A_) cholmod_free_sparse(&A_, &c_);
+  if (L_) cholmod_free_factor(&L_, &c_);
+  if (B_) cholmod_free_dense(&B_, &c_);
+  if (X_) cholmod_free_dense(&X_, &c_);
+  if (Y_) cholmod_free_dense(&Y_, &c_);
+  if (E_) cholmod_free_dense(&E_, &c_);
+  factorized_ = false;
+  copy_valid_ = false;
+  single_current_ = false;
+  single_.reset();
+  work_y_.clear();
+  work_w_.clear();
+  work_y2_.clear();
+  split_ = SubstitutionSplit{};
+}
+
+void CholmodSolver::set_single_factorization(bool on) {
+  if (on && copy_ != FactorCopy::Float)
+    throw Error("single-precision factorization: needs the float factor copy (set_factor_copy(Float) first)");
+  single_numeric_ = on;
+  stats_.single_precision = on;
+}
+
+void CholmodSolver::set_factor_copy(FactorCopy copy) {
+  settle();
+  if (single_numeric_ && copy != FactorCopy::Float)
+    throw Error("single-precision factorization: the factor is the float copy; turn it off before another copy");
+  copy_ = copy;
+  copy_valid_ = false;  // the next factorize() converts
+  if (copy != FactorCopy::Float) std::vector<float>().swap(Lx_single_);
+  if (copy != FactorCopy::Half) {
+    std::vector<uint16_t>().swap(Lx_half_);
+    std::vector<double>().swap(half_inv_scale_);
+  }
+}
+
+void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai, const std::vector<int>* perm) {
+  release();
+  n_ = n;
+  const size_t nnz = Ai.size();
+  if (perm && perm->size() != static_cast<size_t>(n))
+    throw Error("CHOLMOD: a given ordering has " + std::to_string(perm->size()) + " entries for " + std::to_string(n) +
+                " columns");
+  A_ = cholmod_allocate_sparse(n, n, nnz, /*sorted=*/1, /*packed=*/1, /*stype=*/1, CHOLMOD_REAL, &c_);
+  if (!A_) throw Error("CHOLMOD: out of memory allocating a " + std::to_string(n) + " x " + std::to_string(n) + " matrix");
+  std::memcpy(A_->p, Ap.data(), sizeof(int) * (n + 1));
+  std::memcpy(A_->i, Ai.data(), sizeof(int) * nnz);
+  std::fill(static_cast<double*>(A_->x), static_cast<double*>(A_->x) + nnz, 0.0);
+  const SerialOpenMpRegions serial;
+  if (perm) {
+    const int nmethods = c_.nmethods;
+    const auto method0 = c_.method[0];
+    c_.nmethods = 1;
+    c_.method[0].ordering = CHOLMOD_GIVEN;
+    L_ = cholmod_analyze_p(A_, const_cast<int*>(perm->data()), nullptr, 0, &c_);
+    c_.nmethods = nmethods;
+    c_.method[0] = method0;
+  } else {
+    L_ = cholmod_analyze(A_, &c_);
+  }
+  if (!L_ || c_.status < CHOLMOD_OK) throw Error("CHOLMOD: symbolic analysis failed (status " + std::to_string(c_.status) + ")");
+  split_ = split_supernodes(L_);  // O(supernodes); used when a worker is set
+  stats_.nnz_L = c_.lnz;
+  stats_.flops = c_.fl;
+  // The method CHOLMOD kept (with nmethods = 0 it tries AMD, then METIS when AMD fills much).
+  stats_.ordering = perm ? ordering_name(CHOLMOD_GIVEN)
+                         : ordering_name(c_.selected >= 0 && c_.selected <= CHOLMOD_MAXMETHODS ? c_.method[c_.selected].ordering
+                                                                                              : L_->ordering);
+  stats_.supernodal = L_->is_super;
+  stats_.factorizations = 0;
+  stats_.factor_ms_total = 0;
+  stats_.copy_conversions = 0;
+  stats_.copy_ms_total = 0;
+  stats_.single_fallbacks = 0;
+  stats_.single_factorizations = 0;
+  B_ = cholmod_zeros(n, 1, CHOLMOD_REAL, &c_);
+}
+
+std::vector<int> CholmodSolver::permutation() const {
+  if (!L_) return {};
+  const int* p = static_cast<const int*>(L_->Perm);
+  return std::vector<int>(p, p + n_);
+}
+
+void CholmodSolver::factorize(const double* values) {
+  if (!L_) throw Error("CHOLMOD: factorize called before analyze");
+  settle();
+  factorized_ = false;
+  copy_valid_ = false;
+  single_current_ = false;
+  if (single_numeric_ && L_->is_super) {
+    Stopwatch clock;
+    if (!single_.analyzed()) single_.analyze(L_, n_, static_cast<const int*>(A_->p), static_cast<const int*>(A_->i));
+    resize_with_headroom(Lx_single_, L_->xsize);  // no reallocation after the first (nor per cut: headroom.h)
+    const long bad = single_.factorize(values, Lx_single_.data());
+    stats_.factor_ms_total += clock.ms();
+    ++stats_.factorizations;
+    if (bad < 0) {
+      ++stats_.single_factorizations;
+      factorized_ = copy_valid_ = single_current_ = true;
+      stats_.stored_L = static_cast<double>(L_->xsize);
+      return;
+    }
+    ++stats_.single_fallbacks;  // a pivot not positive in float: CHOLMOD in double decides
+  }
+  std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
+  Stopwatch clock;
+  {
+    const SerialOpenMpRegions serial;
+    cholmod_factorize(A_, L_, &c_);
+  }
+  stats_.factor_ms_total += clock.ms();
+  ++stats_.factorizations;
+  factorized_ = false;
+  copy_valid_ = false;
+  if (c_.status == CHOLMOD_NOT_POSDEF || L_->minor < static_cast<size_t>(n_)) {
+    std::ostringstream os;
+    os << "CHOLMOD: the system matrix is not positive definite (pivot " << L_->minor << " of " << n_
+       << ", DOF node " << L_->minor / 3 << " component " << "xyz"[L_->minor % 3]
+       << "); the model may be unconstrained in a static solve, a material parameter may be invalid, or an "
+          "element is degenerate";
+    throw Error(os.str());
+  }
+  if (c_.status < CHOLMOD_OK) throw Error("CHOLMOD: numeric factorization failed (status " + std::to_string(c_.status) + ")");
+  factorized_ = true;
+  stats_.stored_L = static_cast<double>(L_->is_super ? L_->xsize : L_->nzmax);
+  if (copy_ != FactorCopy::None && L_->is_super) convert_copy();
+}
+
+void CholmodSolver::convert_copy() {
+  Stopwatch clock;
+  const size_t nx = L_->xsize;
+  const double* src = static_cast<const double*>(L_->x);
+  if (copy_ == FactorCopy::Float) {
+    Lx_single_.resize(nx);  // same analysis: same xsize, no reallocation after the first
+    float* dst = Lx_single_.data();
+    for (size_t k = 0; k < nx; ++k) dst[k] = static_cast<float>(src[k]);
+  } else {
+    // Per supernode: s = the block's largest magnitude, values / s to binary16
+    // (|v| <= 1: no overflow in any units; a relative 2^-11 rounding of the
+    // entries that matter, those within a few decades of s).
+    const int* px = static_cast<const int*>(L_->px);
+    const size_t ns = L_->nsuper;
+    Lx_half_.resize(nx);
+    half_inv_scale_.resize(ns);
+    uint16_t* dst = Lx_half_.data();
+    for (size_t sn = 0; sn < ns; ++sn) {
+      const size_t k0 = static_cast<size_t>(px[sn]), k1 = static_cast<size_t>(px[sn + 1]);
+      double mx = 0.0;
+      for (size_t k = k0; k < k1; ++k) mx = std::max(mx, std::fabs(src[k]));
+      if (!(mx > 0.0) || !std::isfinite(mx)) mx = 1.0;  // a factorize() that succeeded has finite values
+      const double inv = 1.0 / mx;
+      half_inv_scale_[sn] = inv;
+      size_t k = k0;
+#if defined(__AVX__) && defined(__F16C__)
+      const __m256d vinv = _mm256_set1_pd(inv);
+      for (; k + 8 <= k1; k += 8) {
+        const __m128 lo = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(src + k), vinv));
+        const __m128 hi = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(src + k + 4), vinv));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + k),
+                         _mm256_cvtps_ph(_mm256_set_m128(hi, lo), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+      }
+#endif
+      for (; k < k1; ++k) dst[k] = float_to_half_bits(static_cast<float>(src[k] * inv));
+    }
+  }
+  copy_valid_ = true;
+  stats_.copy_ms_total += clock.ms();
+  ++stats_.copy_conversions;
+}
+
+void CholmodSolver::prepare_workspace() {
+  if (work_y_.size() != static_cast<size_t>(n_)) work_y_.assign(n_, 0.0);
+  if (work_w_.empty()) {
+    const int* pi = static_cast<const int*>(L_->pi);
+    size_t mx = 0;
+    for (size_t sn = 0; sn < L_->nsuper; ++sn) mx = std::max(mx, static_cast<size_t>(pi[sn + 1] - pi[sn]));
+    work_w_.assign(mx + 1, 0.0);
+  }
+  if (substitutes_on_two_threads() && work_y2_.size() != static_cast<size_t>(n_)) {
+    work_y2_.assign(n_, 0.0);
+    work_w2_.assign(work_w_.size(), 0.0);
+    work_top_.assign(split_.top_cols.size(), 0.0);
+  }
+}
+
+// The substitution on two threads (SubstitutionSplit): the two bins of
+// independent subtrees at once, the top supernodes (their common ancestors)
+// alone. Forward: the worker's bin updates its copy y2, whose bin columns are
+// copied back and whose top rows are merged as y += y2 - y0; then the top.
+// Backward: the top first, then both bins. When the worker makes no progress
+// for kWorkerStallMs this thread does the worker's bin on y itself (the
+// one-thread result to roundoff: the top rows get bin 0's updates, then bin
+// 1's); while a bin it gave up on still runs, substitutions stay on this thread.
+template <class T>
+void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x) {
+  SubstitutionWorker& worker = *worker_;
+  if (worker.busy()) {  // a bin given up on still runs on y2
+    supernodal_substitute(L_, Lx, inv_scale, n_, b, x, work_y_.data(), work_w_.data());
+    return;
+  }
+  left_running_ = false;
+  ++stats_.split_substitutions;
+  const SubstitutionSplit& sp = split_;
+  const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
+  const int* Perm = static_cast<const int*>(L_->Perm);
+  double *y = work_y_.data(), *w = work_w_.data(), *y2 = work_y2_.data(), *y0_top = work_top_.data();
+  for (int k = 0; k < n_; ++k) y[k] = b[Perm[k]];
+  const size_t ntop = sp.top_cols.size();
+  for (size_t i = 0; i < ntop; ++i) y0_top[i] = y[sp.top_cols[i]];
+  std::memcpy(y2, y, sizeof(double) * n_);
+  job_.L = L_;
+  job_.Lx = Lx;
+  job_.inv_scale = inv_scale;
+  job_.sp = &sp;
+  job_.y2 = y2;
+  job_.w2 = work_w2_.data();
+  job_.progress.store(0, std::memory_order_relaxed);
+  bool started = worker.try_start(&worker_forward<T>, &job_);
+  forward_bin(F, sp, 0, y, w);
+  if (started && worker.await(job_.progress, kWorkerStallMs)) {
+    copy_bin_columns(L_, sp, 1, y2, y);
+    for (size_t i = 0; i < ntop; ++i) y[sp.top_cols[i]] += y2[sp.top_cols[i]] - y0_top[i];
+  } else {
+    ++stats_.takeovers;
+    left_running_ = worker.busy();
+    forward_bin(F, sp, 1, y, w);  // the top rows gain bin 1's updates directly
+  }
+  for (int sn : sp.top) forward_supernode(F, sn, y, w);
+  for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
+  started = false;
+  if (!worker.busy()) {
+    left_running_ = false;
+    std::memcpy(y2, y, sizeof(double) * n_);
+    job_.progress.store(0, std::memory_order_relaxed);
+    started = worker.try_start(&worker_backward<T>, &job_);
+  }
+  backward_bin(F, sp, 0, y, w);
+  if (started && worker.await(job_.progress, kWorkerStallMs)) {
+    copy_bin_columns(L_, sp, 1, y2, y);
+  } else {
+    if (started) {
+      ++stats_.takeovers;
+      left_running_ = worker.busy();
+    }
+    backward_bin(F, sp, 1, y, w);
+  }
+  for (int k = 0; k < n_; ++k) x[Perm[k]] = y[k];
+}
+
+template <class T>
+void CholmodSolver::substitute(const T* Lx, const double* inv_scale, const double* b, double* x) {
+  prepare_workspace();
+  if (substitutes_on_two_threads())
+    split_substitute(Lx, inv_scale, b, x);
+  else
+    supernodal_substitute(L_, Lx, inv_scale, n_, b, x, work_y_.data(), work_w_.data());
+}
+
+void CholmodSolver::set_substitution_worker(SubstitutionWorker* worker) {
+  if (worker == worker_) return;
+  settle();  // the old worker is still alive (set_substitution_worker's contract)
+  worker_ = worker;
+}
+
+void CholmodSolver::settle() {
+  if (left_running_.load(std::memory_order_acquire) && worker_) worker_->wait();
+  left_running_ = false;
+}
+
+void CholmodSolver::solve_cholmod(const double* b, double* x) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (single_current_) throw Error("CHOLMOD: the current factor is single precision only (set_single_factorization); use solve()");
+  std::memcpy(B_->x, b, sizeof(double) * n_);
+  if (!cholmod_solve2(CHOLMOD_A, L_, B_, nullptr, &X_, nullptr, &Y_, &E_, &c_))
+    throw Error("CHOLMOD: solve failed (status " + std::to_string(c_.status) + ")");
+  std::memcpy(x, X_->x, sizeof(double) * n_);
+}
+
+void CholmodSolver::solve(const double* b, double* x) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (!L_->is_super) {
+    solve_cholmod(b, x);
+    return;
+  }
+  if (single_current_) {  // no double factor exists
+    substitute(Lx_single_.data(), nullptr, b, x);
+    return;
+  }
+  substitute(static_cast<const double*>(L_->x), nullptr, b, x);
+}
+
+void CholmodSolver::solve_copy(const double* b, double* x) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (!copy_valid_) {  // no copy, or a simplicial factor
+    solve(b, x);
+    return;
+  }
+  if (copy_ == FactorCopy::Half)
+    substitute(Lx_half_.data(), half_inv_scale_.data(), b, x);
+  else
+    substitute(Lx_single_.data(), nullptr, b, x);
+}
+
+}  // namespace incise

@@ -1,0 +1,193 @@
+#pragma once
+// CHOLMOD supernodal Cholesky of a symmetric matrix stored as the upper
+// triangle in compressed columns. The symbolic analysis (fill-reducing
+// ordering, elimination tree, supernodes) is done once per sparsity pattern;
+// numeric factorizations reuse it. Solves reuse their workspace
+// (cholmod_solve2), so a frame allocates nothing here.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <cholmod.h>
+
+#include "engine/scene/scene.h"
+#include "engine/solve/single_factor.h"
+#include "engine/solve/split_substitution.h"
+
+namespace incise {
+
+struct FactorStats {
+  double nnz_L = 0;        // entries in L (CHOLMOD's lnz)
+  double stored_L = 0;     // values stored for L after a factorization (supernodal: L->xsize, >= nnz_L)
+  double flops = 0;        // flop count of one numeric factorization
+  std::string ordering;    // the ordering CHOLMOD chose
+  bool supernodal = true;
+  int factorizations = 0;       // numeric factorizations done with this object
+  double factor_ms_total = 0;   // their wall time (on whichever thread ran them)
+  // Conversions of the factor to its reduced-precision copy (set_factor_copy) and
+  // their total wall time, done inside factorize() on the same thread, after
+  // factor_ms_total's clock stopped (so not included in it).
+  int copy_conversions = 0;
+  double copy_ms_total = 0;
+  // set_single_factorization: numeric factorizations done in float, and those
+  // that met a non-positive pivot in float and were redone by CHOLMOD in double.
+  bool single_precision = false;
+  int single_factorizations = 0;  // done in float (of `factorizations`)
+  int single_fallbacks = 0;
+  // Substitutions split over two threads, and bins of theirs this thread did
+  // itself because the worker made no progress for kWorkerStallMs.
+  int split_substitutions = 0;
+  int takeovers = 0;
+};
+
+// How long a substitution's caller waits for a worker that makes no progress
+// before doing its bin itself (CholmodSolver::set_substitution_worker). A
+// bin's supernodes take microseconds each, and a woken worker starts within
+// 0.1 ms in nine cases of ten here; a worker the kernel left runnable behind
+// another thread of normal priority waited up to a 4 ms tick (HZ=250).
+constexpr double kWorkerStallMs = 0.1;
+
+// Whether BLAS may run on two threads at once: true for an OpenBLAS built
+// with threading (Debian's libopenblas0-pthread or -openmp, whose buffer
+// allocator is thread-safe), false for the serial build (measured: two
+// supernodal factorizations on two threads gave wrong factors in 78-94 of
+// 460 rounds, tests/engine/test_cholmod.cpp) and for any BLAS that does not
+// say (no openblas_get_parallel). The first CholmodSolver also sets a
+// threaded OpenBLAS to one thread per call: the engine's own threads already
+// fill the cores, and the background factorization must not take the
+// stepping thread's core.
+bool blas_concurrency_safe();
+
+class CholmodSolver {
+ public:
+  CholmodSolver();
+  ~CholmodSolver();
+  CholmodSolver(const CholmodSolver&) = delete;
+  CholmodSolver& operator=(const CholmodSolver&) = delete;
+
+  // Supernodal/simplicial and the fill-reducing ordering, before analyze.
+  // Auto/Auto is CHOLMOD's default choice (AMD, or METIS when its fill is lower)
+  // with the supernodal method.
+  void configure(FactorMethod method, OrderingMethod ordering);
+  // Symbolic analysis of the pattern (n x n, upper triangle, sorted rows).
+  // With `perm` (perm[k] = the column eliminated k-th) that ordering is used
+  // as given (CHOLMOD_GIVEN, still postordered): no ordering search.
+  void analyze(int n, const std::vector<int>& Ap, const std::vector<int>& Ai, const std::vector<int>* perm = nullptr);
+  // The fill-reducing permutation of the current analysis (perm[k] = the
+  // column eliminated k-th); empty before analyze.
+  std::vector<int> permutation() const;
+  // Numeric factorization with these values (nnz). Throws incise::Error if the
+  // matrix is not positive definite, naming the failing column (a DOF).
+  void factorize(const double* values);
+  // x = A^-1 b with the current factor (x and b may alias). A supernodal factor
+  // is solved by our own substitution (no BLAS): a serial OpenBLAS is not
+  // safe on two threads at once (measured: docs/numerics.md, "Solver"), the
+  // lagged policy's background factorization is BLAS-heavy, and our loop
+  // splits over two threads and reads a float copy. A simplicial factor goes
+  // through cholmod_solve2 (which uses no BLAS for it).
+  void solve(const double* b, double* x);
+  // The same through cholmod_solve2 (reference for tests and timing).
+  void solve_cholmod(const double* b, double* x);
+
+  // Reduced-precision copy of the factor, for use as a preconditioner (the
+  // lagged policy's CG): a substitution reads L twice, so its bytes set its
+  // time. FactorCopy::Float rounds L's values to float (measured 1.2-1.4x
+  // faster per substitution at 10-20k DOF, docs/benchmarks.md, Issue 4);
+  // FactorCopy::Half to IEEE binary16 after dividing each supernode's block
+  // by its largest magnitude (s, kept per supernode), so the 5-bit exponent
+  // never overflows whatever the units, and entries below 6e-8 s flush to 0
+  // (docs/numerics.md, "Half-precision factor copy"). Configure-time (default
+  // None; takes effect at the next factorize()): factorize() converts a
+  // supernodal factor's values (L->x) right after the numeric factorization,
+  // on the thread that runs factorize(), with no BLAS; its time is
+  // FactorStats::copy_ms_total (1.7-3% of a factorization). A simplicial
+  // factor gets no copy. Turning it off frees the copy.
+  void set_factor_copy(FactorCopy copy);
+  FactorCopy factor_copy() const { return copy_; }
+  void set_single_precision(bool on) { set_factor_copy(on ? FactorCopy::Float : FactorCopy::None); }
+  bool single_precision() const { return copy_ != FactorCopy::None; }
+  // Numeric factorizations in single precision (engine/solve/single_factor.h) on
+  // CHOLMOD's supernodal analysis, straight into the float copy: no double
+  // factor exists, solve() reads the float one. For a preconditioner only
+  // (the lagged policy's solver.factor_precision "single"). Needs the float
+  // copy (set_factor_copy(Float) first; throws otherwise) and a supernodal
+  // analysis (a simplicial one factors in double as before). A pivot that is
+  // not positive in float is retried by CHOLMOD in double (counted in
+  // FactorStats::single_fallbacks), so only a matrix that is not positive
+  // definite in double throws. Takes effect at the next factorize().
+  void set_single_factorization(bool on);
+  bool single_factorization() const { return single_numeric_; }
+  // x ~= A^-1 b by the same substitution as solve(), reading the copy (x and
+  // b may alias). Vectors and accumulations stay double; only L's entries
+  // are rounded (relative u = 2^-24 = 6e-8 in float, 2^-11 = 4.9e-4 in half),
+  // so the result solves a perturbed system (A + E) x = b with |E| <~ u |L|
+  // |L^T|: a relative error of at most about u * cond(A). Measured on tet10
+  // beams of 3-7k DOF (cond 4e4-5e5, tests/engine/test_single_factor.cpp):
+  // float 8e-9 to 8e-8 relative to solve(), half 4e-4 to 1e-3 (0.8-2 u). Meant as a
+  // preconditioner (CG still converges to any tolerance, at worst in a few
+  // more iterations), not as a direct solver for ill-conditioned systems.
+  // Without a copy (None, or a simplicial factor) it is solve(). Allocates
+  // nothing after the first call.
+  void solve_copy(const double* b, double* x);
+  // A copy of the current factor exists (solve_copy reads it).
+  bool has_factor_copy() const { return factorized_ && copy_valid_; }
+
+  // Substitutions (solve, solve_copy) on two threads: this thread and the
+  // worker (not owned; null = one thread), over the split of the current
+  // analysis (engine/solve/split_substitution.h). Results equal the one-thread
+  // substitution's to roundoff (the top rows add the two bins' updates in
+  // another order). A factor whose tree does not split stays on one thread.
+  // This thread never waits for a worker that makes no progress: after
+  // kWorkerStallMs without any it does the worker's bin itself (counted in
+  // FactorStats::takeovers), and while a bin it gave up on still runs on
+  // the worker, its substitutions stay on one thread; this object waits for
+  // it before its factor, copies or buffers change, and in its destructor.
+  // So a worker must outlive the solvers it was given to, or be taken from
+  // them first (set_substitution_worker(nullptr)).
+  void set_substitution_worker(SubstitutionWorker* worker);
+  const SubstitutionSplit& substitution_split() const { return split_; }
+  bool substitutes_on_two_threads() const { return worker_ && split_.valid() && L_ && L_->is_super; }
+
+  bool analyzed() const { return L_ != nullptr; }
+  bool factorized() const { return factorized_; }
+  int size() const { return n_; }
+  const FactorStats& stats() const { return stats_; }
+
+ private:
+  cholmod_common c_;
+  cholmod_sparse* A_ = nullptr;
+  cholmod_factor* L_ = nullptr;
+  cholmod_dense* B_ = nullptr;
+  cholmod_dense* X_ = nullptr;
+  cholmod_dense* Y_ = nullptr;  // solve2 workspace
+  cholmod_dense* E_ = nullptr;  // solve2 workspace
+  int n_ = 0;
+  bool factorized_ = false;
+  std::vector<double> work_y_, work_w_;  // own substitution: permuted vector, supernode gather
+  SubstitutionWorker* worker_ = nullptr;   // set_substitution_worker
+  SubstitutionSplit split_;                // of the current analysis
+  std::vector<double> work_y2_, work_w2_, work_top_;  // the worker's y copy and gather, the top rows' start values
+  // What the worker's bin reads (here, not on the caller's stack: a bin
+  // given up on may run after the call returned).
+  SplitJob job_;
+  std::atomic<bool> left_running_{false};  // a bin given up on may still run on worker_
+  void settle();  // waits for such a bin: before the factor, the copies or the buffers change
+  FactorCopy copy_ = FactorCopy::None;  // set_factor_copy
+  bool copy_valid_ = false;              // the copy holds the current factor's values
+  std::vector<float> Lx_single_;         // (L->xsize) Float: float copy of a supernodal L->x
+  std::vector<uint16_t> Lx_half_;        // (L->xsize) Half: binary16 of L->x / s, s per supernode
+  std::vector<double> half_inv_scale_;   // (L->nsuper) Half: 1 / s
+  bool single_numeric_ = false;          // set_single_factorization
+  bool single_current_ = false;          // the current factor exists in float only (Lx_single_)
+  SingleFactorization single_;           // its scatter map and workspace, per analysis
+  void prepare_workspace();
+  template <class T>
+  void split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
+  template <class T>
+  void substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
+  void convert_copy();
+  FactorStats stats_;
+  void release();
+};
+
+}  // namespace incise

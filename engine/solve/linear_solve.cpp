@@ -1,0 +1,724 @@
+#include "engine/solve/linear_solve.h"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include <Eigen/Core>
+
+#include "engine/fem/assemble.h"
+#include "engine/solve/carried_ordering.h"
+#include "engine/util/error.h"
+#include "engine/util/headroom.h"
+#include "engine/fem/polar.h"
+#include "engine/runtime/thread_affinity.h"
+
+namespace incise {
+
+namespace {
+
+using Mat3 = Eigen::Matrix3d;
+
+// A = cK K + cM M with the constrained rows and columns projected out (Algorithm 1).
+void form_matrix(const Model& m, const double* K, double* A) {
+  const NewmarkCoefficients c = newmark_coefficients(m);
+  const double cM = c.cM, cK = c.cK;
+  for (int k = 0; k < m.nnz(); ++k) A[k] = cK * K[k];
+  if (m.mass_kind == MassKind::Consistent) {
+    for (int k = 0; k < m.nnz(); ++k) A[k] += cM * m.mass_csc[k];
+  } else {  // lumped: the diagonal and, with X-FEM, the u-q couplings (Model::mass_coupling)
+    for (int d = 0; d < m.ndof(); ++d) A[m.diag[d]] += cM * m.mass_lumped[d];
+    for (int k : m.mass_coupling) A[k] += cM * m.mass_csc[k];
+  }
+  for (int k : m.constrained_entries) A[k] = 0.0;
+  for (int d = 0; d < m.ndof(); ++d)
+    if (m.constrained[d]) A[m.diag[d]] = 1.0;
+}
+
+double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  double s = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
+  return s;
+}
+
+// One forward + back substitution, counted and timed (from the float copy
+// when the factor has one: lagged with solver.factor_copy float or half).
+void substitute(State& s, CholmodSolver& f, const double* b, double* x) {
+  Stopwatch w;
+  const int takeovers = f.stats().takeovers;
+  if (f.has_factor_copy()) f.solve_copy(b, x);
+  else f.solve(b, x);
+  s.timing.solves += 1;
+  s.timing.solve_kernel_ms += w.ms();
+  s.timing.takeovers += f.stats().takeovers - takeovers;
+}
+
+// x = Rn A0^-1 Rn^T b with the rest factor in state.solver.
+void warped_apply(const Model& m, State& s, const double* b, double* x) {
+  auto& w = s.work;
+  double* t = w.t.data();
+  for (int node = 0; node < m.ndofnode; ++node) {
+    const Eigen::Map<const Mat3> R(&w.Rn[9 * node]);
+    Eigen::Map<Eigen::Vector3d>(t + 3 * node) = R.transpose() * Eigen::Map<const Eigen::Vector3d>(b + 3 * node);
+  }
+  substitute(s, s.solver, t, t);
+  for (int node = 0; node < m.ndofnode; ++node) {
+    const Eigen::Map<const Mat3> R(&w.Rn[9 * node]);
+    Eigen::Map<Eigen::Vector3d>(x + 3 * node) = R * Eigen::Map<const Eigen::Vector3d>(t + 3 * node);
+  }
+}
+
+// Preconditioned CG on A x = b to |r| <= tol |b|, from x = 0 or, with x0
+// (solver.initial_guess "previous"), from x = alpha x0 with the alpha that
+// minimises |b - alpha A x0| (one product more; never a larger residual than
+// x = 0). Records iterations, the starting and final residual and
+// convergence in state.timing.
+template <class Precond>
+void pcg(const Model& m, State& s, const double* A, const double* b, double* x, const Precond& precond,
+         int max_iterations, const double* x0 = nullptr) {
+  auto& w = s.work;
+  const int n = m.ndof();
+  std::vector<double>& r = w.r;
+  std::vector<double>& z = w.z;
+  std::vector<double>& p = w.p;
+  std::vector<double>& q = w.q;
+  std::copy(b, b + n, r.begin());
+  std::fill(x, x + n, 0.0);
+  const double bnorm = std::sqrt(dot(r, r));
+  s.timing.residual = 0.0;
+  s.timing.converged = true;
+  if (bnorm == 0.0) return;
+  if (x0) {
+    // min over alpha of |b - alpha q|^2, q = A x0: alpha = (b.q)/(q.q), |r|^2 = |b|^2 - alpha (b.q).
+    sym_matvec_parallel(m, w.plan, *w.pool, A, x0, q.data());
+    double bq = 0.0, qq = 0.0;
+    for (int i = 0; i < n; ++i) bq += b[i] * q[i], qq += q[i] * q[i];
+    const double alpha = qq > 0.0 && std::isfinite(bq / qq) ? bq / qq : 0.0;
+    if (alpha != 0.0) {
+      double rr = 0.0;
+      for (int i = 0; i < n; ++i) {
+        r[i] = b[i] - alpha * q[i];
+        rr += r[i] * r[i];
+      }
+      if (std::sqrt(rr) < bnorm) {
+        for (int i = 0; i < n; ++i) x[i] = alpha * x0[i];
+        s.timing.start_residual = std::sqrt(rr) / bnorm;
+        if (s.timing.start_residual <= m.solver.tolerance) {
+          s.timing.residual = s.timing.start_residual;
+          return;
+        }
+      } else {
+        std::copy(b, b + n, r.begin());  // roundoff made it no better: from 0
+      }
+    }
+  }
+  const double tol = m.solver.tolerance;
+  precond(r.data(), z.data());
+  p = z;
+  double rz = dot(r, z), rel = 1.0;
+  int it = 0;
+  while (it < max_iterations) {
+    sym_matvec_parallel(m, w.plan, *w.pool, A, p.data(), q.data());
+    ++it;
+    const double pq = dot(p, q);
+    if (!(pq > 0.0)) break;  // breakdown (should not happen: A is SPD); reported as not converged
+    const double alpha = rz / pq;
+    for (int i = 0; i < n; ++i) {
+      x[i] += alpha * p[i];
+      r[i] -= alpha * q[i];
+    }
+    rel = std::sqrt(dot(r, r)) / bnorm;
+    if (rel <= tol) break;
+    if (it == max_iterations) break;
+    precond(r.data(), z.data());
+    const double rz_new = dot(r, z);
+    const double beta = rz_new / rz;
+    rz = rz_new;
+    for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+  }
+  s.timing.iterations += it;
+  s.timing.residual = rel;
+  s.timing.converged = s.timing.converged && rel <= tol;
+}
+
+CholmodSolver& slot_factor(State& s, int k) { return k == 0 ? s.solver : s.work.back; }
+
+// Synchronous factorization of the current A into slot k (analysis first when
+// the slot holds another pattern).
+void factor_now(const Model& m, State& s, int k) {
+  auto& w = s.work;
+  CholmodSolver& f = slot_factor(s, k);
+  if (w.slot_pattern[k] != w.pattern) {
+    f.analyze(m.ndof(), m.Ap, m.Ai);
+    w.slot_carried[k] = false;
+    w.slot_pattern[k] = w.pattern;
+    w.slot_n[k] = m.ndof();
+  }
+  f.factorize(s.A.data());
+  w.slot_map[k].clear();
+  if (m.solver.warp) w.slot_Rn[k] = w.Rn;
+  ++s.refactorizations;
+}
+
+void take_job(State& s) {
+  auto& w = s.work;
+  w.wait_job();
+  w.job_running = false;
+  if (w.job_error) {
+    auto e = w.job_error;
+    w.job_error = nullptr;
+    std::rethrow_exception(e);
+  }
+  w.front = w.job_slot;
+  w.front_frame = w.job_frame;
+  w.job_slot = -1;
+  ++s.refactorizations;
+}
+
+// Starts the background factorization of the current A (and the analysis of
+// its pattern when the chosen slot has not seen it) in a slot other than the front.
+void launch_job(const Model& m, State& s) {
+  auto& w = s.work;
+  const int k = w.front == 0 ? 1 : 0;  // any slot but the front (none is running)
+  assign_range_with_headroom(w.A_back, s.A.begin(), s.A.end());
+  // While an incision goes on (a new pattern this frame or the last), a slot
+  // analyzing the new pattern carries the front factor's ordering over
+  // (solver.cut_ordering "carried"): no METIS in the job (39-44 ms at 10k DOF,
+  // the factorization 53 ms), for 10-20% more flops in the factorization. Once
+  // cutting pauses, a slot with a carried analysis is analyzed again with a search.
+  const bool cutting = s.frame - w.pattern_frame <= 1;
+  w.job_analyze = w.slot_pattern[k] != w.pattern || (w.slot_carried[k] && !cutting);
+  w.job_old_perm.clear();
+  if (w.job_analyze) {
+    w.job_Ap = m.Ap;
+    w.job_Ai = m.Ai;
+    w.slot_pattern[k] = w.pattern;
+    w.slot_n[k] = m.ndof();
+    const CholmodSolver& front = slot_factor(s, w.front);
+    // Inputs checked here, so a mismatch falls back to a search instead of
+    // failing the job.
+    w.slot_carried[k] = m.solver.carry_ordering && cutting && m.has_cuts() && !w.slot_map[w.front].empty() &&
+                        front.analyzed() && front.size() == w.slot_n[w.front] &&
+                        static_cast<int>(m.cuts.enr_node.size()) == m.ndofnode - m.nnode;
+    if (w.slot_carried[k]) {
+      w.job_map = w.slot_map[w.front];
+      w.job_old_perm = front.permutation();
+      w.job_enr_node = m.cuts.enr_node;
+      w.job_nnode = m.nnode;
+    }
+  }
+  w.slot_map[k].clear();
+  if (m.solver.warp) w.slot_Rn[k] = w.Rn;
+  CholmodSolver* f = &slot_factor(s, k);
+  SolverWork* wp = &w;
+  const int n = m.ndof();
+  w.job_done = false;
+  // solver.background_priority "idle" with late_factor "skip": the job only
+  // takes CPU time nothing else wants, so the stepping thread, the cut-ahead
+  // helper and a haptic thread always come first (measured on the 10k
+  // incision: the cutting stage's p99, mostly the wait for the helper, 11-13
+  // -> 6.5-7.2 ms). Not with "wait": the step then blocks on the job, and an
+  // idle-priority thread gets next to no CPU while every core is busy (an
+  // unprivileged thread cannot raise it back for the wait).
+  const auto priority = m.solver.idle_background && m.solver.skip_late_factor ? HelperThread::Priority::Idle
+                                                                               : HelperThread::Priority::Normal;
+  const bool helper_cpus = m.solver.split_affinity;
+  if (!w.job_thread || w.job_thread->priority() != priority || w.job_thread->helper_cpus() != helper_cpus) {
+    w.job_thread.reset();  // (no job runs: launch_job is called with none)
+    w.job_thread = std::make_unique<HelperThread>(helper_cpus, priority);
+  }
+  w.job_thread->run([f, wp, n] {
+    wp->job_policy = wp->job_thread->policy();
+    try {
+      if (wp->job_analyze && !wp->job_old_perm.empty()) {
+        const std::vector<int> perm = carried_ordering(wp->job_nnode, wp->job_enr_node, wp->job_map, wp->job_old_perm);
+        f->analyze(n, wp->job_Ap, wp->job_Ai, &perm);
+      } else if (wp->job_analyze) {
+        f->analyze(n, wp->job_Ap, wp->job_Ai);
+      }
+      f->factorize(wp->A_back.data());
+    } catch (...) {
+      wp->job_error = std::current_exception();
+    }
+    wp->job_done = true;
+  });
+  w.job_running = true;
+  w.job_slot = k;
+  w.job_frame = w.last_launch = s.frame;
+}
+
+// Lagged: make the front factor current for this frame (refresh policy).
+void lagged_refresh(const Model& m, State& s, Stopwatch& clock) {
+  auto& w = s.work;
+  const int f = s.frame, k = m.solver.refresh_every;
+  if (!s.factor_current) {  // first frame, or the factor was invalidated
+    w.wait_job();
+    w.job_running = false;
+    w.job_error = nullptr;
+    w.front = 0;
+    factor_now(m, s, 0);
+    s.factor_current = true;
+    w.front_frame = w.last_launch = f;
+  } else if (!m.solver.background) {
+    if (f - w.front_frame >= k) {
+      factor_now(m, s, w.front);
+      w.front_frame = w.last_launch = f;
+    }
+  } else {
+    // late_factor "wait" (deterministic): a job started k frames ago is taken
+    // now, waiting if it is late, so replays give the same states. "skip":
+    // a late job is taken in the first frame it has finished in; no stall,
+    // but the trajectory then depends on the machine's speed.
+    if (w.job_running && f - w.job_frame >= k && (!m.solver.skip_late_factor || w.job_done)) take_job(s);
+    if (!w.job_running && f - w.last_launch >= k) launch_job(m, s);
+  }
+  s.timing.ms[kStageFactorization] += clock.lap();
+}
+
+// warp: Q_n = Rn_n * (the front slot's Rn of the same node)^T for every DOF
+// node whose three DOFs the slot knows as one node; identity elsewhere.
+void lagged_warp_rotations(const Model& m, State& s) {
+  auto& w = s.work;
+  const int k = w.front;
+  const std::vector<int>& map = w.slot_map[k];
+  const std::vector<double>& Rl = w.slot_Rn[k];
+  w.Q.assign(9 * static_cast<size_t>(m.ndofnode), 0.0);
+  for (int n = 0; n < m.ndofnode; ++n) {
+    Eigen::Map<Mat3> Q(&w.Q[9 * n]);
+    int fn = n;
+    if (!map.empty()) {
+      const int d = map[3 * n];
+      fn = (d >= 0 && d % 3 == 0 && map[3 * n + 1] == d + 1 && map[3 * n + 2] == d + 2) ? d / 3 : -1;
+    }
+    if (fn < 0 || 9 * static_cast<size_t>(fn) >= Rl.size()) {
+      Q.setIdentity();
+      continue;
+    }
+    Q = Eigen::Map<const Mat3>(&w.Rn[9 * n]) * Eigen::Map<const Mat3>(&Rl[9 * fn]).transpose();
+  }
+}
+
+// z = Q F^-1 Q^T r with the lagged front factor F (through its DOF map after
+// cuts; 0 on the DOFs it does not know). With warp, Q = the node rotations
+// since the factor's frame: if the body turned rigidly by Q, A = Q A_lag Q^T
+// (lumped, isotropic mass) and this is exact.
+void factor_apply(const Model& m, State& s, const double* r, double* z) {
+  auto& w = s.work;
+  CholmodSolver& f = slot_factor(s, w.front);
+  const std::vector<int>& map = w.slot_map[w.front];
+  const bool warp = m.solver.warp;
+  const double* rin = r;
+  if (warp) {  // r <- Q^T r (into the factor's frame), in z as scratch
+    for (int n = 0; n < m.ndofnode; ++n)
+      Eigen::Map<Eigen::Vector3d>(z + 3 * n) =
+          Eigen::Map<const Mat3>(&w.Q[9 * n]).transpose() * Eigen::Map<const Eigen::Vector3d>(r + 3 * n);
+    rin = z;
+  }
+  if (map.empty()) {
+    substitute(s, f, rin, z);
+  } else {
+    w.t_slot.assign(f.size(), 0.0);  // capacity kept: no allocation after the first use
+    for (int d = 0; d < m.ndof(); ++d)
+      if (map[d] >= 0) w.t_slot[map[d]] = rin[d];
+    substitute(s, f, w.t_slot.data(), w.t_slot.data());
+    for (int d = 0; d < m.ndof(); ++d) z[d] = map[d] >= 0 ? w.t_slot[map[d]] : 0.0;
+  }
+  if (warp)
+    for (int n = 0; n < m.ndofnode; ++n) {
+      const Eigen::Vector3d t = Eigen::Map<const Eigen::Vector3d>(z + 3 * n);
+      Eigen::Map<Eigen::Vector3d>(z + 3 * n) = Eigen::Map<const Mat3>(&w.Q[9 * n]) * t;
+    }
+}
+
+// z_p (+)= A_p^-1 r_p on the patch DOFs (r, z global).
+void patch_apply(State& s, const double* r, double* z, bool add) {
+  auto& w = s.work;
+  const int np = static_cast<int>(w.patch_dof.size());
+  for (int j = 0; j < np; ++j) w.patch_r[j] = r[w.patch_dof[j]];
+  Stopwatch clock;
+  w.patch.solve(w.patch_r.data(), w.patch_r.data());
+  s.timing.solve_kernel_ms += clock.ms();
+  for (int j = 0; j < np; ++j) z[w.patch_dof[j]] = (add ? z[w.patch_dof[j]] : 0.0) + w.patch_r[j];
+}
+
+// z = P r: the front factor (factor_apply); after cuts, with the patch of the
+// DOFs it does not know (Jacobi on them if there is no patch). Additive:
+// P = F^-1 + E A_p^-1 E^T. Multiplicative (symmetric, patch - factor -
+// patch; Saad, Iterative Methods, sec. 14.3): z1 = E A_p^-1 E^T r, z2 = z1 +
+// F^-1 (r - A z1), z = z2 + E A_p^-1 E^T (r - A z2): one substitution and two
+// patch solves, and the residual products need A's patch rows only.
+void lagged_apply(const Model& m, State& s, const double* A, const double* r, double* z) {
+  auto& w = s.work;
+  const std::vector<int>& map = w.slot_map[w.front];
+  if (map.empty()) {
+    factor_apply(m, s, r, z);
+  } else if (w.patch_dof.empty()) {
+    factor_apply(m, s, r, z);
+    for (int d = 0; d < m.ndof(); ++d)
+      if (map[d] < 0) z[d] = r[d] / A[m.diag[d]];
+  } else if (!m.solver.multiplicative_patch) {
+    factor_apply(m, s, r, z);
+    patch_apply(s, r, z, /*add=*/true);
+  } else {
+    const int np = static_cast<int>(w.patch_dof.size());
+    double* z1 = w.ms_z.data();  // patch-supported
+    double* r1 = w.ms_r.data();
+    patch_apply(s, r, z1, /*add=*/false);
+    // r1 = r - A z1: z1 lives on the patch, so A z1 = sum over the patch rows (A symmetric).
+    std::copy(r, r + m.ndof(), r1);
+    for (int i = 0; i < np; ++i) {
+      const double zi = z1[w.patch_dof[i]];
+      for (int t = w.patch_row_ptr[i]; t < w.patch_row_ptr[i + 1]; ++t) r1[w.patch_row_col[t]] -= A[w.patch_row_k[t]] * zi;
+    }
+    factor_apply(m, s, r1, z);
+    for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
+    // r2 = r - A z on the patch rows, then z += E A_p^-1 r2.
+    for (int i = 0; i < np; ++i) {
+      double acc = r[w.patch_dof[i]];
+      for (int t = w.patch_row_ptr[i]; t < w.patch_row_ptr[i + 1]; ++t) acc -= A[w.patch_row_k[t]] * z[w.patch_row_col[t]];
+      r1[w.patch_dof[i]] = acc;
+    }
+    patch_apply(s, r1, z, /*add=*/true);
+  }
+}
+
+// The patch of the mapped front factor (see SolverWork::patch): built when
+// the front slot or the pattern changed, refactored with the current A.
+void lagged_patch(const Model& m, State& s, const double* A) {
+  auto& w = s.work;
+  const std::vector<int>& map = w.slot_map[w.front];
+  if (map.empty()) {
+    w.patch_dof.clear();
+    w.patch_key = -1;
+    return;
+  }
+  const long long key = (static_cast<long long>(w.pattern) * 2 + w.front) * 1000003LL + w.front_frame;
+  if (key != w.patch_key) {
+    w.patch_key = key;
+    std::vector<char> node_in(m.ndofnode, 0), unknown(m.ndofnode, 0);
+    for (int d = 0; d < m.ndof(); ++d)
+      if (map[d] < 0) unknown[d / 3] = 1;
+    for (int e = 0; e < m.nelem; ++e) {
+      bool touch = false;
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = unknown[m.elem_dof_node[k]];
+      if (touch)
+        for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) node_in[m.elem_dof_node[k]] = 1;
+    }
+    w.patch_dof.clear();
+    std::vector<int> g2l(m.ndof(), -1);
+    for (int n = 0; n < m.ndofnode; ++n)
+      if (node_in[n] || unknown[n])
+        for (int c = 0; c < 3; ++c) {
+          g2l[3 * n + c] = static_cast<int>(w.patch_dof.size());
+          w.patch_dof.push_back(3 * n + c);
+        }
+    const int np = static_cast<int>(w.patch_dof.size());
+    std::vector<int> Pp(1, 0), Pi;
+    w.patch_src.clear();
+    for (int j = 0; j < np; ++j) {
+      const int C = w.patch_dof[j];
+      for (int k = m.Ap[C]; k < m.Ap[C + 1]; ++k)
+        if (g2l[m.Ai[k]] >= 0) {
+          Pi.push_back(g2l[m.Ai[k]]);
+          w.patch_src.push_back(k);
+        }
+      Pp.push_back(static_cast<int>(Pi.size()));
+    }
+    // A's rows at the patch DOFs: entry (r, c), r <= c, is row r's at column c
+    // and, off the diagonal, row c's at column r. Only columns of elements
+    // with a patch node can hold such an entry: scanning those (in column
+    // order, as a scan of every column would) instead of all of A took
+    // about 1 ms of each cut frame at 10k DOF.
+    std::vector<char> col_in(m.ndof(), 0);
+    for (int e = 0; e < m.nelem; ++e) {
+      bool touch = false;
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = node_in[m.elem_dof_node[k]] || unknown[m.elem_dof_node[k]];
+      if (touch)
+        for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+          for (int c = 0; c < 3; ++c) col_in[3 * m.elem_dof_node[k] + c] = 1;
+    }
+    std::vector<int> cols;
+    for (int c = 0; c < m.ndof(); ++c)
+      if (col_in[c]) cols.push_back(c);
+    std::vector<int> cnt(np + 1, 0);
+    for (int c : cols)
+      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
+        const int r = m.Ai[k];
+        if (g2l[r] >= 0) ++cnt[g2l[r] + 1];
+        if (r != c && g2l[c] >= 0) ++cnt[g2l[c] + 1];
+      }
+    for (int i = 0; i < np; ++i) cnt[i + 1] += cnt[i];
+    w.patch_row_ptr = cnt;
+    w.patch_row_col.assign(cnt.back(), 0);
+    w.patch_row_k.assign(cnt.back(), 0);
+    for (int c : cols)
+      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
+        const int r = m.Ai[k];
+        if (g2l[r] >= 0) w.patch_row_col[cnt[g2l[r]]] = c, w.patch_row_k[cnt[g2l[r]]++] = k;
+        if (r != c && g2l[c] >= 0) w.patch_row_col[cnt[g2l[c]]] = r, w.patch_row_k[cnt[g2l[c]]++] = k;
+      }
+    // Supernodal (BLAS) only where BLAS may run beside the background job
+    // (blas_concurrency_safe); otherwise BLAS-free simplicial.
+    w.patch.configure(blas_concurrency_safe() ? FactorMethod::Supernodal : FactorMethod::Simplicial,
+                      OrderingMethod::Amd);
+    w.patch.analyze(np, Pp, Pi);
+    w.patch_A.assign(Pi.size(), 0.0);
+    w.patch_r.assign(np, 0.0);
+  }
+  for (size_t t = 0; t < w.patch_src.size(); ++t) w.patch_A[t] = A[w.patch_src[t]];
+  w.patch.factorize(w.patch_A.data());
+}
+
+void rest_factor(const Model& m, State& s, Stopwatch& clock) {
+  if (s.factor_current) return;
+  form_matrix(m, m.K0_csc.data(), s.A.data());
+  s.solver.factorize(s.A.data());
+  ++s.refactorizations;
+  s.factor_current = true;
+  s.timing.ms[kStageFactorization] += clock.lap();
+}
+
+}  // namespace
+
+bool policy_needs_tangent(const Model& m) { return m.solver.policy != SolverPolicy::Warped; }
+
+bool solver_carries_over_cuts(const Model& m, const State& s) {
+  return m.solver.policy == SolverPolicy::Lagged && s.factor_current;
+}
+
+void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_map, AssemblyPlan* plan) {
+  auto& w = s.work;
+  const int threads = std::max(1, m.solver.threads);
+  if (!w.pool || w.pool->size() != threads) w.pool = std::make_unique<ThreadPool>(threads);
+  if (m.solver.substitution_threads > 1 && !w.substitution_worker)
+    w.substitution_worker = std::make_unique<SubstitutionWorker>();
+  if (m.solver.substitution_threads <= 1 && w.substitution_worker) {
+    s.solver.set_substitution_worker(nullptr);  // before the worker goes (a bin given up on may still run)
+    w.back.set_substitution_worker(nullptr);
+    w.substitution_worker.reset();
+  }
+  s.solver.set_substitution_worker(w.substitution_worker.get());
+  w.back.set_substitution_worker(w.substitution_worker.get());
+  // After the workers above exist (they keep the whole CPU set; ones started
+  // later unpin themselves: unpin_if_split).
+  if (m.solver.split_affinity) set_thread_role(ThreadRole::Stepping);
+  if (plan && plan->nthreads == threads) w.plan = std::move(*plan);
+  else w.plan = make_assembly_plan(m, threads);
+  const int n = m.ndof();
+  if (dofnode_map && solver_carries_over_cuts(m, s)) {
+    // A cut: keep the factors; each maps the new DOFs onto its own (composed
+    // over successive cuts). A DOF node the old model did not have (-1), or a
+    // second new one on the same old one, is left to the patch (lagged_patch).
+    for (int k = 0; k < 2; ++k) {
+      if (k != w.front && k != w.job_slot) {
+        w.slot_map[k].clear();
+        w.slot_pattern[k] = -1;  // free: holds nothing usable
+        continue;
+      }
+      const std::vector<int> old = std::move(w.slot_map[k]);
+      std::vector<int>& nm = w.slot_map[k];
+      nm.assign(n, -1);
+      std::vector<char> taken(w.slot_n[k], 0);
+      for (int node = 0; node < m.ndofnode; ++node) {
+        const int o = (*dofnode_map)[node];
+        if (o < 0) continue;
+        for (int c = 0; c < 3; ++c) {
+          const int od = 3 * o + c;
+          const int fd = old.empty() ? od : (od < static_cast<int>(old.size()) ? old[od] : -1);
+          if (fd < 0 || fd >= static_cast<int>(taken.size()) || taken[fd]) continue;
+          taken[fd] = 1;
+          nm[3 * node + c] = fd;
+        }
+      }
+    }
+    ++w.pattern;
+    w.pattern_frame = s.frame;
+    w.last_launch = std::min(w.last_launch, s.frame - 1000000);  // the next frame starts a job on the new pattern
+  } else {
+    w.wait_job();
+    w.job_running = false;
+    w.job_error = nullptr;
+    w.job_slot = -1;
+    s.solver.configure(m.solver.factor, m.solver.ordering);
+    w.back.configure(m.solver.factor, m.solver.ordering);
+    const bool lagged = m.solver.policy == SolverPolicy::Lagged;
+    const FactorCopy copy = lagged ? m.solver.factor_copy : FactorCopy::None;
+    for (CholmodSolver* f : {&s.solver, &w.back}) {  // single needs the float copy: off first, on last
+      f->set_single_factorization(false);
+      f->set_factor_copy(copy);
+      f->set_single_factorization(lagged && m.solver.single_factorization);
+    }
+    ++w.pattern;
+    s.solver.analyze(n, m.Ap, m.Ai);
+    w.pattern_frame = -1000000;
+    for (int k = 0; k < 2; ++k) {
+      w.slot_carried[k] = false;
+      w.slot_pattern[k] = k == 0 ? w.pattern : -1;
+      w.slot_n[k] = k == 0 ? n : 0;
+      w.slot_map[k].clear();
+    }
+    w.front = 0;
+    w.front_frame = w.last_launch = w.job_frame = -1;
+    s.factor_current = false;
+  }
+  for (auto* v : {&w.r, &w.z, &w.p, &w.q, &w.t, &w.ms_r, &w.ms_z}) v->assign(n, 0.0);
+  if (dofnode_map && !w.guess.empty()) {  // a cut: the start follows its DOF nodes, 0 on new ones
+    std::vector<double> old = std::move(w.guess);
+    w.guess.assign(n, 0.0);
+    for (int node = 0; node < m.ndofnode; ++node) {
+      const int o = (*dofnode_map)[node];
+      if (o >= 0 && 3 * static_cast<size_t>(o) + 3 <= old.size())
+        for (int c = 0; c < 3; ++c) w.guess[3 * node + c] = old[3 * o + c];
+    }
+  } else if (!dofnode_map) {
+    w.guess.clear();
+  }
+  // Node -> element adjacency for the warped policies (below).
+  std::vector<double> old_Rn = std::move(w.Rn);
+  w.Rn.assign(9 * static_cast<size_t>(m.ndofnode), 0.0);
+  for (int node = 0; node < m.ndofnode; ++node) w.Rn[9 * node] = w.Rn[9 * node + 4] = w.Rn[9 * node + 8] = 1.0;
+  if (dofnode_map && solver_carries_over_cuts(m, s))  // a cut: node rotations warm-start from the old node's
+    for (int node = 0; node < m.ndofnode; ++node) {
+      const int o = (*dofnode_map)[node];
+      if (o >= 0 && 9 * static_cast<size_t>(o) + 9 <= old_Rn.size())
+        std::copy_n(old_Rn.begin() + 9 * static_cast<size_t>(o), 9, w.Rn.begin() + 9 * static_cast<size_t>(node));
+    }
+  w.node_identity.assign(m.ndofnode, 0);
+  // A node with some but not all components constrained keeps R = I so the
+  // warped matrix stays projected; a fully constrained node may rotate (its
+  // block is the identity either way).
+  for (int node = 0; node < m.ndofnode; ++node) {
+    const int c = m.constrained[3 * node] + m.constrained[3 * node + 1] + m.constrained[3 * node + 2];
+    w.node_identity[node] = c > 0 && c < 3;
+  }
+  if (m.solver.policy == SolverPolicy::Warped || m.solver.policy == SolverPolicy::WarpedCG ||
+      (m.solver.policy == SolverPolicy::Lagged && m.solver.warp)) {
+    std::vector<int> count(m.ndofnode + 1, 0);
+    for (int e = 0; e < m.nelem; ++e)
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) ++count[m.elem_dof_node[k] + 1];
+    for (int node = 0; node < m.ndofnode; ++node) count[node + 1] += count[node];
+    w.node_elem_ptr = count;
+    w.node_elem.assign(count.back(), 0);
+    std::vector<int> next(count.begin(), count.end() - 1);
+    for (int e = 0; e < m.nelem; ++e)
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) w.node_elem[next[m.elem_dof_node[k]]++] = e;
+    w.elem_S.assign(9 * static_cast<size_t>(m.nelem), 0.0);
+  } else {
+    w.node_elem_ptr.assign(m.ndofnode + 1, 0);
+    w.node_elem.clear();
+  }
+}
+
+void update_node_rotations(const Model& m, State& s) {
+  auto& w = s.work;
+  const auto& ep = w.plan.elem_rot_ptr;
+  w.pool->run([&](int tid) {
+    int b, e;
+    // S_e = vol_e / nslot_e sum of the element's slot rotations, then per
+    // node the sum over its elements: the volume-weighted sum of the
+    // incident slots' R, with the slot sums shared by the element's nodes
+    // (a tet10 per_point corner node sees ~80 slots through ~20 elements).
+    ThreadPool::split(m.nelem, w.pool->size(), tid, b, e);
+    for (int el = b; el < e; ++el) {
+      Eigen::Map<Mat3> Se(&w.elem_S[9 * static_cast<size_t>(el)]);
+      Se.setZero();
+      for (int k = ep[el]; k < ep[el + 1]; ++k) Se += Eigen::Map<const Mat3>(&s.R[9 * static_cast<size_t>(w.plan.elem_rot[k])]);
+      if (ep[el + 1] > ep[el]) Se *= m.elem_volume[el] / (ep[el + 1] - ep[el]);
+    }
+    w.pool->barrier();
+    ThreadPool::split(m.ndofnode, w.pool->size(), tid, b, e);
+    for (int node = b; node < e; ++node) {
+      Eigen::Map<Mat3> Rn(&w.Rn[9 * node]);
+      if (w.node_identity[node] || w.node_elem_ptr[node] == w.node_elem_ptr[node + 1]) {
+        Rn.setIdentity();
+        continue;
+      }
+      Mat3 S = Mat3::Zero();
+      for (int k = w.node_elem_ptr[node]; k < w.node_elem_ptr[node + 1]; ++k)
+        S += Eigen::Map<const Mat3>(&w.elem_S[9 * static_cast<size_t>(w.node_elem[k])]);
+      Mat3 R = Rn;
+      extract_rotation(S, R);
+      Rn = R;
+    }
+  });
+}
+
+void solve_system(const Model& m, State& s, const double* K, int iteration, Stopwatch& clock) {
+  const bool linear = m.material.model == MaterialModel::Linear;
+  double* du = s.du.data();
+  switch (m.solver.policy) {
+    case SolverPolicy::Exact:
+      if (!(linear && s.factor_current)) {
+        form_matrix(m, K, s.A.data());
+        s.timing.ms[kStageAssembly] += clock.lap();
+        s.solver.factorize(s.A.data());
+        ++s.refactorizations;
+        s.factor_current = true;
+        s.timing.ms[kStageFactorization] += clock.lap();
+      }
+      substitute(s, s.solver, s.rhs.data(), du);
+      break;
+    case SolverPolicy::Lagged:
+      form_matrix(m, K, s.A.data());
+      if (m.solver.warp) update_node_rotations(m, s);
+      s.timing.ms[kStageAssembly] += clock.lap();
+      if (iteration == 0 || !s.factor_current) lagged_refresh(m, s, clock);
+      if (m.solver.warp) lagged_warp_rotations(m, s);
+      if (iteration == 0 || s.work.patch_key < 0) lagged_patch(m, s, s.A.data());
+      s.timing.ms[kStageFactorization] += clock.lap();
+      s.timing.factor_age = s.frame - s.work.front_frame;
+      s.timing.patch_dofs = static_cast<int>(s.work.patch_dof.size());
+      {
+        const auto precond = [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); };
+        const int rescue = m.solver.rescue_after;
+        const bool converged_before = s.timing.converged;
+        // The first Newton iteration's increment alternates in sign between
+        // frames (the trapezoidal rule's undamped sawtooth about the
+        // constant-velocity predictor): the last one, scaled, starts CG close.
+        auto& guess = s.work.guess;
+        const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
+        pcg(m, s, s.A.data(), s.rhs.data(), du, precond,
+            rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations, use_guess ? guess.data() : nullptr);
+        if (rescue > 0 && !s.timing.converged && rescue < m.solver.max_iterations) {
+          // The lagged factor is too far from A (fast large rotations): factor
+          // A now, synchronously (waiting for a running background job), and
+          // solve again with it, instead of hundreds of CG iterations.
+          s.timing.ms[kStageSolve] += clock.lap();
+          s.factor_current = false;
+          lagged_refresh(m, s, clock);
+          if (m.solver.warp) lagged_warp_rotations(m, s);
+          lagged_patch(m, s, s.A.data());
+          s.timing.ms[kStageFactorization] += clock.lap();
+          ++s.timing.rescues;
+          s.timing.converged = converged_before;
+          pcg(m, s, s.A.data(), s.rhs.data(), du, precond, m.solver.max_iterations);
+        }
+        if (iteration == 0 && m.solver.previous_guess) s.work.guess.assign(du, du + m.ndof());
+        break;
+      }
+    case SolverPolicy::Warped:
+      rest_factor(m, s, clock);
+      update_node_rotations(m, s);
+      warped_apply(m, s, s.rhs.data(), du);
+      break;
+    case SolverPolicy::WarpedCG:
+      rest_factor(m, s, clock);
+      form_matrix(m, K, s.A.data());
+      update_node_rotations(m, s);
+      s.timing.ms[kStageAssembly] += clock.lap();
+      {
+        auto& guess = s.work.guess;
+        const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
+        pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, s, r, z); },
+            m.solver.max_iterations, use_guess ? guess.data() : nullptr);
+        if (iteration == 0 && m.solver.previous_guess) guess.assign(du, du + m.ndof());
+        break;
+      }
+  }
+  s.timing.ms[kStageSolve] += clock.lap();
+}
+
+}  // namespace incise

@@ -1,0 +1,58 @@
+#pragma once
+// The linear solve of a Newton iteration, A du = rhs with A = 4/dt^2 M +
+// 2/dt D + K (projected), under the scene's solver.policy:
+//
+//   exact      numeric refactorization of the current A every iteration (reference)
+//   lagged     CG on the current A, preconditioned by the factor of an earlier
+//              frame's A: refreshed every solver.refresh_every frames, either
+//              in the step (synchronously) or, with solver.background, on a
+//              second thread whose factor is taken refresh_every frames after
+//              it was started (deterministic: replays give the same states);
+//              a cut keeps the factors (mapped onto the grown DOF set) and
+//              moves the new symbolic analysis into the next refresh
+//   warped     the factor of the REST matrix A0 = 4/dt^2 M + 2/dt D0 + K0
+//              with per-node rotations around the solve: du = Rn A0^-1 Rn^T rhs
+//              (exact when the mass is lumped and every element has the same
+//              rotation; no tangent is assembled)
+//   warped_cg  CG on the current A preconditioned by the warped solve
+//
+// Iterations, substitutions, the final CG residual and convergence go into
+// State::timing, so no policy is silent about what it did.
+#include <vector>
+
+#include "engine/model/model.h"
+#include "engine/dynamics/state.h"
+#include "engine/runtime/timing.h"
+
+namespace incise {
+
+// Worker pool, assembly plan, factor configuration and symbolic analysis, node
+// rotation adjacency. Called by init_state; call again after the Model changes
+// (a cut) before the next step. Invalidates the factor, except where
+// solver_carries_over_cuts() and the cut passes `dofnode_map` (new DOF node ->
+// old DOF node, -1 for a new one): then no analysis or factorization runs in
+// the cut frame; the lagged factors keep preconditioning through the map (an
+// exact solve on a patch around the DOFs they do not know) and the next
+// background job (or synchronous refresh) analyzes and factorizes the new pattern.
+// `plan`: make_assembly_plan(model, its solver.threads) made ahead (a cut's
+// helper thread), taken instead of making one here.
+void prepare_solver(const Model& model, State& state, const std::vector<int>* dofnode_map = nullptr,
+                    AssemblyPlan* plan = nullptr);
+
+// The lagged policy with a valid factor: a cut keeps it (see prepare_solver).
+bool solver_carries_over_cuts(const Model& model, const State& state);
+
+// Whether the policy needs the assembled corotated tangent K (warped does not).
+bool policy_needs_tangent(const Model& model);
+
+// du = A^-1 rhs (state.rhs -> state.du) for Newton iteration `iteration` of the
+// current frame; K is the tangent in the pattern (K0 for the linear model; may
+// be null for warped). Adds stage times to state.timing through `clock`.
+void solve_system(const Model& model, State& state, const double* K, int iteration, Stopwatch& clock);
+
+// Node rotations of the warped policies from the slot rotations in state.R:
+// the polar rotation of the volume-weighted sum of the incident slots' R;
+// identity on nodes with some but not all components constrained.
+void update_node_rotations(const Model& model, State& state);
+
+}  // namespace incise

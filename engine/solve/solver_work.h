@@ -1,0 +1,102 @@
+#pragma once
+// Run-time resources of the linear-solver policies and of parallel assembly,
+// held by State: the worker pool, the assembly plan, the second (background)
+// factor of the lagged policy, node rotations of the warped policies, and CG
+// vectors. Built by prepare_solver (engine/solve/linear_solve.h).
+#include <atomic>
+#include <exception>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "engine/fem/assemble_parallel.h"
+#include "engine/solve/cholmod_solver.h"
+#include "engine/runtime/helper_thread.h"
+#include "engine/runtime/thread_pool.h"
+
+namespace incise {
+
+struct SolverWork {
+  std::unique_ptr<ThreadPool> pool;
+  AssemblyPlan plan;
+  // solver.substitution_threads 2: the second thread of every substitution
+  // (set on both factor slots; engine/solve/split_substitution.h). Null with 1.
+  // Declared before `back` so that it outlives it; State's destructor takes
+  // it from State::solver (CholmodSolver::set_substitution_worker).
+  std::unique_ptr<SubstitutionWorker> substitution_worker;
+
+  // lagged: two factor slots (0 = State::solver, 1 = `back`). The
+  // front slot preconditions CG; the background job factorizes a copy of an
+  // earlier frame's matrix into another slot, which becomes the front when
+  // taken. A cut does not discard them: each slot keeps a map from the
+  // current DOFs to its own (slot_map, empty = identity), DOFs it does not
+  // know are solved by the patch below, and the next job analyzes the new
+  // pattern off the main thread (engine/solve/linear_solve.h).
+  CholmodSolver back;
+  int front = 0;              // slot preconditioning now
+  int front_frame = -1;       // frame whose matrix the front slot holds
+  int last_launch = -1;       // frame the last job started (or the last synchronous refresh)
+  int pattern = 0;            // epoch of the model's sparsity pattern (a carried-over cut bumps it)
+  int slot_pattern[2] = {-1, -1};      // epoch each slot was analyzed for
+  int slot_n[2] = {0, 0};              // size of that pattern (read here, never from a slot a job may be analyzing)
+  std::vector<int> slot_map[2];        // (ndof) slot DOF of each current DOF, -1 none; empty = identity
+  std::vector<double> A_back;          // (nnz of the job's pattern) the job's matrix
+  std::vector<int> job_Ap, job_Ai;     // the job's pattern when it must analyze it
+  // solver.cut_ordering "carried": the job derives its ordering from the front
+  // factor's (engine/solve/carried_ordering.h) instead of searching one; inputs copied
+  // at launch (empty job_old_perm: search).
+  std::vector<int> job_map, job_old_perm, job_enr_node;
+  int job_nnode = 0;
+  int pattern_frame = -1000000;        // frame a cut last changed the pattern (cutting goes on while it is this or the last frame)
+  bool slot_carried[2] = {false, false};  // that slot's analysis used a carried ordering: searched again once cutting pauses
+  bool job_analyze = false;
+  int job_slot = -1;
+  std::unique_ptr<HelperThread> job_thread;  // runs the jobs (created at the first, again if its settings change)
+  bool job_running = false;
+  std::atomic<bool> job_done{false};   // set by the job when it has finished (late_factor "skip" polls it)
+  int job_policy = -1;                 // the scheduling policy the last job ran at (SCHED_IDLE, SCHED_OTHER), set by it
+  int job_frame = -1;
+  std::exception_ptr job_error;
+  std::vector<double> t_slot;          // gather buffer of a mapped slot
+  std::vector<double> slot_Rn[2];      // (slot's DOF nodes, 9) node rotations when its matrix was taken (warp)
+  std::vector<double> Q;               // (ndofnode, 9) warp: Rn * slot_Rn^T of the front slot, this solve
+  // lagged after a cut, until a factor of the new pattern is taken: the DOFs
+  // the front factor does not know, with every DOF node of the elements that
+  // touch them, form a patch solved exactly (CHOLMOD, supernodal where BLAS
+  // may run beside the background job, else BLAS-free simplicial;
+  // refactored each frame), combined with the factor additively or
+  // multiplicatively (solver.patch_schwarz).
+  CholmodSolver patch;
+  std::vector<int> patch_dof;          // (np) global DOFs of the patch, sorted
+  std::vector<int> patch_src;          // (patch nnz) position in the global A of each patch entry
+  std::vector<double> patch_A, patch_r;
+  long long patch_key = -1;            // (pattern, front slot, front frame) it was built for
+  // Rows of A at the patch DOFs (every column), for the multiplicative
+  // combination: entry t is A[patch_row_k[t]] at (patch_dof[i], patch_row_col[t]).
+  std::vector<int> patch_row_ptr;      // (np + 1)
+  std::vector<int> patch_row_col, patch_row_k;
+  std::vector<double> ms_r, ms_z;      // (ndof) multiplicative Schwarz work
+
+  // warped: DOF node -> its elements; each element's volume-weighted sum of
+  // its slots' R (the slot's share of the element's volume) is summed once
+  // per frame and then per node.
+  std::vector<int> node_elem_ptr, node_elem;  // (ndofnode + 1), elements
+  std::vector<double> elem_S;                 // (nelem, 9) sum over the element's slots of vol/nslot R
+  std::vector<double> Rn;            // (ndofnode, 9) node rotations, column-major
+  std::vector<char> node_identity;   // (ndofnode) 1 where 1 or 2 components are constrained: R = I keeps the projection
+
+  std::vector<double> r, z, p, q, t;  // (ndof) CG work
+  // (ndof, or empty) CG's start for the next frame's first Newton iteration:
+  // this frame's first increment du (mapped through a cut; 0 on new DOFs).
+  std::vector<double> guess;
+
+  SolverWork() = default;
+  SolverWork(const SolverWork&) = delete;
+  SolverWork& operator=(const SolverWork&) = delete;
+  ~SolverWork() { wait_job(); }
+  void wait_job() {
+    if (job_thread) job_thread->wait();
+  }
+};
+
+}  // namespace incise

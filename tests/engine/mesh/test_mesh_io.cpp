@@ -1,0 +1,268 @@
+// Mesh readers and writers: samples in every format, round trips, errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "engine/util/error.h"
+#include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
+
+namespace incise {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string asset(const std::string& name) { return std::string(INCISE_SOURCE_DIR) + "/assets/meshes/" + name; }
+
+// A fresh folder per test, removed afterwards.
+class MeshIo : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() / ("incise_mesh_io_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string write(const std::string& name, const std::string& text) const {
+    std::ofstream(path(name)) << text;
+    return path(name);
+  }
+  fs::path dir_;
+};
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::string slurp(const std::string& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Coordinates of every element's nodes in element order: (ntet, npe, 3).
+// Independent of node numbering, so it compares meshes across formats.
+std::vector<double> element_coords(const Mesh& m) {
+  std::vector<double> out;
+  for (int n : m.tet) out.insert(out.end(), m.X.begin() + 3 * n, m.X.begin() + 3 * n + 3);
+  return out;
+}
+
+// Every mid-edge node sits at the average of its two corners (straight
+// meshes); a reader with a wrong tet10 permutation fails this.
+void expect_midpoints(const Mesh& m) {
+  ASSERT_EQ(m.order, 2);
+  for (int e = 0; e < m.ntet(); ++e)
+    for (int k = 0; k < 6; ++k)
+      for (int c = 0; c < 3; ++c) {
+        const int* t = &m.tet[10 * e];
+        double avg = 0.5 * (m.X[3 * t[kTet10Edge[k][0]] + c] + m.X[3 * t[kTet10Edge[k][1]] + c]);
+        EXPECT_DOUBLE_EQ(m.X[3 * t[4 + k] + c], avg) << m.source << " element " << e << " node " << 4 + k;
+      }
+}
+
+const std::vector<std::string> kTet4Samples = {
+    "box_tet4.vtk", "box_tet4_v51.vtk", "box_tet4.vtu",     "box_tet4_v22.msh", "box_tet4_v41.msh",
+    "box_tet4_sparse_v22.msh", "box_tet4.node", "box_tet4.ele", "box_tet4.inp"};
+const std::vector<std::string> kTet10Samples = {"box_tet10.vtk",     "box_tet10_classic.vtk", "box_tet10.vtu",
+                                                "box_tet10_v22.msh", "box_tet10_v41.msh",     "box_tet10.ele",
+                                                "box_tet10.inp"};
+
+TEST_F(MeshIo, EveryTet4SampleIsTheSameBox) {
+  const Mesh ref = read_mesh(asset("box_tet4.vtk"));
+  const auto ref_coords = element_coords(ref);
+  for (const auto& name : kTet4Samples) {
+    SCOPED_TRACE(name);
+    Mesh m = read_mesh(asset(name));
+    EXPECT_EQ(m.order, 1);
+    EXPECT_EQ(m.nnode(), 8);  // the sparse .msh has an unused 9th node, dropped
+    EXPECT_EQ(m.ntet(), 6);
+    EXPECT_NO_THROW(check_mesh(m));
+    EXPECT_NEAR(mesh_quality(m).total_volume, 1.0, 1e-14);
+    EXPECT_EQ(element_coords(m), ref_coords);
+  }
+}
+
+TEST_F(MeshIo, EveryTet10SampleIsTheSameBoxWithMidpointsInOurOrder) {
+  const Mesh ref = read_mesh(asset("box_tet10.vtk"));
+  const auto ref_coords = element_coords(ref);
+  for (const auto& name : kTet10Samples) {
+    SCOPED_TRACE(name);
+    Mesh m = read_mesh(asset(name));
+    EXPECT_EQ(m.order, 2);
+    EXPECT_EQ(m.nnode(), 27);
+    EXPECT_EQ(m.ntet(), 6);
+    EXPECT_NO_THROW(check_mesh(m));  // includes positive Jacobians at all 10 nodes
+    expect_midpoints(m);
+    EXPECT_NEAR(mesh_quality(m).total_volume, 1.0, 1e-14);
+    EXPECT_EQ(element_coords(m), ref_coords);
+  }
+}
+
+TEST_F(MeshIo, SparseGmshTagsMapToRowsInFileOrder) {
+  Mesh m = read_mesh(asset("box_tet4_sparse_v22.msh"));
+  // Nodes are listed in reverse: tag 152 (corner (2,1,0.5)) comes first.
+  EXPECT_EQ(m.X[0], 2.0);
+  EXPECT_EQ(m.X[1], 1.0);
+  EXPECT_EQ(m.X[2], 0.5);
+  // First tet is "5 8 32 152": the rows of those tags are 7, 6, 4, 0.
+  EXPECT_EQ(std::vector<int>(m.tet.begin(), m.tet.begin() + 4), (std::vector<int>{7, 6, 4, 0}));
+  EXPECT_EQ(m.source, asset("box_tet4_sparse_v22.msh"));
+}
+
+TEST_F(MeshIo, RoundTripIsExactInEveryWritableFormat) {
+  for (int order : {1, 2}) {
+    // Lengths that are not binary fractions, so printing precision matters.
+    Mesh m = make_beam(0.7, 0.3, 1.1, 3, 2, 5, order);
+    for (const char* ext : {".vtu", ".vtk", ".msh"}) {
+      SCOPED_TRACE(std::string(ext) + " order " + std::to_string(order));
+      const std::string p = path(std::string("beam") + ext);
+      write_mesh(m, p);
+      Mesh r = read_mesh(p);
+      EXPECT_EQ(r.order, m.order);
+      EXPECT_EQ(r.tet, m.tet);
+      ASSERT_EQ(r.X.size(), m.X.size());
+      for (size_t i = 0; i < m.X.size(); ++i) EXPECT_LE(std::abs(r.X[i] - m.X[i]), 1e-15 * std::abs(m.X[i]));
+    }
+  }
+}
+
+TEST_F(MeshIo, WritesLeaveNoTemporaryFiles) {
+  write_mesh(make_beam(1, 1, 1, 1, 1, 1, 1), path("a.vtu"));
+  write_mesh(make_beam(1, 1, 1, 1, 1, 1, 1), path("a.vtu"));  // overwrite
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir_)) names.push_back(e.path().filename().string());
+  EXPECT_EQ(names, std::vector<std::string>{"a.vtu"});
+}
+
+TEST_F(MeshIo, VtuFieldsAndPvdSeries) {
+  Mesh m = make_beam(1, 1, 1, 1, 1, 1, 2);
+  VtuGrid g;
+  g.points = m.X;
+  g.connectivity = m.tet;
+  for (int e = 0; e < m.ntet(); ++e) g.offsets.push_back(10 * (e + 1)), g.types.push_back(24);
+  g.point_data.push_back({"displacement", 3, std::vector<double>(m.X.size(), 0.25)});
+  g.cell_data.push_back({"stress<vm>", 1, std::vector<double>(m.ntet(), 1.5)});
+
+  PvdSeries series(path("out/run.pvd"));  // creates the folder
+  for (int step = 0; step < 3; ++step) series.add(step / 30.0, g);
+  ASSERT_EQ(series.files().size(), 3u);
+  EXPECT_EQ(series.files()[2], "run_000002.vtu");
+  const std::string pvd = slurp(path("out/run.pvd"));
+  EXPECT_NE(pvd.find("file=\"run_000000.vtu\""), std::string::npos);
+  EXPECT_NE(pvd.find("file=\"run_000002.vtu\""), std::string::npos);
+  EXPECT_NE(pvd.find("timestep=\"0.066666666666666666\""), std::string::npos);
+  const std::string vtu = slurp(path("out/run_000001.vtu"));
+  EXPECT_NE(vtu.find("Name=\"displacement\" NumberOfComponents=\"3\""), std::string::npos);
+  EXPECT_NE(vtu.find("Name=\"stress&lt;vm&gt;\""), std::string::npos);
+  Mesh r = read_mesh(path("out/run_000001.vtu"));  // fields are skipped by the reader
+  EXPECT_EQ(r.tet, m.tet);
+  EXPECT_EQ(r.X, m.X);
+}
+
+TEST_F(MeshIo, WriteVtuRejectsInconsistentGrids) {
+  VtuGrid g;
+  g.points = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  g.connectivity = {0, 1, 2, 4};
+  g.offsets = {4};
+  g.types = {10};
+  EXPECT_NE(error_of([&] { write_vtu(g, path("g.vtu")); }).find("only 4 points"), std::string::npos);
+  g.connectivity = {0, 1, 2, 3};
+  g.point_data.push_back({"u", 3, {1, 2, 3}});
+  EXPECT_NE(error_of([&] { write_vtu(g, path("g.vtu")); }).find("field 'u'"), std::string::npos);
+  EXPECT_FALSE(fs::exists(path("g.vtu")));
+}
+
+TEST_F(MeshIo, UnknownExtensionListsTheAllowedOnes) {
+  std::string e = error_of([] { read_mesh("liver.stl"); });
+  EXPECT_NE(e.find("liver.stl"), std::string::npos) << e;
+  for (const char* ext : {".msh", ".vtk", ".vtu", ".node", ".ele", ".inp"}) EXPECT_NE(e.find(ext), std::string::npos) << e;
+  e = error_of([&] { write_mesh(make_beam(1, 1, 1, 1, 1, 1, 1), path("x.inp")); });
+  EXPECT_NE(e.find(".vtu, .vtk, .msh"), std::string::npos) << e;
+}
+
+TEST_F(MeshIo, MissingFileIsNamed) {
+  std::string e = error_of([&] { read_mesh(path("nope.msh")); });
+  EXPECT_NE(e.find("nope.msh: cannot open"), std::string::npos) << e;
+}
+
+TEST_F(MeshIo, BinaryGmshIsRejectedClearly) {
+  std::string p = write("bin.msh", "$MeshFormat\n4.1 1 8\n\x01\0\0\0\n$EndMeshFormat\n");
+  EXPECT_NE(error_of([&] { read_mesh(p); }).find("bin.msh:2: binary .msh not supported, save as ASCII"), std::string::npos);
+}
+
+TEST_F(MeshIo, GmshUndefinedNodeNamesFileLineAndElement) {
+  std::string p = write("bad.msh",
+                        "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"
+                        "$EndNodes\n$Elements\n2\n1 4 0 1 2 3 4\n12 4 0 1 2 3 99\n$EndElements\n");
+  std::string e = error_of([&] { read_mesh(p); });
+  EXPECT_NE(e.find("bad.msh:14: element 12 references node 99"), std::string::npos) << e;
+  EXPECT_NE(e.find("4 nodes"), std::string::npos) << e;
+}
+
+TEST_F(MeshIo, GmshWithoutTetrahedraSaysWhatWasLookedFor) {
+  std::string p = write("surf.msh",
+                        "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 3 1 3\n2 1 0 3\n1\n2\n3\n0 0 0\n1 0 0\n0 1 0\n"
+                        "$EndNodes\n$Elements\n1 1 1 1\n2 1 2 1\n1 1 2 3\n$EndElements\n");
+  std::string e = error_of([&] { read_mesh(p); });
+  EXPECT_NE(e.find("surf.msh: no tetrahedra found"), std::string::npos) << e;
+  EXPECT_NE(e.find("types 4 (tet4) and 11 (tet10)"), std::string::npos) << e;
+}
+
+TEST_F(MeshIo, MalformedNumbersNameFileAndLine) {
+  std::string node = write("t.node", "4 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 x1 0\n4 0 0 1\n");
+  write("t.ele", "1 4 0\n1 1 2 3 4\n");
+  std::string e = error_of([&] { read_mesh(node); });
+  EXPECT_NE(e.find("t.node:4: expected a point coordinate (a number), got 'x1'"), std::string::npos) << e;
+
+  std::string inp = write("t.inp", "*NODE\n1, 0, 0, 0\n2, 1, 0, 0\n3, 0, 1, 0\n4, 0, 0, 1\n*ELEMENT, TYPE=C3D10\n1, 1, 2, 3, 4,\n*END STEP\n");
+  e = error_of([&] { read_mesh(inp); });
+  EXPECT_NE(e.find("t.inp:7: element 1 lists 4 nodes, but its type needs 10"), std::string::npos) << e;
+}
+
+TEST_F(MeshIo, NonFiniteCoordinatesAreRejected) {
+  std::string p = write("nan.vtk",
+                        "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n0 0 0\n1 0 0\n"
+                        "0 nan 0\n0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n");
+  std::string e = error_of([&] { read_mesh(p); });
+  EXPECT_NE(e.find("nan.vtk:8: a point coordinate is 'nan'"), std::string::npos) << e;
+}
+
+TEST_F(MeshIo, VtuWithBinaryDataNamesTheArray) {
+  std::string p = write("b.vtu",
+                        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\">\n<UnstructuredGrid>\n"
+                        "<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\">\n<Points>\n"
+                        "<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 0 0 0 1 0 0 0 1</DataArray>\n"
+                        "</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" format=\"appended\" offset=\"0\"/>\n"
+                        "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">_...</AppendedData>\n</VTKFile>\n");
+  std::string e = error_of([&] { read_mesh(p); });
+  EXPECT_NE(e.find("b.vtu:9: DataArray 'connectivity' has format=\"appended\""), std::string::npos) << e;
+}
+
+TEST_F(MeshIo, MixedTet4AndTet10IsAnError) {
+  std::string p = write("mix.vtk",
+                        "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 10 double\n"
+                        "0 0 0 1 0 0 0 1 0 0 0 1 .5 0 0 .5 .5 0 0 .5 0 0 0 .5 .5 0 .5 0 .5 .5\n"
+                        "CELLS 2 16\n4 0 1 2 3\n10 0 1 2 3 4 5 6 7 8 9\nCELL_TYPES 2\n10\n24\n");
+  std::string e = error_of([&] { read_mesh(p); });
+  EXPECT_NE(e.find("mix.vtk:9: cell 1 has 10 nodes but earlier tetrahedra have 4"), std::string::npos) << e;
+}
+
+}  // namespace
+}  // namespace incise

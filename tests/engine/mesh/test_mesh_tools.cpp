@@ -1,0 +1,200 @@
+// Beams, tet4 -> tet10, mesh quality and mesh checks.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <set>
+#include <string>
+#include <utility>
+
+#include "engine/util/error.h"
+#include "engine/mesh/mesh_tools.h"
+
+namespace incise {
+namespace {
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(MeshTools, BeamVolumeCountsAndEqualKuhnTets) {
+  const double lx = 0.7, ly = 0.3, lz = 1.1;
+  for (int order : {1, 2}) {
+    Mesh m = make_beam(lx, ly, lz, 3, 2, 4, order);
+    EXPECT_EQ(m.order, order);
+    EXPECT_EQ(m.ntet(), 6 * 3 * 2 * 4);
+    if (order == 1) {
+      EXPECT_EQ(m.nnode(), 4 * 3 * 5);
+    }
+    EXPECT_NO_THROW(check_mesh(m));
+    MeshQuality q = mesh_quality(m);
+    EXPECT_NEAR(q.total_volume, lx * ly * lz, 1e-14);
+    const double each = lx * ly * lz / m.ntet();  // Kuhn tets of a cell have equal volume
+    EXPECT_NEAR(q.min_volume, each, 1e-15);
+    EXPECT_NEAR(q.max_volume, each, 1e-15);
+  }
+  // Exactly the box corners, no rounding at the far end.
+  Mesh m = make_beam(lx, ly, lz, 3, 7, 9, 1);
+  EXPECT_EQ(*std::max_element(m.X.begin(), m.X.end()), lz);
+  EXPECT_EQ(m.X[3 * (m.nnode() - 1)], lx);
+  EXPECT_EQ(m.X[3 * (m.nnode() - 1) + 1], ly);
+}
+
+TEST(MeshTools, BeamIsConforming) {
+  const int nx = 3, ny = 2, nz = 2;
+  Mesh m = make_beam(1, 1, 1, nx, ny, nz, 1);
+  std::map<std::array<int, 3>, int> faces;  // sorted corner ids -> number of tets
+  for (int e = 0; e < m.ntet(); ++e)
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<int, 3> f;
+      for (int a = 0, k = 0; a < 4; ++a)
+        if (a != skip) f[k++] = m.tet[4 * e + a];
+      std::sort(f.begin(), f.end());
+      ++faces[f];
+    }
+  int boundary = 0;
+  for (const auto& [f, n] : faces) {
+    EXPECT_LE(n, 2);
+    boundary += n == 1;
+  }
+  // Each boundary square is two triangles; any hanging face would add more.
+  EXPECT_EQ(boundary, 2 * 2 * (nx * ny + ny * nz + nx * nz));
+}
+
+TEST(MeshTools, RaiseToTet10AddsOneSharedNodePerEdge) {
+  Mesh m = make_beam(2, 1, 1, 2, 2, 3, 1);
+  std::set<std::pair<int, int>> edges;
+  for (int e = 0; e < m.ntet(); ++e)
+    for (const auto& ed : kTet10Edge) {
+      int i = m.tet[4 * e + ed[0]], j = m.tet[4 * e + ed[1]];
+      edges.insert({std::min(i, j), std::max(i, j)});
+    }
+  Mesh q = raise_to_tet10(m);
+  EXPECT_EQ(q.order, 2);
+  EXPECT_EQ(q.nnode(), m.nnode() + static_cast<int>(edges.size()));
+  EXPECT_EQ(q.ntet(), m.ntet());
+  for (int e = 0; e < q.ntet(); ++e) {
+    for (int a = 0; a < 4; ++a) EXPECT_EQ(q.tet[10 * e + a], m.tet[4 * e + a]);
+    for (int k = 0; k < 6; ++k)
+      for (int c = 0; c < 3; ++c) {
+        int i = q.tet[10 * e + kTet10Edge[k][0]], j = q.tet[10 * e + kTet10Edge[k][1]];
+        EXPECT_EQ(q.X[3 * q.tet[10 * e + 4 + k] + c], 0.5 * (q.X[3 * i + c] + q.X[3 * j + c]));
+      }
+  }
+  EXPECT_NO_THROW(check_mesh(q));
+  // Already quadratic: unchanged.
+  Mesh again = raise_to_tet10(q);
+  EXPECT_EQ(again.tet, q.tet);
+  EXPECT_EQ(again.X, q.X);
+}
+
+// One tet10 whose nodes sit on the quadratic map phi(x) = x + a x^2 per
+// component, so the element reproduces phi exactly and
+// volume = integral of (1+2a x)(1+2a y)(1+2a z) over the unit tet.
+Mesh curved_tet10(double a) {
+  const double ref[10][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {.5, 0, 0},
+                             {.5, .5, 0}, {0, .5, 0}, {0, 0, .5}, {.5, 0, .5}, {0, .5, .5}};
+  Mesh m;
+  m.order = 2;
+  for (const auto& p : ref)
+    for (double x : p) m.X.push_back(x + a * x * x);
+  for (int i = 0; i < 10; ++i) m.tet.push_back(i);
+  return m;
+}
+
+TEST(MeshTools, Tet10VolumeIntegratesCurvedGeometryExactly) {
+  const double a = 0.2;
+  // 1/6 + 3a/12 + 4*3a^2/120 + 8a^3/720 (monomial integrals over the unit tet)
+  const double exact = 1.0 / 6 + 3 * a / 12 + 12 * a * a / 120 + 8 * a * a * a / 720;
+  MeshQuality q = mesh_quality(curved_tet10(a));
+  EXPECT_NEAR(q.total_volume, exact, 1e-15);
+  EXPECT_NO_THROW(check_mesh(curved_tet10(a)));
+}
+
+TEST(MeshTools, DihedralAnglesOfKuhnAndRegularTets) {
+  MeshQuality q = mesh_quality(make_beam(1, 1, 1, 2, 2, 2, 1));
+  EXPECT_NEAR(q.min_dihedral_deg, 45.0, 1e-12);
+  EXPECT_NEAR(q.max_dihedral_deg, 90.0, 1e-12);
+  EXPECT_GE(q.worst_tet, 0);
+
+  Mesh reg;
+  reg.X = {1, 1, 1, 1, -1, -1, -1, 1, -1, -1, -1, 1};
+  reg.tet = {0, 1, 2, 3};
+  if (mesh_quality(reg).min_volume < 0) std::swap(reg.tet[2], reg.tet[3]);
+  q = mesh_quality(reg);
+  const double expect = std::acos(1.0 / 3) * 180 / M_PI;  // 70.53 deg
+  EXPECT_NEAR(q.min_dihedral_deg, expect, 1e-12);
+  EXPECT_NEAR(q.max_dihedral_deg, expect, 1e-12);
+  EXPECT_NEAR(q.total_volume, 8.0 / 3, 1e-14);
+}
+
+TEST(MeshTools, WorstTetIsTheFlattestOne) {
+  Mesh m = make_beam(1, 1, 1, 1, 1, 1, 1);
+  m.X.insert(m.X.end(), {3, 0, 0, 4, 0, 0, 3.5, 1, 0, 3.5, 0.5, 0.05});  // a sliver-ish tet
+  m.tet.insert(m.tet.end(), {8, 9, 10, 11});
+  MeshQuality q = mesh_quality(m);
+  EXPECT_EQ(q.worst_tet, 6);
+  EXPECT_LT(q.min_dihedral_deg, 10.0);
+  const std::string text = format_quality(q);
+  EXPECT_NE(text.find("nodes 12, tetrahedra 7"), std::string::npos) << text;
+  EXPECT_NE(text.find("(element 6)"), std::string::npos) << text;
+}
+
+TEST(MeshTools, CheckMeshNamesTheInvertedElement) {
+  Mesh m = make_beam(1, 1, 1, 2, 1, 1, 1);
+  m.source = "beam.msh";
+  std::swap(m.tet[4 * 5 + 1], m.tet[4 * 5 + 2]);
+  std::string e = error_of([&] { check_mesh(m); });
+  EXPECT_EQ(e.rfind("beam.msh: element 5 (nodes ", 0), 0u) << e;
+  EXPECT_NE(e.find("<= 0: inverted or degenerate"), std::string::npos) << e;
+}
+
+TEST(MeshTools, CheckMeshRejectsDegenerateOutOfRangeAndNonFinite) {
+  Mesh m = make_beam(1, 1, 1, 1, 1, 1, 1);
+  Mesh flat = m;
+  flat.tet[4 * 2 + 3] = flat.tet[4 * 2 + 2];  // repeated node: zero volume
+  EXPECT_NE(error_of([&] { check_mesh(flat); }).find("element 2 (nodes"), std::string::npos);
+  Mesh range = m;
+  range.tet[4 * 3 + 1] = 8;
+  EXPECT_NE(error_of([&] { check_mesh(range); }).find("element 3 references node 8, but only 8 nodes are defined"),
+            std::string::npos);
+  Mesh inf = m;
+  inf.X[3 * 4 + 2] = INFINITY;
+  EXPECT_NE(error_of([&] { check_mesh(inf); }).find("node 4 has a non-finite coordinate"), std::string::npos);
+}
+
+TEST(MeshTools, CheckMeshCatchesMisplacedOrMisorderedMidNodes) {
+  Mesh m = make_beam(1, 1, 1, 1, 1, 1, 2);
+  // Mid node of edge (0,1) of element 0 pulled close to corner 0: the
+  // Jacobian turns negative at that corner.
+  Mesh moved = m;
+  const int* t = &moved.tet[0];
+  for (int c = 0; c < 3; ++c)
+    moved.X[3 * t[4] + c] = moved.X[3 * t[0] + c] + 0.1 * (moved.X[3 * t[1] + c] - moved.X[3 * t[0] + c]);
+  std::string e = error_of([&] { check_mesh(moved); });
+  EXPECT_NE(e.find("element 0 (nodes"), std::string::npos) << e;
+  EXPECT_NE(e.find("Jacobian determinant"), std::string::npos) << e;
+  // Gmsh's order read without the 8 <-> 9 swap.
+  Mesh swapped = m;
+  std::swap(swapped.tet[8], swapped.tet[9]);
+  e = error_of([&] { check_mesh(swapped); });
+  EXPECT_NE(e.find("element 0 (nodes"), std::string::npos) << e;
+}
+
+TEST(MeshTools, MakeBeamRejectsBadArguments) {
+  EXPECT_NE(error_of([] { make_beam(0, 1, 1, 1, 1, 1, 1); }).find("lengths must be positive"), std::string::npos);
+  EXPECT_NE(error_of([] { make_beam(1, 1, NAN, 1, 1, 1, 1); }).find("lengths must be positive"), std::string::npos);
+  EXPECT_NE(error_of([] { make_beam(1, 1, 1, 1, 0, 1, 1); }).find("cell counts"), std::string::npos);
+  EXPECT_NE(error_of([] { make_beam(1, 1, 1, 1, 1, 1, 3); }).find("order must be 1 or 2"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace incise

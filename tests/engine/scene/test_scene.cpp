@@ -1,0 +1,703 @@
+// Scene loader: a full scene's values and defaults, and one test per kind of
+// malformed input checking that the message names the file, the JSON path,
+// what is allowed and what was found.
+#include "engine/scene/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "engine/util/error.h"
+
+namespace fs = std::filesystem;
+using incise::Error;
+using incise::parse_scene;
+using incise::Scene;
+
+namespace {
+
+// A fresh folder per test (tests may run in parallel processes) holding
+// meshes/m.vtu and scenes/, so "../meshes/m.vtu" from a scene resolves.
+class SceneTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    auto stamp = std::chrono::steady_clock::now().time_since_epoch().count();
+    root_ = fs::temp_directory_path() /
+            ("incise_scene_test_" + std::to_string(rd()) + "_" + std::to_string(stamp));
+    fs::create_directories(root_ / "meshes");
+    fs::create_directories(root_ / "scenes");
+    std::ofstream(root_ / "meshes" / "m.vtu") << "placeholder\n";
+    scene_path_ = (root_ / "scenes" / "s.json").string();
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(root_, ec);
+  }
+
+  // A minimal valid scene with `extra` spliced in as further top-level keys.
+  static std::string minimal(const std::string& extra = "") {
+    std::string s = R"({"mesh": {"file": "../meshes/m.vtu"},
+      "material": {"young": 3000, "poisson": 0.45, "density": 1000})";
+    if (!extra.empty()) s += ", " + extra;
+    return s + "}";
+  }
+
+  // A scene with the material object replaced by `material`.
+  static std::string with_material(const std::string& material) {
+    return R"({"mesh": {"file": "../meshes/m.vtu"}, "material": )" + material + "}";
+  }
+
+  // The error message parse_scene throws for `text` (fails the test if none).
+  std::string error_of(const std::string& text) {
+    try {
+      parse_scene(text, scene_path_);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << "no error for:\n" << text;
+    return "";
+  }
+
+  // Checks the message is "<scene path>: <rest>" exactly.
+  void expect_error(const std::string& text, const std::string& rest) {
+    EXPECT_EQ(error_of(text), scene_path_ + ": " + rest);
+  }
+
+  // Checks the message starts with the scene path and contains `part`.
+  void expect_error_contains(const std::string& text, const std::string& part) {
+    std::string msg = error_of(text);
+    EXPECT_EQ(msg.rfind(scene_path_ + ": ", 0), 0u) << msg;
+    EXPECT_NE(msg.find(part), std::string::npos) << "message: " << msg << "\nexpected part: " << part;
+  }
+
+  fs::path root_;
+  std::string scene_path_;
+};
+
+std::string resolved(const fs::path& p) { return p.lexically_normal().string(); }
+
+}  // namespace
+
+// --- valid scenes ----------------------------------------------------------
+
+TEST_F(SceneTest, FullSceneParsesAllValues) {
+  const std::string text = R"({
+    "mesh": {"file": "../meshes/m.vtu", "order": 1},
+    "material": {"model": "linear", "rotation": "single", "young": 1e5, "poisson": -0.2,
+                 "density": 1.5, "rayleigh": {"mass": 0.1, "stiffness": 0.01}},
+    "mass": "consistent",
+    "gravity": [0, -9.81, 1.5],
+    "fixed": [
+      {"box": [[-1e-9, -1, -1], [1e-9, 1, 1]]},
+      {"plane": {"point": [0, 0, 0], "normal": [0, 0, 2]}},
+      {"nodes": [0, 5, 7]}
+    ],
+    "prescribed": [
+      {"nodes": [3], "displacement": {"x": 0.01, "z": -0.02}, "ramp": 0.5},
+      {"box": [[0, 0, 0], [1, 1, 1]], "displacement": {"y": 0}}
+    ],
+    "integrator": {"dt": 0.001, "newton_iterations": 3},
+    "solver": {"policy": "exact"},
+    "static": {"tolerance": 1e-6, "max_iterations": 20},
+    "run": {"frames": 90},
+    "output": {"dir": "../out", "every": 5, "vtu": false}
+  })";
+  Scene s = parse_scene(text, scene_path_);
+  EXPECT_EQ(s.path, scene_path_);
+  EXPECT_EQ(s.mesh_file, resolved(root_ / "meshes" / "m.vtu"));
+  EXPECT_EQ(s.order, 1);
+  EXPECT_EQ(s.material.model, incise::MaterialModel::Linear);
+  EXPECT_EQ(s.material.rotation, incise::RotationMode::Single);
+  EXPECT_DOUBLE_EQ(s.material.young, 1e5);
+  EXPECT_DOUBLE_EQ(s.material.poisson, -0.2);
+  EXPECT_DOUBLE_EQ(s.material.density, 1.5);
+  EXPECT_DOUBLE_EQ(s.material.rayleigh_mass, 0.1);
+  EXPECT_DOUBLE_EQ(s.material.rayleigh_stiffness, 0.01);
+  EXPECT_EQ(s.mass, incise::MassKind::Consistent);
+  EXPECT_EQ(s.gravity, (incise::Vec3{0, -9.81, 1.5}));
+
+  ASSERT_EQ(s.fixed.size(), 3u);
+  EXPECT_EQ(s.fixed[0].kind, incise::Region::Kind::Box);
+  EXPECT_EQ(s.fixed[0].lo, (incise::Vec3{-1e-9, -1, -1}));
+  EXPECT_EQ(s.fixed[0].hi, (incise::Vec3{1e-9, 1, 1}));
+  EXPECT_EQ(s.fixed[0].json_path, "fixed[0]");
+  EXPECT_EQ(s.fixed[1].kind, incise::Region::Kind::Plane);
+  EXPECT_EQ(s.fixed[1].point, (incise::Vec3{0, 0, 0}));
+  EXPECT_EQ(s.fixed[1].normal, (incise::Vec3{0, 0, 1}));  // scaled to unit length
+  EXPECT_EQ(s.fixed[2].kind, incise::Region::Kind::Nodes);
+  EXPECT_EQ(s.fixed[2].nodes, (std::vector<int>{0, 5, 7}));
+
+  ASSERT_EQ(s.prescribed.size(), 2u);
+  const auto& p0 = s.prescribed[0];
+  EXPECT_EQ(p0.region.kind, incise::Region::Kind::Nodes);
+  EXPECT_EQ(p0.region.json_path, "prescribed[0]");
+  EXPECT_EQ(p0.region.nodes, (std::vector<int>{3}));
+  EXPECT_EQ(p0.active, (std::array<bool, 3>{true, false, true}));
+  EXPECT_DOUBLE_EQ(p0.displacement[0], 0.01);
+  EXPECT_DOUBLE_EQ(p0.displacement[2], -0.02);
+  EXPECT_DOUBLE_EQ(p0.ramp, 0.5);
+  const auto& p1 = s.prescribed[1];
+  EXPECT_EQ(p1.region.kind, incise::Region::Kind::Box);
+  EXPECT_EQ(p1.active, (std::array<bool, 3>{false, true, false}));
+  EXPECT_DOUBLE_EQ(p1.ramp, 0.0);
+
+  EXPECT_DOUBLE_EQ(s.dt, 0.001);
+  EXPECT_EQ(s.newton_iterations, 3);
+  EXPECT_EQ(s.solver.policy, incise::SolverPolicy::Exact);
+  EXPECT_DOUBLE_EQ(s.static_tolerance, 1e-6);
+  EXPECT_EQ(s.static_max_iterations, 20);
+  EXPECT_EQ(s.frames, 90);
+  EXPECT_EQ(s.output.dir, resolved(root_ / "out"));
+  EXPECT_EQ(s.output.every, 5);
+  EXPECT_FALSE(s.output.write_vtu);
+}
+
+TEST_F(SceneTest, MinimalSceneGetsDefaults) {
+  Scene s = parse_scene(minimal(), scene_path_);
+  EXPECT_EQ(s.order, 2);
+  EXPECT_EQ(s.material.model, incise::MaterialModel::Corotated);
+  EXPECT_EQ(s.material.rotation, incise::RotationMode::PerPoint);
+  EXPECT_DOUBLE_EQ(s.material.young, 3000);
+  EXPECT_DOUBLE_EQ(s.material.poisson, 0.45);
+  EXPECT_DOUBLE_EQ(s.material.density, 1000);
+  EXPECT_EQ(s.material.rayleigh_mass, 0.0);
+  EXPECT_EQ(s.material.rayleigh_stiffness, 0.0);
+  EXPECT_EQ(s.mass, incise::MassKind::Lumped);
+  EXPECT_EQ(s.gravity, (incise::Vec3{0, 0, -9.81}));
+  EXPECT_TRUE(s.fixed.empty());
+  EXPECT_TRUE(s.prescribed.empty());
+  EXPECT_DOUBLE_EQ(s.dt, 1.0 / 30.0);
+  EXPECT_EQ(s.newton_iterations, 1);
+  EXPECT_EQ(s.solver.policy, incise::SolverPolicy::Exact);
+  EXPECT_DOUBLE_EQ(s.static_tolerance, 1e-8);
+  EXPECT_EQ(s.static_max_iterations, 50);
+  EXPECT_EQ(s.frames, 60);
+  EXPECT_EQ(s.output.dir, "");
+  EXPECT_EQ(s.output.every, 1);
+  EXPECT_TRUE(s.output.write_vtu);
+}
+
+TEST_F(SceneTest, IntegralFloatAcceptedAsInteger) {
+  Scene s = parse_scene(minimal(R"("run": {"frames": 30.0})"), scene_path_);
+  EXPECT_EQ(s.frames, 30);
+}
+
+TEST_F(SceneTest, AbsoluteMeshPathKept) {
+  std::string abs = (root_ / "meshes" / "m.vtu").string();
+  Scene s = parse_scene(R"({"mesh": {"file": ")" + abs +
+                            R"("}, "material": {"young": 1, "poisson": 0, "density": 1}})",
+                        scene_path_);
+  EXPECT_EQ(s.mesh_file, resolved(abs));
+}
+
+TEST_F(SceneTest, LoadSceneReadsFile) {
+  std::ofstream(scene_path_) << minimal(R"("run": {"frames": 7})");
+  Scene s = incise::load_scene(scene_path_);
+  EXPECT_EQ(s.frames, 7);
+  EXPECT_EQ(s.mesh_file, resolved(root_ / "meshes" / "m.vtu"));
+}
+
+// The bundled default scene loads as it ships (its real mesh included).
+TEST_F(SceneTest, BundledBeamGravitySceneIsValid) {
+  const std::string path = std::string(INCISE_SOURCE_DIR) + "/assets/scenes/beam_gravity.json";
+  Scene s = incise::load_scene(path);
+  EXPECT_TRUE(fs::exists(s.mesh_file)) << s.mesh_file;
+  EXPECT_EQ(s.order, 2);
+  EXPECT_EQ(s.material.model, incise::MaterialModel::Corotated);
+  ASSERT_EQ(s.fixed.size(), 1u);
+  EXPECT_NEAR(s.dt, 1.0 / 30.0, 1e-12);
+}
+
+// --- file-level errors -------------------------------------------------------
+
+TEST_F(SceneTest, MissingSceneFile) {
+  const std::string path = (root_ / "no_such.json").string();
+  try {
+    incise::load_scene(path);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), path + ": cannot open scene file");
+  }
+}
+
+TEST_F(SceneTest, InvalidJsonNamesFileAndPosition) {
+  std::string msg = error_of("{\"mesh\": {\"file\": \"a\"},\n \"material\" 3}");
+  EXPECT_EQ(msg.rfind(scene_path_ + ": invalid JSON at byte ", 0), 0u) << msg;
+  EXPECT_NE(msg.find("line 2"), std::string::npos) << msg;
+}
+
+TEST_F(SceneTest, NumberTooLargeRejected) {
+  expect_error_contains(with_material(R"({"young": 1e999, "poisson": 0.3, "density": 1})"),
+                        "invalid JSON");
+}
+
+TEST_F(SceneTest, TopLevelNotObject) {
+  expect_error("[1, 2]", "the scene must be a JSON object, got array [1,2]");
+}
+
+TEST_F(SceneTest, DuplicateKeyRejected) {
+  expect_error_contains(
+      with_material(R"({"young": 1, "young": 2, "poisson": 0.3, "density": 1})"),
+      "duplicate key \"young\"");
+}
+
+// --- mesh ----------------------------------------------------------------------
+
+TEST_F(SceneTest, MissingMeshFile) {
+  expect_error(R"({"mesh": {"order": 2}, "material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh.file: required key is missing (expected a mesh file path string)");
+}
+
+TEST_F(SceneTest, MissingMeshSection) {
+  expect_error(R"({"material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh: required key is missing (expected an object with file and order)");
+}
+
+TEST_F(SceneTest, MeshFileNotFound) {
+  expect_error(R"({"mesh": {"file": "../meshes/nope.vtu"},
+                  "material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh.file: file not found: " + resolved(root_ / "meshes" / "nope.vtu"));
+}
+
+TEST_F(SceneTest, MeshOrderMustBeOneOrTwo) {
+  expect_error(R"({"mesh": {"file": "../meshes/m.vtu", "order": 3},
+                  "material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh.order must be 1 or 2, got 3");
+}
+
+// --- material ------------------------------------------------------------------
+
+TEST_F(SceneTest, PoissonHalfRejected) {
+  expect_error(with_material(R"({"young": 3000, "poisson": 0.5, "density": 1000})"),
+               "material.poisson must be in (-1, 0.5), got 0.5");
+}
+
+TEST_F(SceneTest, PoissonMinusOneRejected) {
+  expect_error(with_material(R"({"young": 3000, "poisson": -1, "density": 1000})"),
+               "material.poisson must be in (-1, 0.5), got -1");
+}
+
+TEST_F(SceneTest, NegativeYoungRejected) {
+  expect_error(with_material(R"({"young": -5, "poisson": 0.3, "density": 1000})"),
+               "material.young must be > 0, got -5");
+}
+
+TEST_F(SceneTest, ZeroDensityRejected) {
+  expect_error(with_material(R"({"young": 5, "poisson": 0.3, "density": 0})"),
+               "material.density must be > 0, got 0");
+}
+
+TEST_F(SceneTest, MissingYoung) {
+  expect_error(with_material(R"({"poisson": 0.3, "density": 1000})"),
+               "material.young: required key is missing (expected a number > 0)");
+}
+
+TEST_F(SceneTest, StringWhereNumberExpected) {
+  expect_error(with_material(R"({"young": "3000", "poisson": 0.3, "density": 1000})"),
+               "material.young must be a number, got string \"3000\"");
+}
+
+TEST_F(SceneTest, NullWhereNumberExpected) {
+  expect_error(with_material(R"({"young": 1, "poisson": null, "density": 1000})"),
+               "material.poisson must be a number, got null");
+}
+
+TEST_F(SceneTest, NegativeRayleighRejected) {
+  expect_error(with_material(
+                   R"({"young": 1, "poisson": 0.3, "density": 1, "rayleigh": {"mass": -0.1}})"),
+               "material.rayleigh.mass must be >= 0, got -0.1");
+}
+
+TEST_F(SceneTest, BadEnumListsAllowedValues) {
+  expect_error(
+      with_material(R"({"model": "neohookean", "young": 1, "poisson": 0.3, "density": 1})"),
+      "material.model must be one of \"linear\", \"corotated\", got \"neohookean\"");
+  expect_error(
+      with_material(R"({"rotation": "polar", "young": 1, "poisson": 0.3, "density": 1})"),
+      "material.rotation must be one of \"per_point\", \"single\", got \"polar\"");
+  expect_error(minimal(R"("mass": "diagonal")"),
+               "mass must be one of \"lumped\", \"consistent\", got \"diagonal\"");
+}
+
+TEST_F(SceneTest, SolverPolicyListsAllowedValues) {
+  expect_error(minimal(R"("solver": {"policy": "cg"})"),
+               "solver.policy must be one of \"exact\", \"lagged\", \"warped\", \"warped_cg\", got \"cg\"");
+}
+
+TEST_F(SceneTest, SolverSettingsParsed) {
+  Scene s = parse_scene(minimal(R"("solver": {"policy": "lagged", "refresh_every": 4, "background": true,
+      "tolerance": 1e-7, "max_iterations": 30, "threads": 1, "factorization": "simplicial", "ordering": "metis"})"),
+                        scene_path_);
+  EXPECT_EQ(s.solver.policy, incise::SolverPolicy::Lagged);
+  EXPECT_EQ(s.solver.refresh_every, 4);
+  EXPECT_TRUE(s.solver.background);
+  EXPECT_DOUBLE_EQ(s.solver.tolerance, 1e-7);
+  EXPECT_EQ(s.solver.max_iterations, 30);
+  EXPECT_EQ(s.solver.threads, 1);
+  EXPECT_EQ(s.solver.factor, incise::FactorMethod::Simplicial);
+  EXPECT_EQ(s.solver.ordering, incise::OrderingMethod::Metis);
+  Scene w = parse_scene(minimal(R"("solver": {"policy": "warped_cg", "tolerance": 1e-3})"), scene_path_);
+  EXPECT_EQ(w.solver.policy, incise::SolverPolicy::WarpedCG);
+  EXPECT_EQ(w.solver.threads, 2);
+}
+
+TEST_F(SceneTest, SolverSettingsChecked) {
+  expect_error(minimal(R"("solver": {"policy": "lagged", "refresh_every": 0})"),
+               "solver.refresh_every must be an integer >= 1, got 0");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "tolerance": 1.5})"),
+               "solver.tolerance must be in (0, 1), got 1.5");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "tolerance": 0})"), "solver.tolerance must be > 0, got 0");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "background": 1})"),
+               "solver.background must be a boolean (true or false), got number 1");
+  expect_error(minimal(R"("solver": {"threads": 0})"), "solver.threads must be an integer >= 1, got 0");
+  expect_error(minimal(R"("solver": {"threads": 65})"), "solver.threads must be an integer in [1, 64], got 65");
+  expect_error(minimal(R"("solver": {"ordering": "nesdis"})"),
+               "solver.ordering must be one of \"auto\", \"amd\", \"metis\", got \"nesdis\"");
+  expect_error(minimal(R"("solver": {"factorization": "dense"})"),
+               "solver.factorization must be one of \"auto\", \"supernodal\", \"simplicial\", got \"dense\"");
+  expect_error(minimal(R"("solver": {"policy": "exact", "tolerance": 1e-6})"),
+               "solver.tolerance: only used by the iterative policies \"lagged\" and \"warped_cg\"; "
+               "solver.policy is \"exact\"");
+  expect_error(minimal(R"("solver": {"policy": "warped", "refresh_every": 3})"),
+               "solver.refresh_every: only used by solver.policy \"lagged\"; solver.policy is \"warped\"");
+  expect_error_contains(minimal(R"("solver": {"polcy": "exact"})"), "did you mean \"policy\"?");
+}
+
+// --- unknown keys and types ----------------------------------------------------
+
+TEST_F(SceneTest, UnknownTopLevelKey) {
+  expect_error(minimal(R"("materal": {})"),
+               "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
+               "prescribed, integrator, solver, static, run, output, cuts, render; did you mean "
+               "\"material\"?");
+}
+
+TEST_F(SceneTest, UnknownNestedKey) {
+  expect_error_contains(with_material(R"({"young": 1, "poisson": 0.3, "density": 1, "yung": 2})"),
+                        "material.yung: unknown key; allowed: model, rotation, young, poisson, "
+                        "density, rayleigh");
+  expect_error_contains(minimal(R"("integrator": {"dt": 0.01, "substeps": 2})"),
+                        "integrator.substeps: unknown key; allowed: dt, newton_iterations");
+}
+
+TEST_F(SceneTest, WrongTypeForSection) {
+  expect_error(minimal(R"("integrator": [0.01])"),
+               "integrator must be an object, got array [0.01]");
+  expect_error(minimal(R"("output": {"vtu": "yes"})"),
+               "output.vtu must be a boolean (true or false), got string \"yes\"");
+  expect_error(minimal(R"("fixed": {"box": []})"),
+               "fixed must be an array, got object {\"box\":[]}");
+}
+
+TEST_F(SceneTest, GravityNeedsThreeNumbers) {
+  expect_error(minimal(R"("gravity": [0, -9.81])"),
+               "gravity must be an array of 3 numbers [x, y, z], got array of 2 values");
+  expect_error(minimal(R"("gravity": [0, 0, "g"])"),
+               "gravity[2] must be a number, got string \"g\"");
+}
+
+// --- regions -------------------------------------------------------------------
+
+TEST_F(SceneTest, BoxMinGreaterThanMax) {
+  expect_error(minimal(R"("fixed": [{"nodes": [1]}, {"box": [[0, 0, 1], [1, 1, 0]]}])"),
+               "fixed[1].box: min must be <= max in each component; got z min 1 > max 0");
+}
+
+TEST_F(SceneTest, BoxWrongShape) {
+  expect_error(minimal(R"("fixed": [{"box": [[0, 0, 0]]}])"),
+               "fixed[0].box must be [[xmin, ymin, zmin], [xmax, ymax, zmax]], got array of "
+               "1 values");
+  expect_error(minimal(R"("fixed": [{"nodes": [1]}, {"box": [[0, 0, 0], [1, 1, true]]}])"),
+               "fixed[1].box[1][2] must be a number, got boolean true");
+}
+
+TEST_F(SceneTest, PlaneNormalZero) {
+  expect_error(minimal(R"("fixed": [{"plane": {"point": [0, 0, 0], "normal": [0, 0, 0]}}])"),
+               "fixed[0].plane.normal must be a nonzero vector, got [0,0,0]");
+}
+
+TEST_F(SceneTest, PlaneMissingPoint) {
+  expect_error(minimal(R"("fixed": [{"plane": {"normal": [1, 0, 0]}}])"),
+               "fixed[0].plane.point: required key is missing (expected [x, y, z])");
+}
+
+TEST_F(SceneTest, NodesMustBeNonNegativeIntegers) {
+  expect_error(minimal(R"("fixed": [{"nodes": [0, -3]}])"),
+               "fixed[0].nodes[1] must be a non-negative node id (0-based), got -3");
+  expect_error(minimal(R"("fixed": [{"nodes": [0, 1.5]}])"),
+               "fixed[0].nodes[1] must be an integer, got 1.5");
+  expect_error(minimal(R"("fixed": [{"nodes": []}])"),
+               "fixed[0].nodes must list at least one node id, got []");
+}
+
+TEST_F(SceneTest, RegionNeedsExactlyOneKind) {
+  expect_error(minimal(R"("fixed": [{}])"),
+               "fixed[0]: needs exactly one of box, plane, nodes; got none");
+  expect_error(minimal(R"("fixed": [{"nodes": [1], "box": [[0,0,0],[1,1,1]]}])"),
+               "fixed[0]: needs exactly one of box, plane, nodes; got box and nodes");
+  expect_error(minimal(R"("fixed": [{"nodes": [1], "displacement": {"x": 1}}])"),
+               "fixed[0].displacement: unknown key; allowed: box, plane, nodes");
+}
+
+TEST_F(SceneTest, PrescribedNeedsAComponent) {
+  expect_error(minimal(R"("prescribed": [{"nodes": [1], "displacement": {}}])"),
+               "prescribed[0].displacement: needs at least one of x, y, z (an absent "
+               "component stays free), got {}");
+  expect_error(minimal(R"("prescribed": [{"nodes": [1]}])"),
+               "prescribed[0].displacement: required key is missing (expected an object with "
+               "x, y and/or z)");
+  expect_error(minimal(R"("prescribed": [{"nodes": [1], "displacement": {"w": 1}}])"),
+               "prescribed[0].displacement.w: unknown key; allowed: x, y, z");
+}
+
+TEST_F(SceneTest, PrescribedNegativeRamp) {
+  expect_error(minimal(R"("prescribed": [{"nodes": [1], "displacement": {"x": 1}, "ramp": -1}])"),
+               "prescribed[0].ramp must be >= 0, got -1");
+}
+
+// --- integrator, static, run, output --------------------------------------------
+
+TEST_F(SceneTest, NewtonIterationsZero) {
+  expect_error(minimal(R"("integrator": {"newton_iterations": 0})"),
+               "integrator.newton_iterations must be an integer >= 1, got 0");
+}
+
+TEST_F(SceneTest, DtMustBePositiveAndAtMostOne) {
+  expect_error(minimal(R"("integrator": {"dt": 0})"),
+               "integrator.dt must be in (0, 1] seconds, got 0");
+  expect_error(minimal(R"("integrator": {"dt": -0.01})"),
+               "integrator.dt must be in (0, 1] seconds, got -0.01");
+  expect_error(minimal(R"("integrator": {"dt": 2})"),
+               "integrator.dt must be in (0, 1] seconds, got 2");
+}
+
+TEST_F(SceneTest, StaticSettingsChecked) {
+  expect_error(minimal(R"("static": {"tolerance": 0})"), "static.tolerance must be > 0, got 0");
+  expect_error(minimal(R"("static": {"max_iterations": 0})"),
+               "static.max_iterations must be an integer >= 1, got 0");
+}
+
+TEST_F(SceneTest, RunAndOutputChecked) {
+  expect_error(minimal(R"("run": {"frames": 0})"), "run.frames must be an integer >= 1, got 0");
+  expect_error(minimal(R"("output": {"every": 0})"),
+               "output.every must be an integer >= 1, got 0");
+  expect_error(minimal(R"("output": {"dir": ""})"),
+               "output.dir must be a non-empty string, got \"\"");
+}
+
+TEST_F(SceneTest, CutsParseWithDefaultsAndResolvedFiles) {
+  std::ofstream(root_ / "meshes" / "cut.obj") << "v 0 0 0\n";
+  const Scene s = parse_scene(minimal(R"("cuts": [
+      {"type": "plane", "point": [1, 0, 0], "normal": [2, 0, 0]},
+      {"type": "polygon", "points": [[0,0,0],[1,0,0],[1,1,0]], "at_time": 0.5},
+      {"type": "mesh", "file": "../meshes/cut.obj"},
+      {"type": "swept", "edge_start": [[0,0,1],[0,1,1]], "edge_end": [[0,0,0],[0,1,0]], "duration": 2}])"),
+                              scene_path_);
+  ASSERT_EQ(s.cuts.size(), 4u);
+  EXPECT_EQ(s.cuts[0].type, incise::CutSpec::Type::Plane);
+  EXPECT_DOUBLE_EQ(s.cuts[0].normal[0], 1.0);  // normalised
+  EXPECT_DOUBLE_EQ(s.cuts[1].at_time, 0.5);
+  EXPECT_EQ(s.cuts[2].file, resolved(root_ / "meshes" / "cut.obj"));
+  EXPECT_DOUBLE_EQ(s.cuts[3].duration, 2.0);
+  EXPECT_EQ(s.cuts[3].json_path, "cuts[3]");
+}
+
+TEST_F(SceneTest, CutErrorsNameThePathAndWhatIsAllowed) {
+  expect_error(minimal(R"("cuts": [{"type": "knife"}])"),
+               R"(cuts[0].type must be one of "plane", "polygon", "mesh", "swept", got "knife")");
+  expect_error(minimal(R"("cuts": [{"type": "plane", "point": [0,0,0], "normal": [0,0,0]}])"),
+               "cuts[0].normal must be a nonzero vector, got [0,0,0]");
+  expect_error(minimal(R"("cuts": [{"type": "polygon", "points": [[0,0,0],[1,0,0]]}])"),
+               "cuts[0].points must list at least 3 points, got 2");
+  expect_error_contains(minimal(R"("cuts": [{"type": "mesh", "file": "nope.obj"}])"), "cuts[0].file: file not found:");
+  expect_error(minimal(R"("cuts": [{"type": "plane", "point": [0,0,0], "normal": [1,0,0], "at_time": -1}])"),
+               "cuts[0].at_time must be >= 0, got -1");
+  expect_error_contains(minimal(R"("cuts": [{"type": "swept", "edge_start": [[0,0,0]], "edge_end": [[0,0,0],[1,1,1]]}])"),
+                        "cuts[0].edge_start must be two points");
+  expect_error_contains(minimal(R"("cuts": [{"type": "plane", "point": [0,0,0], "normal": [1,0,0], "pointt": 1}])"),
+                        "cuts[0].pointt: unknown key");
+}
+
+// --- render ---------------------------------------------------------------------
+
+TEST_F(SceneTest, RenderDefaultsWhenAbsent) {
+  Scene s = parse_scene(minimal(), scene_path_);
+  EXPECT_EQ(s.render.width, 640);
+  EXPECT_EQ(s.render.height, 480);
+  EXPECT_EQ(s.render.subdivision, 2);
+  EXPECT_FALSE(s.render.camera_position.has_value());
+  EXPECT_FALSE(s.render.camera_target.has_value());
+  EXPECT_FALSE(s.render.light_direction.has_value());
+  EXPECT_DOUBLE_EQ(s.render.fov_deg, 30.0);
+}
+
+TEST_F(SceneTest, RenderFullSection) {
+  Scene s = parse_scene(minimal(R"("render": {"width": 320, "height": 240, "subdivision": 4,
+      "camera": {"position": [1, -5, 2], "target": [1, 0, 0], "up": [0, 0, 2], "fov_deg": 40},
+      "light": {"direction": [0, 0, -3], "ambient": 0.1},
+      "colors": {"tissue": [1, 0.5, 0.5], "interior": [0.5, 0, 0], "background": [0, 0, 0], "instrument": [0.2, 0.2, 0.2]}})"),
+                        scene_path_);
+  EXPECT_EQ(s.render.width, 320);
+  EXPECT_EQ(s.render.height, 240);
+  EXPECT_EQ(s.render.subdivision, 4);
+  EXPECT_EQ(*s.render.camera_position, (incise::Vec3{1, -5, 2}));
+  EXPECT_EQ(*s.render.camera_target, (incise::Vec3{1, 0, 0}));
+  EXPECT_EQ(s.render.camera_up, (incise::Vec3{0, 0, 1}));  // normalised
+  EXPECT_EQ(*s.render.light_direction, (incise::Vec3{0, 0, -1}));
+  EXPECT_DOUBLE_EQ(s.render.ambient, 0.1);
+  EXPECT_DOUBLE_EQ(s.render.fov_deg, 40.0);
+  EXPECT_EQ(s.render.color_interior, (incise::Vec3{0.5, 0, 0}));
+  EXPECT_EQ(s.render.color_background, (incise::Vec3{0, 0, 0}));
+}
+
+TEST_F(SceneTest, RenderErrorsNamePathAndAllowed) {
+  expect_error(minimal(R"("render": {"width": 8})"), "render.width must be an integer in [16, 8192], got 8");
+  expect_error(minimal(R"("render": {"subdivision": 1})"), "render.subdivision must be an integer in [2, 16], got 1");
+  expect_error(minimal(R"("render": {"camera": {"fov_deg": 180}})"),
+               "render.camera.fov_deg must be in (0, 180) degrees, got 180");
+  expect_error(minimal(R"("render": {"camera": {"up": [0, 0, 0]}})"),
+               "render.camera.up must be a nonzero vector, got [0,0,0]");
+  expect_error(minimal(R"("render": {"camera": {"position": [0, 0, 5], "target": [0, 0, 0]}})"),
+               "render.camera.up must not be parallel to the viewing direction target - position");
+  expect_error(minimal(R"("render": {"camera": {"position": [1, 2, 3], "target": [1, 2, 3]}})"),
+               "render.camera.target must differ from camera.position, got [1,2,3]");
+  expect_error(minimal(R"("render": {"colors": {"tissue": [1, 2, 0]}})"),
+               "render.colors.tissue[1] must be in [0, 1] (colours are [r, g, b] in [0, 1]), got 2");
+  expect_error(minimal(R"("render": {"light": {"ambient": -0.5}})"), "render.light.ambient must be in [0, 1], got -0.5");
+  expect_error(minimal(R"("render": {"colors": {"tisue": [1, 1, 1]}})"),
+               "render.colors.tisue: unknown key; allowed: tissue, interior, background, instrument; did you mean "
+               "\"tissue\"?");
+  expect_error(minimal(R"("render": {"camera": {"position": "auto"}})"),
+               "render.camera.position must be an array of 3 numbers [x, y, z], got string \"auto\"");
+  expect_error(minimal(R"("render": [])"), "render must be an object, got array []");
+}
+
+TEST_F(SceneTest, AdaptiveNewtonKeys) {
+  const Scene s = parse_scene(minimal(R"("integrator": {"newton_iterations": 2, "max_newton_iterations": 6, "rotation_tolerance": 0.05})"),
+                              scene_path_);
+  EXPECT_EQ(s.newton_iterations, 2);
+  EXPECT_EQ(s.max_newton_iterations, 6);
+  EXPECT_DOUBLE_EQ(s.rotation_tolerance, 0.05);
+  expect_error(minimal(R"("integrator": {"rotation_tolerance": -1})"), "integrator.rotation_tolerance must be >= 0, got -1");
+  expect_error(minimal(R"("integrator": {"max_newton_iterations": 0})"),
+               "integrator.max_newton_iterations must be an integer >= 1, got 0");
+}
+
+TEST_F(SceneTest, TangentReuseKey) {
+  EXPECT_DOUBLE_EQ(parse_scene(minimal(R"("integrator": {})"), scene_path_).tangent_reuse, 0.0);
+  EXPECT_DOUBLE_EQ(parse_scene(minimal(R"("integrator": {"tangent_reuse": 0.003})"), scene_path_).tangent_reuse, 0.003);
+  expect_error(minimal(R"("integrator": {"tangent_reuse": 0.5})"),
+               "integrator.tangent_reuse must be in [0, 0.5) (a change of the deformation gradient; 0 = off), got 0.5");
+  expect_error(minimal(R"("integrator": {"tangent_reuse": -1})"), "integrator.tangent_reuse must be >= 0, got -1");
+}
+
+TEST_F(SceneTest, SubstitutionThreadsKey) {
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.substitution_threads, 1);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"substitution_threads": 2})"), scene_path_).solver.substitution_threads, 2);
+  expect_error(minimal(R"("solver": {"substitution_threads": 3})"), "solver.substitution_threads must be 1 or 2, got 3");
+  expect_error(minimal(R"("solver": {"substitution_threads": 0})"),
+               "solver.substitution_threads must be an integer >= 1, got 0");
+}
+
+TEST_F(SceneTest, FactorCopyKeyAndItsOlderSwitch) {
+  using incise::FactorCopy;
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.factor_copy, FactorCopy::Float);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half"})"), scene_path_).solver.factor_copy,
+            FactorCopy::Half);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_copy": "none"})"), scene_path_).solver.factor_copy,
+            FactorCopy::None);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "single_precision": false})"), scene_path_).solver.factor_copy,
+            FactorCopy::None);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "single_precision": true})"), scene_path_).solver.factor_copy,
+            FactorCopy::Float);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "factor_copy": "bfloat16"})"),
+                        R"(solver.factor_copy must be one of "none", "float", "half")");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half", "single_precision": true})"),
+               R"(solver.factor_copy: give either factor_copy or single_precision (the older switch between "float" and "none"), not both)");
+  expect_error(minimal(R"("solver": {"factor_copy": "half"})"),
+               R"(solver.factor_copy: only used by solver.policy "lagged"; solver.policy is "exact")");
+}
+
+TEST_F(SceneTest, InitialGuessKey) {
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.previous_guess);
+  EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "warped_cg", "initial_guess": "zero"})"), scene_path_)
+                   .solver.previous_guess);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "initial_guess": "last"})"),
+                        R"(solver.initial_guess must be one of "zero", "previous")");
+  expect_error(minimal(R"("solver": {"initial_guess": "zero"})"),
+               R"(solver.initial_guess: only used by the iterative policies "lagged" and "warped_cg"; solver.policy is "exact")");
+}
+
+TEST_F(SceneTest, AffinityKey) {
+  EXPECT_FALSE(parse_scene(minimal(""), scene_path_).solver.split_affinity);
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"affinity": "split"})"), scene_path_).solver.split_affinity);
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "affinity": "split"})"), scene_path_).solver.split_affinity);
+  expect_error_contains(minimal(R"("solver": {"affinity": "pinned"})"), R"(solver.affinity must be one of "none", "split")");
+}
+
+TEST_F(SceneTest, FactorPrecisionKey) {
+  EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.single_factorization);
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_precision": "single"})"), scene_path_)
+                  .solver.single_factorization);
+  EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_precision": "double"})"), scene_path_)
+                   .solver.single_factorization);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "factor_precision": "half"})"),
+                        R"(solver.factor_precision must be one of "double", "single")");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half", "factor_precision": "single"})"),
+               R"(solver.factor_precision: "single" factors straight into the float copy, so solver.factor_copy must be "float" (the default), not "half")");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "factor_precision": "single", "factorization": "simplicial"})"),
+               R"(solver.factor_precision: "single" factors supernodes; solver.factorization "simplicial" has none (use "supernodal" or "auto"))");
+  expect_error(minimal(R"("solver": {"factor_precision": "single"})"),
+               R"(solver.factor_precision: only used by solver.policy "lagged"; solver.policy is "exact")");
+}
+
+TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
+  Scene s = parse_scene(minimal(R"("integrator": {"tangent": "consistent", "newmark_gamma": 0.6})"), scene_path_);
+  EXPECT_TRUE(s.consistent_tangent);
+  EXPECT_DOUBLE_EQ(s.newmark_gamma, 0.6);
+  EXPECT_DOUBLE_EQ(s.newmark_beta, 0.3025);  // (gamma + 1/2)^2 / 4
+  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "background": true, "rescue_after": 20, "late_factor": "skip"})"),
+                  scene_path_);
+  EXPECT_EQ(s.solver.rescue_after, 20);
+  EXPECT_TRUE(s.solver.skip_late_factor);
+  expect_error(minimal(R"("integrator": {"tangent": "exact"})"),
+               "integrator.tangent must be one of \"frozen_rotation\", \"consistent\", got \"exact\"");
+  expect_error(minimal(R"("integrator": {"newmark_gamma": 0.4})"),
+               "integrator.newmark_gamma must be in [0.5, 1] (0.5 = no numerical damping), got 0.4");
+  expect_error(minimal(R"("integrator": {"newmark_gamma": 0.6, "newmark_beta": 0.25})"),
+               "integrator.newmark_beta must be in [newmark_gamma / 2, 1] (unconditionally stable), got 0.25");
+  expect_error(minimal(R"("solver": {"rescue_after": 5})"),
+               "solver.rescue_after: only used by solver.policy \"lagged\"; solver.policy is \"exact\"");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "rescue_after": -1})"),
+               "solver.rescue_after must be an integer >= 0, got -1");
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "late_factor": "sometimes"})"),
+                        "solver.late_factor must be one of \"wait\", \"skip\"");
+  // The lagged policy's two-valued string keys: default (true), the other
+  // value (false), a bad value, and the key under another policy.
+  struct Choice {
+    const char* key;
+    bool incise::SolverSettings::*field;
+    const char* other;
+    const char* allowed;
+  };
+  for (const Choice& c : {Choice{"patch", &incise::SolverSettings::multiplicative_patch, "additive", R"("additive", "multiplicative")"},
+                          Choice{"cut_ordering", &incise::SolverSettings::carry_ordering, "search", R"("search", "carried")"},
+                          Choice{"background_priority", &incise::SolverSettings::idle_background, "normal", R"("normal", "idle")"}}) {
+    const std::string key = c.key;
+    EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.*c.field) << key;
+    const std::string other = "\"" + key + "\": \"" + c.other + "\"";
+    EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged", )" + other + "}"), scene_path_).solver.*c.field)
+        << key;
+    expect_error_contains(minimal(R"("solver": {"policy": "lagged", ")" + key + R"(": "neither"})"),
+                          "solver." + key + " must be one of " + c.allowed);
+    expect_error(minimal(R"("solver": {)" + other + "}"),
+                 "solver." + key + R"(: only used by solver.policy "lagged"; solver.policy is "exact")");
+  }
+}

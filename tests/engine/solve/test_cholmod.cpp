@@ -1,0 +1,167 @@
+// CHOLMOD wrapper: solves against a dense reference, reuses the symbolic
+// analysis across values, refuses indefinite matrices with a clear message.
+#include <dlfcn.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <thread>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include "engine/fem/assemble.h"
+#include "engine/solve/cholmod_solver.h"
+#include "engine/util/error.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/model/model.h"
+#include "tests/engine/test_util.h"
+
+namespace incise {
+namespace {
+
+// Upper triangle of a dense matrix in compressed columns (all entries kept).
+void upper_csc(const Eigen::MatrixXd& A, std::vector<int>& p, std::vector<int>& i, std::vector<double>& x) {
+  p.assign(1, 0);
+  i.clear();
+  x.clear();
+  for (int c = 0; c < A.cols(); ++c) {
+    for (int r = 0; r <= c; ++r)
+      if (A(r, c) != 0.0 || r == c) {
+        i.push_back(r);
+        x.push_back(A(r, c));
+      }
+    p.push_back(static_cast<int>(i.size()));
+  }
+}
+
+TEST(Cholmod, SolvesLikeADenseCholeskyAndReusesTheAnalysis) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(-1, 1);
+  const int n = 40;
+  Eigen::MatrixXd B(n, n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) B(r, c) = std::abs(r - c) < 4 ? U(rng) : 0.0;  // banded
+  Eigen::MatrixXd A = B * B.transpose() + n * Eigen::MatrixXd::Identity(n, n);
+  std::vector<int> p, i;
+  std::vector<double> x;
+  upper_csc(A, p, i, x);
+  CholmodSolver s;
+  s.analyze(n, p, i);
+  for (int round = 0; round < 2; ++round) {  // second round: new values, same pattern
+    s.factorize(x.data());
+    Eigen::VectorXd b = Eigen::VectorXd::Random(n), sol(n);
+    s.solve(b.data(), sol.data());
+    const Eigen::VectorXd ref = A.llt().solve(b);
+    EXPECT_LT((sol - ref).norm(), 1e-12 * ref.norm());
+    for (double& v : x) v *= 2.0;
+    A *= 2.0;
+  }
+  EXPECT_GT(s.stats().nnz_L, 0.0);
+  EXPECT_GT(s.stats().flops, 0.0);
+}
+
+TEST(Cholmod, IndefiniteMatrixIsAnErrorNamingThePivot) {
+  Eigen::MatrixXd A(3, 3);
+  A << 4, 0, 0, 0, 1, 2, 0, 2, 1;  // eigenvalues 4, 3, -1
+  std::vector<int> p, i;
+  std::vector<double> x;
+  upper_csc(A, p, i, x);
+  CholmodSolver s;
+  s.analyze(3, p, i);
+  try {
+    s.factorize(x.data());
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("not positive definite"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(s.factorized());
+  EXPECT_THROW(s.solve(x.data(), x.data()), Error);
+}
+
+int threads_of_this_process() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& t : std::filesystem::directory_iterator("/proc/self/task")) ++n;
+  return n;
+}
+
+// Debian's CHOLMOD runs parts of the supernodal factorization in OpenMP teams
+// of a size fixed at its compile time (4), ignoring OMP_NUM_THREADS; on a
+// 2-core machine those threads took the stepping thread's core and made the
+// factorization itself 2.5x slower. CholmodSolver makes OpenMP regions run on
+// the thread that enters them: a factorization starts no thread.
+TEST(Cholmod, SupernodalFactorizationStartsNoThreads) {
+  const Model m = build_model(make_beam(1.0, 0.25, 0.25, 12, 3, 3, 1), test::basic_scene(2));
+  std::vector<double> A = m.K0_csc;
+  for (int d = 0; d < m.ndof(); ++d) A[m.diag[d]] += 1e3 * m.mass_lumped[d] + 1.0;  // SPD without supports
+  const int before = threads_of_this_process();
+  CholmodSolver f;
+  f.configure(FactorMethod::Supernodal, OrderingMethod::Metis);
+  f.analyze(m.ndof(), m.Ap, m.Ai);
+  for (int k = 0; k < 2; ++k) f.factorize(A.data());
+  EXPECT_GT(m.ndof(), 2000);
+  EXPECT_TRUE(f.stats().supernodal);
+  EXPECT_EQ(threads_of_this_process(), before) << "CHOLMOD started threads (OpenMP teams)";
+  // The same on another thread (the setting is per thread): the lagged
+  // policy's background job. Only that thread itself may be added.
+  int during = 0;
+  std::thread job([&] {
+    f.factorize(A.data());
+    during = threads_of_this_process();
+  });
+  job.join();
+  EXPECT_EQ(during, before + 1) << "the background factorization started threads (OpenMP teams)";
+  // The setting holds for CHOLMOD's calls only: the caller's own OpenMP
+  // setting is as it was.
+  if (auto get = reinterpret_cast<int (*)()>(dlsym(RTLD_DEFAULT, "omp_get_max_active_levels"))) {
+    const int levels = get();
+    f.factorize(A.data());
+    EXPECT_EQ(get(), levels);
+    EXPECT_GT(levels, 0);
+  }
+}
+
+// Two supernodal (BLAS) factorizations on two threads at once, as the lagged
+// policy's patch on the stepping thread runs beside the background job. With
+// Debian's serial OpenBLAS 0.3.21 78-94 of these 460 rounds gave a wrong
+// factor; with the pthread build (what tools/scripts/install-deps.sh
+// installs) none. blas_concurrency_safe() tells the engine which it has; where
+// it says safe, every round must be exact.
+TEST(Cholmod, ConcurrentSupernodalFactorizationsAreExactWhereBlasIsSafe) {
+  if (!blas_concurrency_safe())
+    GTEST_SKIP() << "this BLAS is not safe for concurrent calls: the engine keeps BLAS on one thread at a time";
+  const Model big = test::tissue_beam(12, 3), small = test::tissue_beam(8, 2);
+  std::atomic<int> wrong{0}, rounds{0};
+  auto work = [&](const Model& m, int count) {
+    const std::vector<double> A = test::system_matrix(m, 3600.0);
+    const int n = m.ndof();
+    const std::vector<double> b = test::random_vector(n, 3);
+    CholmodSolver f;
+    f.configure(FactorMethod::Supernodal, OrderingMethod::Amd);
+    f.analyze(n, m.Ap, m.Ai);
+    std::vector<double> x(n), r(n);
+    for (int k = 0; k < count; ++k, ++rounds) {
+      try {
+        f.factorize(A.data());
+      } catch (const Error&) {  // "not positive definite": a corrupted factorization
+        ++wrong;
+        continue;
+      }
+      f.solve(b.data(), x.data());
+      sym_matvec(m, A.data(), x.data(), r.data());
+      double rn = 0, bn = 0;
+      for (int d = 0; d < n; ++d) rn += (r[d] - b[d]) * (r[d] - b[d]), bn += b[d] * b[d];
+      if (!(std::sqrt(rn / bn) < 1e-9)) ++wrong;
+    }
+  };
+  std::thread a([&] { work(big, 40); }), c([&] { work(small, 250); });
+  a.join();
+  c.join();
+  EXPECT_EQ(rounds.load(), 290);
+  EXPECT_EQ(wrong.load(), 0) << "of " << rounds.load() << " concurrent factorizations";
+}
+
+}  // namespace
+}  // namespace incise

@@ -1,0 +1,390 @@
+// Solver policies (issue 4): warped is exact where it should be, every
+// iterative policy converges to the exact trajectory as its tolerance
+// tightens, and the background factorization is deterministic.
+#include <sched.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "engine/solve/linear_solve.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/dynamics/state.h"
+#include "engine/dynamics/step.h"
+#include "tests/engine/test_util.h"
+
+namespace incise {
+namespace {
+
+// A free body (no constraints), rigidly rotated by Q, released under gravity:
+// every slot has rotation Q, so A = cM M + Q K0 Q^T = Q A0 Q^T with lumped mass.
+std::vector<double> rigid_step(SolverPolicy policy, int order, RotationMode rot) {
+  const Mesh mesh = make_beam(1.0, 0.4, 0.3, 3, 2, 2, 1);
+  Scene s = test::basic_scene(order, MaterialModel::Corotated, rot);
+  s.gravity = {0.3, -0.2, -9.81};
+  s.material.rayleigh_stiffness = 0.01;
+  s.material.rayleigh_mass = 0.5;
+  s.solver.policy = policy;
+  const Model m = build_model(mesh, s);
+  State st;
+  init_state(m, st);
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(1.2, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  for (int n = 0; n < m.nnode; ++n) {
+    const Eigen::Vector3d X(m.X[3 * n], m.X[3 * n + 1], m.X[3 * n + 2]);
+    const Eigen::Vector3d x = Q * X;
+    for (int d = 0; d < 3; ++d) {
+      st.u[3 * n + d] = x[d] - X[d];
+      st.v[3 * n + d] = 0.1 * (d + 1);  // a rigid translation velocity
+    }
+  }
+  step(m, st);
+  return st.u;
+}
+
+TEST(SolverPolicies, WarpedIsExactForARigidRotationWithLumpedMass) {
+  for (int order : {1, 2})
+    for (RotationMode rot : {RotationMode::PerPoint, RotationMode::Single}) {
+      if (order == 1 && rot == RotationMode::Single) continue;
+      const auto exact = rigid_step(SolverPolicy::Exact, order, rot);
+      const auto warped = rigid_step(SolverPolicy::Warped, order, rot);
+      EXPECT_LT(test::rel_diff(warped, exact), 1e-12) << "order " << order;
+    }
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+// The own BLAS-free supernodal substitution equals cholmod_solve2.
+TEST(SolverPolicies, OwnSupernodalSubstitutionMatchesCholmod) {
+  const Mesh mesh = make_beam(2.0, 0.5, 0.5, 8, 2, 2, 1);
+  Scene s = test::basic_scene(2);
+  s.fixed.push_back(test::box_region({-1, -1, -1}, {0, 2, 2}));
+  const Model m = build_model(mesh, s);
+  for (FactorMethod method : {FactorMethod::Supernodal, FactorMethod::Simplicial}) {
+    CholmodSolver solver;
+    solver.configure(method, OrderingMethod::Auto);
+    solver.analyze(m.ndof(), m.Ap, m.Ai);
+    std::vector<double> A = m.K0_csc;
+    for (int d = 0; d < m.ndof(); ++d) A[m.diag[d]] += 1e3 * m.mass_lumped[d];
+    solver.factorize(A.data());
+    EXPECT_EQ(solver.stats().supernodal, method == FactorMethod::Supernodal);
+    std::vector<double> b(m.ndof()), x1(m.ndof()), x2(m.ndof());
+    for (int d = 0; d < m.ndof(); ++d) b[d] = std::sin(0.37 * d) + 0.1;
+    solver.solve(b.data(), x1.data());
+    solver.solve_cholmod(b.data(), x2.data());
+    EXPECT_LT(test::rel_diff(x1, x2), 1e-12);
+  }
+}
+
+}  // namespace
+}  // namespace incise
+
+#include "engine/fem/assemble.h"
+#include "engine/fem/assemble_parallel.h"
+
+namespace incise {
+namespace {
+
+// A small swinging cantilever: clamped at x = 0, the free end prescribed to
+// move through a large arc while gravity acts (a miniature of
+// assets/scenes/swing_beam.json).
+Scene swing_scene(SolverSettings solver) {
+  Scene s = test::swing_scene();
+  s.rotation_tolerance = 0.0;  // one linearised solve per frame: the counts below are per solve
+  s.solver = solver;
+  return s;
+}
+
+std::vector<double> run_swing(const SolverSettings& solver, int frames, std::vector<int>* iterations = nullptr) {
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  const Model m = build_model(mesh, swing_scene(solver));
+  State st;
+  init_state(m, st);
+  for (int k = 0; k < frames; ++k) {
+    step(m, st);
+    if (iterations) iterations->push_back(st.timing.iterations);
+  }
+  return st.u;
+}
+
+TEST(SolverPolicies, IterativePoliciesConvergeToExactAsToleranceTightens) {
+  const int frames = 30;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  struct Case {
+    const char* name;
+    SolverSettings s;
+  };
+  std::vector<Case> cases;
+  {
+    SolverSettings s;
+    s.policy = SolverPolicy::Lagged;
+    s.refresh_every = 4;
+    cases.push_back({"lagged refresh 4", s});
+    s.factor_copy = FactorCopy::Half;  // the coarser preconditioner converges all the same
+    cases.push_back({"lagged refresh 4, half copy", s});
+    s.factor_copy = FactorCopy::Float;
+    s.background = true;
+    s.refresh_every = 2;
+    cases.push_back({"lagged background refresh 2", s});
+    s.single_factorization = true;  // factored in float (engine/solve/single_factor.h)
+    cases.push_back({"lagged background refresh 2, single-precision factorization", s});
+    SolverSettings w;
+    w.policy = SolverPolicy::WarpedCG;
+    cases.push_back({"warped_cg", w});
+  }
+  for (auto c : cases) {
+    c.s.max_iterations = 500;
+    double prev = 1e300;
+    for (double tol : {1e-2, 1e-4, 1e-6, 1e-8, 1e-10}) {
+      c.s.tolerance = tol;
+      std::vector<int> its;
+      const double err = test::rel_diff(run_swing(c.s, frames, &its), exact);
+      if (tol == 1e-2) {
+        EXPECT_GT(err, 1e-8) << c.name << ": the loosest tolerance should show an error";
+      }
+      EXPECT_LT(err, prev * 1.0000001 + 1e-13) << c.name << " tolerance " << tol;
+      prev = err;
+      int total = 0;
+      for (int i : its) total += i;
+      EXPECT_GT(total, 0) << c.name;
+    }
+    EXPECT_LT(prev, 1e-8) << c.name << " at the tightest tolerance";
+  }
+}
+
+TEST(SolverPolicies, WarpedIsExactForTheLinearMaterial) {
+  SolverSettings w;
+  w.policy = SolverPolicy::Warped;
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  Scene se = swing_scene(SolverSettings{}), sw = swing_scene(w);
+  se.material.model = sw.material.model = MaterialModel::Linear;
+  const Model me = build_model(mesh, se), mw = build_model(mesh, sw);
+  State a, b;
+  init_state(me, a);
+  init_state(mw, b);
+  for (int k = 0; k < 20; ++k) {
+    step(me, a);
+    step(mw, b);
+  }
+  EXPECT_LT(test::rel_diff(b.u, a.u), 1e-13);
+}
+
+TEST(SolverPolicies, WarpedAloneIsReportedAsOneSubstitutionAndNoIterations) {
+  SolverSettings w;
+  w.policy = SolverPolicy::Warped;
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  const Model m = build_model(mesh, swing_scene(w));
+  State st;
+  init_state(m, st);
+  step(m, st);
+  step(m, st);
+  EXPECT_EQ(st.timing.solves, 1);
+  EXPECT_EQ(st.timing.iterations, 0);
+  EXPECT_EQ(st.refactorizations, 1) << "the rest factor is computed once";
+}
+
+TEST(SolverPolicies, BackgroundFactorizationIsDeterministic) {
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.background = true;
+  s.tolerance = 1e-5;
+  const auto a = run_swing(s, 20), b = run_swing(s, 20);
+  EXPECT_EQ(a, b) << "the factor started k frames ago is always the one used";
+}
+
+// solver.background_priority: with late_factor "skip" the background job runs
+// at SCHED_IDLE by default (the stepping thread, the cut helper and a haptic
+// thread come first) and at the normal policy when asked; with "wait" the
+// step blocks on the job, so it keeps the normal policy either way.
+TEST(SolverPolicies, BackgroundJobRunsAtIdlePriorityOnlyWhenTheStepNeverWaitsForIt) {
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  for (bool skip : {true, false})
+    for (bool idle : {true, false}) {
+      SolverSettings solver;
+      solver.policy = SolverPolicy::Lagged;
+      solver.background = true;
+      solver.refresh_every = 2;
+      solver.tolerance = 1e-6;
+      solver.skip_late_factor = skip;
+      solver.idle_background = idle;
+      const Model m = build_model(mesh, swing_scene(solver));
+      State st;
+      init_state(m, st);
+      for (int k = 0; k < 8; ++k) step(m, st);
+      st.work.wait_job();
+      EXPECT_EQ(st.work.job_policy, idle && skip ? SCHED_IDLE : SCHED_OTHER)
+          << (idle ? "idle" : "normal") << ", late_factor " << (skip ? "skip" : "wait");
+    }
+}
+
+TEST(SolverPolicies, SkippingLateFactorsStaysWithinTheCgTolerance) {
+  // late_factor "skip" takes a background factor whenever it is ready, so
+  // which factor preconditions a frame depends on timing; the result must
+  // still be exact to the CG tolerance.
+  const int frames = 20;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.background = true;
+  s.skip_late_factor = true;
+  s.refresh_every = 2;
+  s.tolerance = 1e-10;
+  s.max_iterations = 500;
+  EXPECT_LT(test::rel_diff(run_swing(s, frames), exact), 1e-8);
+}
+
+TEST(SolverPolicies, LaggedRefreshEveryFrameIsOneIterationPerFrame) {
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.refresh_every = 1;
+  std::vector<int> its;
+  run_swing(s, 10, &its);
+  for (int i : its) EXPECT_EQ(i, 1);
+}
+
+// solver.initial_guess "previous": CG starts from the last frame's first
+// increment scaled to the best fit. It never starts above |b| (the frames
+// it helps start below 1), saves iterations over a swinging run at the same
+// tolerance, and both starts reach the same trajectory within it.
+TEST(SolverPolicies, PreviousIncrementStartSavesIterationsAndKeepsTheTrajectory) {
+  const int frames = 30;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  for (SolverPolicy policy : {SolverPolicy::Lagged, SolverPolicy::WarpedCG}) {
+    SolverSettings s;
+    s.policy = policy;
+    s.refresh_every = 4;
+    s.tolerance = 1e-4;
+    s.max_iterations = 500;
+    int total[2] = {0, 0};
+    std::vector<double> u[2];
+    for (int g = 0; g < 2; ++g) {
+      s.previous_guess = g == 1;
+      const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+      const Model m = build_model(mesh, swing_scene(s));
+      State st;
+      init_state(m, st);
+      int helped = 0;
+      for (int k = 0; k < frames; ++k) {
+        step(m, st);
+        total[g] += st.timing.iterations;
+        EXPECT_LE(st.timing.start_residual, 1.0);
+        helped += st.timing.start_residual < 1.0;
+        EXPECT_TRUE(st.timing.converged);
+      }
+      if (g == 0) {
+        EXPECT_EQ(helped, 0) << "no start but zero without the guess";
+      } else {
+        EXPECT_GE(helped, frames / 2) << policy_name(policy);
+      }
+      u[g] = st.u;
+    }
+    std::printf("[ %s: %d CG iterations from zero, %d from the last increment ]\n", policy_name(policy), total[0], total[1]);
+    EXPECT_LT(total[1], total[0]) << policy_name(policy);
+    // Both within the tolerance's reach of exact (errors ~1e-5 at 1e-4).
+    EXPECT_LT(test::rel_diff(u[0], exact), 1e-3) << policy_name(policy);
+    EXPECT_LT(test::rel_diff(u[1], exact), 1e-3) << policy_name(policy);
+  }
+}
+
+TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
+  // A factor refreshed every 50 frames is far from the swinging beam's
+  // matrix: CG needs many iterations. With rescue_after = 3 a frame that has
+  // not converged after 3 iterations factors its matrix and finishes with it,
+  // so no frame takes more than 3 + 1 iterations per Newton iteration, and the
+  // trajectory matches exact to the CG tolerance.
+  const int frames = 20;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.refresh_every = 50;
+  s.tolerance = 1e-10;
+  s.max_iterations = 500;
+  std::vector<int> slow;
+  const auto lagged = run_swing(s, frames, &slow);
+  s.rescue_after = 3;
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  const Model m = build_model(mesh, swing_scene(s));
+  State st;
+  init_state(m, st);
+  int rescues = 0, worst = 0;
+  for (int k = 0; k < frames; ++k) {
+    step(m, st);
+    rescues += st.timing.rescues;
+    worst = std::max(worst, st.timing.iterations / std::max(1, st.newton_iterations_done));
+    EXPECT_TRUE(st.timing.converged) << "frame " << k;
+  }
+  EXPECT_GT(*std::max_element(slow.begin(), slow.end()), 10) << "without rescue CG must struggle";
+  EXPECT_GT(rescues, 0);
+  EXPECT_LE(worst, 3 + 2) << "3 stalled iterations, then 1-2 with the fresh factor";
+  EXPECT_LT(test::rel_diff(st.u, exact), 1e-8);
+  EXPECT_LT(test::rel_diff(lagged, exact), 1e-8);
+}
+
+// Parallel fused assembly equals the serial reference (assemble_internal +
+// update_rotations) for tet4, tet10 and tet10SR, for 1, 2 and 3 workers, with
+// the frozen-rotation and the consistent tangent (its rotation term: dense
+// rank-1 updates per point in the parallel path, block passes in the serial
+// one; per element for tet10SR).
+TEST(SolverPolicies, ParallelAssemblyMatchesSerial) {
+  for (int order : {1, 2})
+    for (RotationMode rot : {RotationMode::PerPoint, RotationMode::Single})
+    for (bool consistent : {false, true}) {
+      if (order == 1 && rot == RotationMode::Single) continue;
+      const Mesh mesh = make_beam(2.0, 0.5, 0.4, 7, 3, 2, 1);
+      Scene scene = test::basic_scene(order, MaterialModel::Corotated, rot);
+      scene.consistent_tangent = consistent;
+      const Model m = build_model(mesh, scene);
+      std::vector<double> u(m.ndof());
+      for (int n = 0; n < m.nnode; ++n) {  // a bend plus a twist: large, varied rotations
+        const double x = m.X[3 * n], y = m.X[3 * n + 1], z = m.X[3 * n + 2];
+        u[3 * n] = -0.3 * x * z + 0.01 * std::sin(7 * y);
+        u[3 * n + 1] = 0.4 * x * z - 0.02 * y;
+        u[3 * n + 2] = 0.5 * x * x - 0.4 * x * y + 0.01 * std::cos(5 * z);
+      }
+      std::vector<double> R0(9 * m.nrot, 0.0), f0(m.ndof()), K0(m.nnz());
+      for (int r = 0; r < m.nrot; ++r) R0[9 * r] = R0[9 * r + 4] = R0[9 * r + 8] = 1.0;
+      std::vector<double> Rs = R0;
+      update_rotations(m, u.data(), Rs.data());
+      assemble_internal(m, u.data(), Rs.data(), f0.data(), K0.data());
+      double fn = 0, kn = 0;
+      for (double v : f0) fn = std::max(fn, std::abs(v));
+      for (double v : K0) kn = std::max(kn, std::abs(v));
+      for (int threads : {1, 2, 3}) {
+        ThreadPool pool(threads);
+        AssemblyPlan plan = make_assembly_plan(m, threads);
+        if (threads > 1) {
+          EXPECT_GT(plan.nseparators(), 0);
+        }
+        std::vector<double> R = R0, f(m.ndof()), K(m.nnz());
+        assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), K.data());
+        double df = 0, dk = 0, dr = 0;
+        for (int d = 0; d < m.ndof(); ++d) df = std::max(df, std::abs(f[d] - f0[d]));
+        for (int k = 0; k < m.nnz(); ++k) dk = std::max(dk, std::abs(K[k] - K0[k]));
+        for (size_t k = 0; k < R.size(); ++k) dr = std::max(dr, std::abs(R[k] - Rs[k]));
+        EXPECT_LT(df, 1e-14 * fn) << "order " << order << " threads " << threads;
+        EXPECT_LT(dk, 1e-14 * kn) << "order " << order << " threads " << threads;
+        EXPECT_LT(dr, 1e-14) << "order " << order << " threads " << threads;
+        // Matrix-free K v and the parallel sym_matvec agree with the assembled K.
+        std::vector<double> v(m.ndof()), y1(m.ndof()), y2(m.ndof()), y3(m.ndof());
+        for (int d = 0; d < m.ndof(); ++d) v[d] = std::cos(0.3 * d);
+        sym_matvec(m, K0.data(), v.data(), y1.data());
+        stiffness_matvec(m, plan, pool, R.data(), v.data(), y2.data());
+        sym_matvec_parallel(m, plan, pool, K0.data(), v.data(), y3.data());
+        // The matrix-free product is the frozen-R R K0 R^T: the assembled K
+        // equals it with the frozen-rotation tangent.
+        if (!consistent) {
+          EXPECT_LT(test::rel_diff(y2, y1), 1e-13);
+        }
+        EXPECT_LT(test::rel_diff(y3, y1), 1e-14);
+      }
+    }
+}
+
+}  // namespace
+}  // namespace incise

@@ -1,0 +1,262 @@
+// Substitutions on two threads (engine/solve/split_substitution.h): the split of a
+// tet10 beam factor covers every supernode once with independent bins, and
+// the two-thread solve equals the one-thread solve (double, float and binary16
+// factors) to roundoff, in place too, over many repeated calls.
+#include <atomic>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "engine/solve/cholmod_solver.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/solve/split_substitution.h"
+#include "tests/engine/test_util.h"
+
+namespace incise {
+namespace {
+
+using test::random_vector;
+
+Model beam(int nx, int nyz) { return test::tissue_beam(nx, nyz); }
+std::vector<double> system_matrix(const Model& m) { return test::system_matrix(m, 3600.0); }
+
+// (The bins' independence shows in TwoThreadSolveEqualsOneThreadSolve: a
+// supernode whose ancestor sat in the other bin would read a stale row.)
+TEST(SplitSubstitution, SplitCoversEverySupernodeOnceAndIsBalanced) {
+  const Model m = beam(14, 4);
+  CholmodSolver f;
+  f.analyze(m.ndof(), m.Ap, m.Ai);
+  const SubstitutionSplit& sp = f.substitution_split();
+  ASSERT_TRUE(sp.valid());
+  EXPECT_GE(sp.balance, 0.9);  // the stopping rule
+  EXPECT_LT(sp.top_share, 0.5);
+  std::vector<int> owner;  // supernode -> 0, 1 (bins) or 2 (top)
+  int nsuper = 0;
+  for (int k = 0; k < 2; ++k)
+    for (const auto& r : sp.bins[k]) nsuper = std::max(nsuper, r.second + 1);
+  for (int t : sp.top) nsuper = std::max(nsuper, t + 1);
+  owner.assign(nsuper, -1);
+  for (int k = 0; k < 2; ++k)
+    for (const auto& r : sp.bins[k]) {
+      ASSERT_LE(r.first, r.second);
+      for (int s = r.first; s <= r.second; ++s) {
+        EXPECT_EQ(owner[s], -1) << "supernode " << s << " twice";
+        owner[s] = k;
+      }
+    }
+  for (int t : sp.top) {
+    EXPECT_EQ(owner[t], -1) << "supernode " << t << " twice";
+    owner[t] = 2;
+  }
+  for (int s = 0; s < nsuper; ++s) EXPECT_NE(owner[s], -1) << "supernode " << s << " in no part";
+  // The top's columns are those the split lists.
+  EXPECT_FALSE(sp.top_cols.empty());
+  EXPECT_LT(static_cast<int>(sp.top_cols.size()), m.ndof() / 2);
+  for (size_t i = 1; i < sp.top_cols.size(); ++i) EXPECT_LT(sp.top_cols[i - 1], sp.top_cols[i]);
+}
+
+// The two-thread result against the one-thread one for each stored precision.
+TEST(SplitSubstitution, TwoThreadSolveEqualsOneThreadSolve) {
+  const Model m = beam(14, 4);
+  const int n = m.ndof();
+  const std::vector<double> A = system_matrix(m);
+  SubstitutionWorker worker;
+  for (FactorCopy copy : {FactorCopy::None, FactorCopy::Float, FactorCopy::Half}) {
+    SCOPED_TRACE(static_cast<int>(copy));
+    CholmodSolver one, two;
+    for (CholmodSolver* f : {&one, &two}) {
+      f->set_factor_copy(copy);
+      f->analyze(n, m.Ap, m.Ai);
+      f->factorize(A.data());
+    }
+    two.set_substitution_worker(&worker);
+    ASSERT_TRUE(two.substitutes_on_two_threads());
+    EXPECT_FALSE(one.substitutes_on_two_threads());
+    for (unsigned seed = 1; seed <= 3; ++seed) {
+      const std::vector<double> b = random_vector(n, seed);
+      std::vector<double> x1(n), x2(n), xa = b;
+      one.solve_copy(b.data(), x1.data());
+      const int takeovers = two.stats().takeovers;
+      two.solve_copy(b.data(), x2.data());
+      two.solve_copy(xa.data(), xa.data());  // in place
+      // Only the top rows' sums are reordered: roundoff of the stored precision's solve.
+      EXPECT_LT(test::rel_diff(x2, x1), 1e-13);
+      if (two.stats().takeovers == takeovers)  // (a bin taken over on a loaded machine sums in another order)
+        EXPECT_EQ(xa, x2) << "DBG takeovers " << two.stats().takeovers << " split " << two.stats().split_substitutions << " rel " << test::rel_diff(xa, x2);
+      else
+        EXPECT_LT(test::rel_diff(xa, x2), 1e-13);
+    }
+    std::vector<double> xd1(n), xd2(n);  // the double substitution too
+    const std::vector<double> b = random_vector(n, 9);
+    one.solve(b.data(), xd1.data());
+    two.solve(b.data(), xd2.data());
+    EXPECT_LT(test::rel_diff(xd2, xd1), 1e-13);
+  }
+}
+
+// Repeated solves through one worker give the same bits each time (no race
+// between the two threads' writes), and a simplicial factor stays serial.
+TEST(SplitSubstitution, RepeatedSolvesAreIdenticalAndSimplicialStaysSerial) {
+  const Model m = beam(10, 3);
+  const int n = m.ndof();
+  const std::vector<double> A = system_matrix(m);
+  SubstitutionWorker worker;
+  CholmodSolver f;
+  f.set_substitution_worker(&worker);
+  f.analyze(n, m.Ap, m.Ai);
+  f.factorize(A.data());
+  ASSERT_TRUE(f.substitutes_on_two_threads());
+  const std::vector<double> b = random_vector(n, 4);
+  std::vector<double> first(n), x(n);
+  f.solve(b.data(), first.data());
+  for (int k = 0; k < 200; ++k) {
+    f.solve(b.data(), x.data());
+    // A bin taken over (the worker stalled: a loaded machine) sums the top
+    // rows in another order: roundoff apart then, the same bits otherwise.
+    if (f.stats().takeovers == 0)
+      ASSERT_EQ(x, first) << "solve " << k;
+    else
+      ASSERT_LT(test::rel_diff(x, first), 1e-13) << "solve " << k;
+  }
+  CholmodSolver simplicial;
+  simplicial.configure(FactorMethod::Simplicial, OrderingMethod::Auto);
+  simplicial.set_substitution_worker(&worker);
+  simplicial.analyze(n, m.Ap, m.Ai);
+  simplicial.factorize(A.data());
+  EXPECT_FALSE(simplicial.substitutes_on_two_threads());
+  simplicial.solve(b.data(), x.data());
+  EXPECT_LT(test::rel_diff(x, first), 1e-10);
+}
+
+TEST(SplitSubstitution, WorkerRunsEachTaskOnce) {
+  SubstitutionWorker worker;
+  std::atomic<int> count{0}, progress{0};
+  for (int k = 0; k < 1000; ++k) {
+    const int before = count.load();
+    ASSERT_TRUE(worker.try_start([](void* p) { ++*static_cast<std::atomic<int>*>(p); }, &count));
+    if (k % 2) {
+      worker.wait();
+    } else {
+      // No progress counter moves: await gives up after 50 ms at the latest,
+      // so the task either ran (true) or was withdrawn (false, never runs).
+      const bool ran = worker.await(progress, 50.0);
+      worker.wait();
+      ASSERT_EQ(count.load(), before + (ran ? 1 : 0));
+      if (!ran) count.fetch_add(1);  // keep the tally: task k counted once either way
+    }
+    ASSERT_EQ(count.load(), k + 1);
+  }
+}
+
+// A worker whose thread has not started yet (as one the kernel is slow to
+// wake): await withdraws the task after the stall time and it never runs; a
+// second task cannot start while one runs.
+TEST(SplitSubstitution, AwaitWithdrawsATaskThatNeverBegan) {
+  SubstitutionWorker worker(/*launch=*/false);
+  std::atomic<int> count{0}, progress{0};
+  auto bump = [](void* p) { ++*static_cast<std::atomic<int>*>(p); };
+  ASSERT_TRUE(worker.try_start(bump, &count));
+  EXPECT_TRUE(worker.busy());
+  EXPECT_FALSE(worker.try_start(bump, &count));
+  EXPECT_FALSE(worker.await(progress, 1.0));
+  EXPECT_FALSE(worker.busy());
+  worker.launch();
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(count.load(), 0);  // withdrawn: never ran
+  ASSERT_TRUE(worker.try_start(bump, &count));
+  worker.wait();
+  EXPECT_EQ(count.load(), 1);
+}
+
+// A task that stops making progress part-way is left running: await returns
+// false, busy() stays true until it ends, wait() blocks until then.
+TEST(SplitSubstitution, AwaitLeavesAStalledTaskRunning) {
+  SubstitutionWorker worker;
+  struct Ctx {
+    std::atomic<int> progress{0};
+    std::atomic<bool> release{false}, ended{false};
+  } c;
+  ASSERT_TRUE(worker.try_start(
+      [](void* p) {
+        auto& c = *static_cast<Ctx*>(p);
+        c.progress = 1;
+        while (!c.release) std::this_thread::sleep_for(std::chrono::microseconds(100));
+        c.ended = true;
+      },
+      &c));
+  while (c.progress.load() == 0) std::this_thread::yield();
+  EXPECT_FALSE(worker.await(c.progress, 2.0));
+  EXPECT_TRUE(worker.busy());
+  EXPECT_FALSE(c.ended.load());
+  c.release = true;
+  worker.wait();
+  EXPECT_FALSE(worker.busy());
+  EXPECT_TRUE(c.ended.load());
+}
+
+// A solve whose worker never starts does the worker's bins itself (the
+// one-thread substitution's result to roundoff: the bins' updates of the top
+// rows come in another order), each bin counted as a takeover; with the
+// worker running again the split result returns.
+TEST(SplitSubstitution, SolveTakesOverTheBinsOfAWorkerThatNeverStarts) {
+  const Model m = beam(12, 4);
+  const int n = m.ndof();
+  const std::vector<double> A = system_matrix(m);
+  SubstitutionWorker worker(/*launch=*/false);
+  CholmodSolver one, two;
+  for (CholmodSolver* f : {&one, &two}) {
+    f->set_factor_copy(FactorCopy::Float);
+    f->analyze(n, m.Ap, m.Ai);
+    f->factorize(A.data());
+  }
+  two.set_substitution_worker(&worker);
+  ASSERT_TRUE(two.substitutes_on_two_threads());
+  const std::vector<double> b = random_vector(n, 5);
+  std::vector<double> x1(n), x2(n);
+  one.solve_copy(b.data(), x1.data());
+  two.solve_copy(b.data(), x2.data());
+  EXPECT_LT(test::rel_diff(x2, x1), 1e-13);
+  EXPECT_EQ(two.stats().split_substitutions, 1);
+  EXPECT_EQ(two.stats().takeovers, 2);  // forward and backward
+  worker.launch();
+  two.solve_copy(b.data(), x2.data());
+  EXPECT_LT(test::rel_diff(x2, x1), 1e-13);
+  EXPECT_EQ(two.stats().split_substitutions, 2);
+}
+
+// While a bin given up on still runs on the worker (here: the worker is
+// held by another task), solves stay on one thread and factorizing again
+// waits for it.
+TEST(SplitSubstitution, BusyWorkerKeepsSolvesOnOneThread) {
+  const Model m = beam(10, 3);
+  const int n = m.ndof();
+  const std::vector<double> A = system_matrix(m);
+  SubstitutionWorker worker;
+  CholmodSolver one, two;
+  for (CholmodSolver* f : {&one, &two}) {
+    f->analyze(n, m.Ap, m.Ai);
+    f->factorize(A.data());
+  }
+  two.set_substitution_worker(&worker);
+  std::atomic<bool> release{false};
+  ASSERT_TRUE(worker.try_start(
+      [](void* p) {
+        while (!static_cast<std::atomic<bool>*>(p)->load()) std::this_thread::sleep_for(std::chrono::microseconds(100));
+      },
+      &release));
+  const std::vector<double> b = random_vector(n, 6);
+  std::vector<double> x1(n), x2(n);
+  one.solve(b.data(), x1.data());
+  two.solve(b.data(), x2.data());
+  EXPECT_EQ(x2, x1);
+  EXPECT_EQ(two.stats().split_substitutions, 0);
+  release = true;
+  worker.wait();
+  two.factorize(A.data());
+  two.solve(b.data(), x2.data());
+  EXPECT_LT(test::rel_diff(x2, x1), 1e-13);
+  EXPECT_EQ(two.stats().split_substitutions, 1);
+}
+
+}  // namespace
+}  // namespace incise
