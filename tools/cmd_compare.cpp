@@ -66,7 +66,7 @@ void compare(const CompareOptions& o) {
   j["scene"] = o.scene;
   j["dof"] = ref->model.ndof();
   j["exact"] = {{"frame_median_ms", sr.frame.median_ms}, {"frame_p99_ms", sr.frame.p99_ms},
-                {"nnz_L", ref->state.solver.stats().nnz_L}};
+                {"nnz_L", ref->ws.solver.stats().nnz_L}};
   j["policies"] = nlohmann::json::array();
   for (const std::string& policy : o.policies) {
     SolverOverrides ov = o.solver;

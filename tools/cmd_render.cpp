@@ -4,7 +4,7 @@
 #include "engine/runtime/simulation.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
-#include "tools/render_stage.h"
+#include "render/render_stage.h"
 
 namespace incise {
 
@@ -21,12 +21,13 @@ void render_command(const RenderOptions& o) {
   if (o.height > 0) settings.height = o.height;
   auto renderer = make_renderer(settings, o.platform);
   for (int k = 0; k < o.frame; ++k) advance_frame(*sim);  // cuts included
-  FrameTiming timing;
-  const Image img = render_stage(*renderer, *sim, timing);
+  Stopwatch clock;
+  const Image img = render_frame(*renderer, *sim);
+  const double render_ms = clock.ms();
   write_png(img, o.out);
   const auto& st = renderer->stats();
   std::printf("frame %d (t = %.4f s): %d boundary + %d cut faces, %d triangles, rendered in %.2f ms\nwrote %s\n",
-              o.frame, sim->state.time, st.nboundary, st.ncut, st.ntriangle, timing.ms[kStageRender],
+              o.frame, sim->state.time, st.nboundary, st.ncut, st.ntriangle, render_ms,
               o.out.c_str());
 }
 }  // namespace

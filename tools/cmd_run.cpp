@@ -10,7 +10,7 @@
 #include "render/video.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
-#include "tools/render_stage.h"
+#include "render/render_stage.h"
 #include "tools/timing_json.h"
 
 namespace incise {
@@ -31,7 +31,7 @@ std::string frame_png(const std::string& dir, int frame) {
 
 void run(const RunOptions& o) {
   auto sim = load_checked_simulation(o.scene);
-  State& s = sim->state;
+  const State& s = sim->state;
   print_model_summary(*sim);
   const int frames = o.frames > 0 ? o.frames : sim->scene.frames;
   const std::string out = !o.out.empty() ? o.out : sim->scene.output.dir;
@@ -43,18 +43,19 @@ void run(const RunOptions& o) {
     series->add(0.0, result_grid(sim->model, s));
   }
   std::unique_ptr<Renderer> renderer;
+  Image image;
   if (!o.render_dir.empty()) {
     std::filesystem::create_directories(o.render_dir);
     renderer = make_renderer(sim->scene.render, o.platform);
-    FrameTiming initial;
-    write_png(render_stage(*renderer, *sim, initial), frame_png(o.render_dir, 0));
+    write_png(render_frame(*renderer, *sim), frame_png(o.render_dir, 0));
+    install_render_stage(*sim, *renderer, &image);
   }
   std::vector<FrameTiming> timings;
   timings.reserve(frames);
   Stopwatch wall, progress;
   for (int k = 0; k < frames; ++k) {
     FrameTiming t = advance_frame(*sim);
-    if (renderer) write_png(render_stage(*renderer, *sim, t), frame_png(o.render_dir, s.frame));
+    if (renderer) write_png(image, frame_png(o.render_dir, s.frame));
     timings.push_back(t);
     if (series && s.frame % sim->scene.output.every == 0) series->add(s.time, result_grid(sim->model, s));
     if (progress.ms() > 1000.0 || k + 1 == frames) {
@@ -65,7 +66,7 @@ void run(const RunOptions& o) {
   }
   const TimingSummary summary = summarize(timings);
   std::printf("%d frames in %.1f ms (%.2fx real time); %d numeric factorizations\n", frames, wall.ms(),
-              frames * sim->model.dt * 1000.0 / wall.ms(), s.refactorizations);
+              frames * sim->model.dt * 1000.0 / wall.ms(), sim->ws.refactorizations);
   std::printf("%s", format_summary(summary).c_str());
   if (renderer) {
     std::printf("wrote %d frames %s\n", frames + 1, frame_png(o.render_dir, 0).c_str());

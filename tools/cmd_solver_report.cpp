@@ -10,7 +10,7 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
                            double bandwidth_gbs) {
   SolverReport r;
   const Model& m = sim.model;
-  const State& st = sim.state;
+  const Workspace& st = sim.ws;
   r.policy = policy_name(m.solver.policy);
   r.threads = m.solver.threads;
   // the slot preconditioning at the end (lagged may have moved to `back`)
@@ -213,7 +213,7 @@ void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
     s.ordering = o.ordering == "amd" ? OrderingMethod::Amd : o.ordering == "metis" ? OrderingMethod::Metis : OrderingMethod::Auto;
   sim.model.solver = s;
   if (model_needs_rest_stiffness(sim.model) && sim.model.K0_csc.empty()) sim.model.K0_csc = rest_stiffness(sim.model);
-  init_state(sim.model, sim.state);
+  init_state(sim.model, sim.state, sim.ws);
 }
 
 }  // namespace incise

@@ -72,7 +72,7 @@ void run_static(const StaticOptions& o) {
     }
   }
   Stopwatch clock;
-  const StaticResult r = solve_static(sim->model, sim->state, sim->scene.static_tolerance,
+  const StaticResult r = solve_static(sim->model, sim->state, sim->ws, sim->scene.static_tolerance,
                                       sim->scene.static_max_iterations);
   std::printf("static: %s after %d Newton iteration(s), relative residual %.3e (tolerance %.1e), %.1f ms\n",
               r.converged ? "converged" : "NOT converged", r.iterations, r.residual, sim->scene.static_tolerance,

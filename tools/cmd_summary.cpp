@@ -8,7 +8,7 @@ namespace incise {
 
 void print_model_summary(const Simulation& sim) {
   const Model& m = sim.model;
-  const FactorStats& f = sim.state.solver.stats();
+  const FactorStats& f = sim.ws.solver.stats();
   const char* elem = m.mesh.order == 2 ? (m.material.rotation == RotationMode::Single ? "tet10SR" : "tet10") : "tet4";
   std::printf("scene %s\n", sim.scene.path.c_str());
   std::printf("  mesh %s: %d nodes, %d %s elements, %d DOF, %s %s, %s mass\n", sim.scene.mesh_file.c_str(), m.nnode,

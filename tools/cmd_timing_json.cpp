@@ -22,7 +22,10 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["frame"] = pct(s.frame);
   j["frame"]["over_budget"] = s.over_budget;
   j["frame"]["budget_ms"] = s.budget_ms;
-  for (int k = 0; k < kNumStages; ++k) j["stages"][kStageNames[k]] = pct(s.stages[k]);
+  for (int k = 0; k < kNumStages; ++k) {
+    j["stages"][kStageNames[k]] = pct(s.stages[k]);
+    j["stages"][kStageNames[k]]["runs"] = s.runs[k];
+  }
   j["newton"] = {{"mean", s.newton_mean}, {"max", s.newton_max}};
   j["cut_frames"] = pct(s.cut_frames);
   j["cut_frames"]["count"] = s.cut_frames.count;
@@ -40,7 +43,7 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["elements"] = m.nelem;
   j["element"] = m.mesh.order == 2 ? (m.material.rotation == RotationMode::Single ? "tet10SR" : "tet10") : "tet4";
   j["material"] = m.material.model == MaterialModel::Linear ? "linear" : "corotated";
-  const FactorStats& f = sim.state.solver.stats();
+  const FactorStats& f = sim.ws.solver.stats();
   j["factor"] = {{"nnz_L", f.nnz_L}, {"flops", f.flops}, {"ordering", f.ordering}, {"nnz_A", m.nnz()},
                  {"supernodal", f.supernodal}};
   if (frames) {
@@ -59,7 +62,7 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   } else {
     j["solver"] = {{"policy", policy_name(m.solver.policy)}, {"threads", m.solver.threads}};
   }
-  j["refactorizations"] = sim.state.refactorizations;
+  j["refactorizations"] = sim.ws.refactorizations;
   j["setup_ms"] = sim.setup_ms;
   const std::string tmp = path + ".tmp";
   {

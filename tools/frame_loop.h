@@ -1,21 +1,20 @@
 #pragma once
-// One frame of the simulation loop as the command line runs it:
-// 1. cutting (cuts due by now; a swept cut up to the end of this frame),
-// 2.-6. the step (assembly, factorization, solve, Newmark).
-// Stages a scene does not call for cost nothing: no cuts, no cutting work.
+// The frame as the command line (and an embedding application) sets it up:
+// the scene loaded, checked, and its pipeline assembled once from it
+// (engine/runtime/pipeline.h): the engine's dynamics stages, plus the
+// cutting stage when the scene declares cuts. Render is plugged in by the
+// commands that ask for it (render/render_stage.h). advance_frame
+// (engine/runtime/simulation.h) runs one frame.
 #include <memory>
 #include <string>
 
 #include "engine/runtime/simulation.h"
-#include "engine/runtime/timing.h"
 
 namespace incise {
 
-FrameTiming advance_frame(Simulation& sim);
-
 // load_simulation, then every scene cut built once at its full extent so a bad
 // cut (a missing or malformed surface file, a non-convex polygon) fails at
-// load, not in the middle of a run.
+// load, not in the middle of a run; then the pipeline's stages.
 std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path);
 
 }  // namespace incise

@@ -17,6 +17,7 @@
 #include "engine/mesh/mesh_tools.h"
 #include "engine/output/probe.h"
 #include "engine/dynamics/static_solve.h"
+#include "engine/dynamics/step.h"
 #include "engine/runtime/timing.h"
 
 using namespace incise;
@@ -83,10 +84,10 @@ std::vector<double> solve(const Mesh& mesh, Scene s, bool xfem, int* dof) {
     sim.scene.cuts = {slit};
   }
   sim.model = build_model(mesh, sim.scene);
-  sim.cut_progress.assign(sim.scene.cuts.size(), -1.0);
-  init_state(sim.model, sim.state);
+  init_state(sim.model, sim.state, sim.ws);
+  sim.state.cut_progress.assign(sim.scene.cuts.size(), -1.0);
   if (xfem) apply_all_cuts(sim);
-  const StaticResult r = solve_static(sim.model, sim.state, s.static_tolerance, s.static_max_iterations);
+  const StaticResult r = solve_static(sim.model, sim.state, sim.ws, s.static_tolerance, s.static_max_iterations);
   std::fprintf(stderr, "  %d DOF: %s after %d Newton iterations (residual %.1e)\n", sim.model.ndof(),
                r.converged ? "converged" : "NOT converged", r.iterations, r.residual);
   *dof = sim.model.ndof();

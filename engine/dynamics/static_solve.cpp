@@ -11,11 +11,11 @@
 
 namespace incise {
 
-StaticResult solve_static(const Model& m, State& s, double tolerance, int max_iterations) {
+StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolerance, int max_iterations) {
   const int n = m.ndof();
   const bool linear = m.material.model == MaterialModel::Linear;
-  s.work.wait_job();  // a lagged policy's background factorization may use s.solver
-  s.work.job_running = false;
+  ws.work.wait_job();  // a lagged policy's background factorization may use ws.solver
+  ws.work.job_running = false;
   for (int d : m.fixed_dofs) s.u[d] = 0.0;
   for (const auto& p : m.prescribed) s.u[p.dof] = p.value;
   double fext = 0.0;
@@ -24,16 +24,16 @@ StaticResult solve_static(const Model& m, State& s, double tolerance, int max_it
   fext = std::sqrt(fext);
   StaticResult res;
   double ref = 0.0;
-  // State::solver must hold this pattern, and no background factorization may
+  // Workspace::solver must hold this pattern, and no background factorization may
   // run beside ours (unsafe with a serial OpenBLAS, blas_concurrency_safe): a
   // lagged dynamics state is reset.
-  if (s.work.job_running || s.work.slot_pattern[0] != s.work.pattern) prepare_solver(m, s);
+  if (ws.work.job_running || ws.work.slot_pattern[0] != ws.work.pattern) prepare_solver(m, ws, s.frame);
   for (int it = 0; it <= max_iterations; ++it) {
-    const double* K = internal_forces(m, s, s.u.data(), true);
+    const double* K = internal_forces(m, s, ws, s.u.data(), true);
     double r2 = 0.0;
     for (int d = 0; d < n; ++d) {
-      s.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d] - s.f_int[d];
-      r2 += s.rhs[d] * s.rhs[d];
+      ws.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d] - ws.f_int[d];
+      r2 += ws.rhs[d] * ws.rhs[d];
     }
     const double r = std::sqrt(r2);
     if (!std::isfinite(r)) throw Error("static: non-finite residual at iteration " + std::to_string(it));
@@ -45,19 +45,17 @@ StaticResult solve_static(const Model& m, State& s, double tolerance, int max_it
       break;
     }
     if (it == max_iterations) break;
-    if (!(linear && s.factor_current)) {
-      std::copy(K, K + m.nnz(), s.A.begin());
-      for (int k : m.constrained_entries) s.A[k] = 0.0;
-      for (int d = 0; d < n; ++d)
-        if (m.constrained[d]) s.A[m.diag[d]] = 1.0;
-      s.solver.factorize(s.A.data());
-      ++s.refactorizations;
-      s.factor_current = linear;
+    if (!(linear && ws.factor_current)) {
+      std::copy(K, K + m.nnz(), ws.A.begin());
+      project_constraints(m, ws.A.data());
+      ws.solver.factorize(ws.A.data());
+      ++ws.refactorizations;
+      ws.factor_current = linear;
     }
-    s.solver.solve(s.rhs.data(), s.du.data());
-    for (int d = 0; d < n; ++d) s.u[d] += s.du[d];
+    ws.solver.solve(ws.rhs.data(), ws.du.data());
+    for (int d = 0; d < n; ++d) s.u[d] += ws.du[d];
   }
-  s.factor_current = false;  // the factor held K, not a dynamics matrix
+  ws.factor_current = false;  // the factor held K, not a dynamics matrix
   return res;
 }
 

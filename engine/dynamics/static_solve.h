@@ -4,6 +4,7 @@
 // final values.
 #include "engine/model/model.h"
 #include "engine/dynamics/state.h"
+#include "engine/solve/workspace.h"
 
 namespace incise {
 
@@ -13,10 +14,10 @@ struct StaticResult {
   bool converged = false;
 };
 
-// Solves into state.u (state must be init_state'd). Converged when
+// Solves into state.u (state and ws must be init_state'd). Converged when
 // ||f_ext - f_int(u)|| on the free DOFs <= tolerance * max(||f_ext||, ||r_0||),
 // r_0 the first residual (covers load-free, displacement-driven problems).
 // A linear model converges in one solve.
-StaticResult solve_static(const Model& model, State& state, double tolerance, int max_iterations);
+StaticResult solve_static(const Model& model, State& state, Workspace& ws, double tolerance, int max_iterations);
 
 }  // namespace incise

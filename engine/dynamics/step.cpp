@@ -26,15 +26,13 @@ void mass_matvec(const Model& m, const double* x, double* y) {
   }
 }
 
-namespace {
-
-// Algorithm 1: zero the constrained rows and columns, unit diagonal. The
-// pattern is unchanged and the matrix stays SPD.
-void project_matrix(const Model& m, double* A) {
+void project_constraints(const Model& m, double* A) {
   for (int k : m.constrained_entries) A[k] = 0.0;
   for (int d = 0; d < m.ndof(); ++d)
     if (m.constrained[d]) A[m.diag[d]] = 1.0;
 }
+
+namespace {
 
 void check_finite(const std::vector<double>& x, const char* what, const State& s) {
   for (size_t d = 0; d < x.size(); ++d)
@@ -46,147 +44,224 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
     }
 }
 
-}  // namespace
-
-void size_state(const Model& m, State& s, bool zero) {
-  const int n = m.ndof();
-  s.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one
-  s.tangent_cache.theta = m.tangent_reuse;
-  if (!zero) {
-    for (auto* w : {&s.u, &s.v, &s.a, &s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) resize_with_headroom(*w, n);
-    resize_with_headroom(s.R, 9 * static_cast<size_t>(m.nrot));
-    resize_with_headroom(s.K, m.nnz());
-    resize_with_headroom(s.A, m.nnz());
-    return;
+// Lumped mass with enrichment: each enriched DOF q couples only to its own
+// mesh node's standard DOF u with M_uq = M_qq = m_q (model_build.cpp,
+// build_mass; [preprint] eq. 81-82), so
+//   m_u a_u + sum_q m_q a_q = r_u,  m_q (a_u + a_q) = r_q
+// gives a_u = (r_u - sum_q r_q) / (m_u - sum_q m_q) (the home piece's mass)
+// and a_q = r_q / m_q - a_u: a direct solve. On the DOF nodes with mark
+// (every one when mark is null; a marked enriched node's mesh node must be
+// marked too); a is left alone elsewhere, 0 on constrained DOFs.
+void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, const std::vector<char>* mark,
+                              std::vector<double>& a) {
+  const int nstd = 3 * m.nnode, n = m.ndof();
+  const auto marked = [&](int dof) { return !mark || (*mark)[dof / 3]; };
+  std::vector<double> rsum(nstd, 0.0), msum(nstd, 0.0);
+  std::vector<int> home(n - nstd, -1);  // enriched DOF -> its mesh node's DOF (the coupling's row)
+  for (int c = 0; c < nstd; ++c)
+    if (marked(c)) rsum[c] = r[c], msum[c] = m.mass_csc[m.diag[c]];
+  for (int c = nstd; c < n; ++c) {
+    if (!marked(c)) continue;
+    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+      if (m.Ai[k] < nstd && m.mass_csc[k] != 0.0) {
+        home[c - nstd] = m.Ai[k];
+        rsum[m.Ai[k]] -= r[c];
+        msum[m.Ai[k]] -= m.mass_csc[k];
+      }
   }
-  s.u.assign(n, 0.0);
-  s.v.assign(n, 0.0);
-  s.a.assign(n, 0.0);
-  s.R.assign(9 * static_cast<size_t>(m.nrot), 0.0);
-  for (int r = 0; r < m.nrot; ++r) s.R[9 * r] = s.R[9 * r + 4] = s.R[9 * r + 8] = 1.0;
-  for (auto* w : {&s.f_int, &s.rhs, &s.delta, &s.du, &s.tmp, &s.tmp2}) w->assign(n, 0.0);
-  s.K.assign(m.nnz(), 0.0);
-  s.A.assign(m.nnz(), 0.0);
+  for (int c = 0; c < nstd; ++c)
+    if (marked(c)) a[c] = m.constrained[c] ? 0.0 : rsum[c] / msum[c];
+  for (int c = nstd; c < n; ++c) {
+    if (!marked(c)) continue;
+    const int h = home[c - nstd];
+    a[c] = (m.constrained[c] || h < 0) ? 0.0 : r[c] / m.mass_csc[m.diag[c]] - a[h];
+  }
 }
 
-void init_state(const Model& m, State& s, bool consistent_a0) {
+}  // namespace
+
+void size_workspace(const Model& m, Workspace& ws, bool zero) {
+  const int n = m.ndof();
+  ws.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one
+  ws.tangent_cache.theta = m.tangent_reuse;
+  if (!zero) {
+    for (auto* w : {&ws.f_int, &ws.rhs, &ws.delta, &ws.du, &ws.tmp, &ws.tmp2}) resize_with_headroom(*w, n);
+    resize_with_headroom(ws.K, m.nnz());
+    resize_with_headroom(ws.A, m.nnz());
+    return;
+  }
+  for (auto* w : {&ws.f_int, &ws.rhs, &ws.delta, &ws.du, &ws.tmp, &ws.tmp2}) w->assign(n, 0.0);
+  ws.K.assign(m.nnz(), 0.0);
+  ws.A.assign(m.nnz(), 0.0);
+}
+
+void init_state(const Model& m, State& s, Workspace& ws, bool consistent_a0) {
   const int n = m.ndof();
   s.time = 0.0;
   s.frame = 0;
   size_state(m, s);
-  prepare_solver(m, s);  // worker pool, assembly plan, symbolic analysis
-  s.refactorizations = 0;
+  size_workspace(m, ws);
+  prepare_solver(m, ws, s.frame);  // worker pool, assembly plan, symbolic analysis
+  ws.refactorizations = 0;
   if (!consistent_a0) return;
   // Consistent initial acceleration on the free DOFs: M a0 = f_ext - f_int(0) = f_ext.
-  for (int d = 0; d < n; ++d) s.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d];
+  for (int d = 0; d < n; ++d) ws.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d];
   if (m.mass_csc.empty()) {
-    for (int d = 0; d < n; ++d) s.a[d] = s.rhs[d] / m.mass_lumped[d];
+    for (int d = 0; d < n; ++d) s.a[d] = ws.rhs[d] / m.mass_lumped[d];
   } else {
-    std::copy(m.mass_csc.begin(), m.mass_csc.end(), s.A.begin());
-    project_matrix(m, s.A.data());
-    s.solver.factorize(s.A.data());
-    s.solver.solve(s.rhs.data(), s.a.data());
-    s.factor_current = false;  // the factor holds M, not the dynamics matrix
+    std::copy(m.mass_csc.begin(), m.mass_csc.end(), ws.A.begin());
+    project_constraints(m, ws.A.data());
+    ws.solver.factorize(ws.A.data());
+    ws.solver.solve(ws.rhs.data(), s.a.data());
+    ws.factor_current = false;  // the factor holds M, not the dynamics matrix
   }
   for (int d = 0; d < n; ++d)
     if (m.constrained[d]) s.a[d] = 0.0;
 }
 
-void step(const Model& m, State& s) {
-  Stopwatch frame_clock, clock;
-  s.timing = FrameTiming{};
+void attach_state(const Model& m, const State& s, Workspace& ws) {
+  const auto check = [&](const std::vector<double>& f, size_t n, const char* name) {
+    if (f.size() != n)
+      throw Error(std::string("state: ") + name + " has " + std::to_string(f.size()) + " values, the model needs " +
+                  std::to_string(n));
+  };
+  const size_t n = static_cast<size_t>(m.ndof());
+  check(s.u, n, "u");
+  check(s.v, n, "v");
+  check(s.a, n, "a");
+  check(s.R, 9 * static_cast<size_t>(m.nrot), "R");
+  size_workspace(m, ws);
+  ws.work.guess.clear();
+  prepare_solver(m, ws, s.frame);
+}
+
+void step(const Model& m, State& s, Workspace& ws) {
+  ws.timing = FrameTiming{};
+  step_stages(m, s, ws);
+}
+
+void step_stages(const Model& m, State& s, Workspace& ws) {
+  ws.iteration = 0;
+  ws.newton_done = false;
+  ws.rescue_pending = false;
+  ws.rotation_fallbacks = 0;
+  ws.newton_iterations_done = 0;
+  while (!ws.newton_done) {
+    run_stage(ws.timing, kStageAssembly, [&] { assemble_system(m, s, ws); });
+    do {
+      if (factorization_due(m, ws)) run_stage(ws.timing, kStageFactorization, [&] { factorize_system(m, s, ws); });
+      run_stage(ws.timing, kStageSolve, [&] { solve_system(m, s, ws); });
+    } while (ws.rescue_pending);
+  }
+  run_stage(ws.timing, kStageIntegration, [&] { integrate(m, s, ws); });
+  ws.timing.newton = ws.newton_iterations_done;
+}
+
+void assemble_system(const Model& m, State& s, Workspace& ws) {
   const int n = m.ndof();
-  const double dt = m.dt, t1 = s.time + dt;
+  const double t1 = s.time + m.dt;
   const double a_ray = m.material.rayleigh_mass, b_ray = m.material.rayleigh_stiffness;
   const bool linear = m.material.model == MaterialModel::Linear;
   const NewmarkCoefficients nc = newmark_coefficients(m);
-
-  // Increment Delta = u(t+dt) - u(t): constrained DOFs take their known
-  // increments up front (projection, Algorithm 1); the solves then keep
-  // them (rhs and off-diagonals zeroed) and find the free ones.
-  // Free DOFs start from the constant-velocity predictor Delta = dt v, so the
-  // first (often only) linearisation, rotations included, is taken about the
-  // predicted configuration. Linearising about u(t) lags the rotations by a
-  // whole step, and the non-dissipative average-acceleration rule then pumps
-  // energy into a swinging, sagging body until it blows up (measured: the
-  // default beam scene diverges by frame 60 that way; with the predictor one
-  // iteration stays within a few percent of a 10-iteration solution). A
-  // linear model is unaffected: its single solve is exact from any start.
-  for (int d = 0; d < n; ++d) s.delta[d] = dt * s.v[d];
-  for (int d : m.fixed_dofs) s.delta[d] = -s.u[d];
-  for (const auto& p : m.prescribed) s.delta[p.dof] = m.prescribed_value(p, t1) - s.u[p.dof];
-  s.rotation_fallbacks = 0;
-  s.timing.ms[kStageOther] += clock.lap();
-
-  const bool adaptive = !linear && m.rotation_tolerance > 0 && m.max_newton_iterations > m.newton_iterations;
-  s.newton_iterations_done = 0;
-  for (int it = 0; it < m.max_newton_iterations; ++it) {
-    // x = u + Delta; internal forces and tangent there.
-    double* x = s.tmp.data();
-    for (int d = 0; d < n; ++d) x[d] = s.u[d] + s.delta[d];
-    const double* K = internal_forces(m, s, x, policy_needs_tangent(m), /*reuse_tangent=*/true);
-    s.timing.tangent_updates += s.tangent_cache.updated;
-    s.timing.ms[kStageAssembly] += clock.lap();
-
-    // Newmark (eq. 3.58; newmark_coefficients for general beta, gamma):
-    // a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v at beta = 1/4, gamma = 1/2.
-    // Residual r = f_ext - f_int(x) - M a1 - D v1 with D = a M + b K. For
-    // Delta = 0 this is eq. 3.60 with f_int the elastic force only (the book
-    // folds the t-level viscous force D v into f_int, hence its D (2 v)).
-    double* a1 = s.du.data();
-    double* v1 = s.tmp2.data();
-    for (int d = 0; d < n; ++d) {
-      a1[d] = nc.a_d * s.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
-      v1[d] = nc.v_d * s.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
-    }
-    // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
-    for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
-    if (m.mass_kind == MassKind::Lumped) {
-      mass_matvec(m, a1, s.rhs.data());  // O(ndof), X-FEM couplings included
-    } else {  // consistent: a sparse product, on the workers
-      sym_matvec_parallel(m, s.work.plan, *s.work.pool, m.mass_csc.data(), a1, s.rhs.data());
-    }
-    for (int d = 0; d < n; ++d) s.rhs[d] = m.f_gravity[d] - s.f_int[d] - s.rhs[d];
-    if (b_ray > 0.0) {
-      if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, s.work.plan, *s.work.pool, K, v1, a1);
-      else stiffness_matvec(m, s.work.plan, *s.work.pool, s.R.data(), v1, a1);  // warped: frozen-R K v without K
-      for (int d = 0; d < n; ++d) s.rhs[d] -= b_ray * a1[d];
-    }
-    double rnorm = 0.0, fnorm = 0.0;
-    for (int d = 0; d < n; ++d) {
-      if (m.constrained[d]) s.rhs[d] = 0.0;
-      rnorm += s.rhs[d] * s.rhs[d];
-      fnorm += m.f_gravity[d] * m.f_gravity[d] + s.f_int[d] * s.f_int[d];
-    }
-    s.last_residual = fnorm > 0 ? std::sqrt(rnorm / fnorm) : std::sqrt(rnorm);
-    check_finite(s.rhs, "residual", s);
-    s.timing.ms[kStageOther] += clock.lap();
-
-    // A = 4/dt^2 M + 2/dt D + K (eq. 3.59; cM M + cK K in general), projected, solved per solver.policy.
-    solve_system(m, s, K, it, clock);
-    check_finite(s.du, "displacement increment", s);
-    for (int d = 0; d < n; ++d) s.delta[d] += s.du[d];
-    s.timing.ms[kStageOther] += clock.lap();
-    ++s.newton_iterations_done;
-    if (it + 1 < m.newton_iterations) continue;
-    if (!adaptive || it + 1 == m.max_newton_iterations) break;
-    // The rotations were frozen at the start of this iteration. If the result
-    // turns some point by more than rotation_tolerance, that linearisation was
-    // poor: iterate again from the result. Measured: on a partially incised
-    // soft beam the frozen-rotation error grows past 0.1 rad a few frames
-    // before one-iteration stepping diverges; on smooth frames it stays below.
-    for (int d = 0; d < n; ++d) x[d] = s.u[d] + s.delta[d];
-    const bool moved = max_rotation_change(m, s.work.plan, *s.work.pool, x, s.R.data()) > m.rotation_tolerance;
-    s.timing.ms[kStageAssembly] += clock.lap();
-    if (!moved) break;
+  if (ws.iteration == 0) {
+    // Increment Delta = u(t+dt) - u(t): constrained DOFs take their known
+    // increments up front (projection, Algorithm 1); the solves then keep
+    // them (rhs and off-diagonals zeroed) and find the free ones.
+    // Free DOFs start from the constant-velocity predictor Delta = dt v, so the
+    // first (often only) linearisation, rotations included, is taken about the
+    // predicted configuration. Linearising about u(t) lags the rotations by a
+    // whole step, and the non-dissipative average-acceleration rule then pumps
+    // energy into a swinging, sagging body until it blows up (measured: the
+    // default beam scene diverges by frame 60 that way; with the predictor one
+    // iteration stays within a few percent of a 10-iteration solution). A
+    // linear model is unaffected: its single solve is exact from any start.
+    for (int d = 0; d < n; ++d) ws.delta[d] = m.dt * s.v[d];
+    for (int d : m.fixed_dofs) ws.delta[d] = -s.u[d];
+    for (const auto& p : m.prescribed) ws.delta[p.dof] = m.prescribed_value(p, t1) - s.u[p.dof];
   }
+  // x = u + Delta; internal forces and tangent there.
+  double* x = ws.tmp.data();
+  for (int d = 0; d < n; ++d) x[d] = s.u[d] + ws.delta[d];
+  const double* K = internal_forces(m, s, ws, x, policy_needs_tangent(m), /*reuse_tangent=*/true);
+  ws.timing.tangent_updates += ws.tangent_cache.updated;
 
-  // Newmark update (eq. 3.58, general beta and gamma).
+  // Newmark ([book] eq. 3.58; newmark_coefficients for general beta, gamma):
+  // a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v at beta = 1/4, gamma = 1/2.
+  // Residual r = f_ext - f_int(x) - M a1 - D v1 with D = a M + b K. For
+  // Delta = 0 this is eq. 3.60 with f_int the elastic force only (the book
+  // folds the t-level viscous force D v into f_int, hence its D (2 v)).
+  double* a1 = ws.du.data();
+  double* v1 = ws.tmp2.data();
   for (int d = 0; d < n; ++d) {
-    const double a1 = nc.a_d * s.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
-    s.v[d] = nc.v_d * s.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
+    a1[d] = nc.a_d * ws.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
+    v1[d] = nc.v_d * ws.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
+  }
+  // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
+  for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
+  if (m.mass_kind == MassKind::Lumped) {
+    mass_matvec(m, a1, ws.rhs.data());  // O(ndof), X-FEM couplings included
+  } else {  // consistent: a sparse product, on the workers
+    sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, m.mass_csc.data(), a1, ws.rhs.data());
+  }
+  for (int d = 0; d < n; ++d) ws.rhs[d] = m.f_gravity[d] - ws.f_int[d] - ws.rhs[d];
+  if (b_ray > 0.0) {
+    if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
+    else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), v1, a1);  // warped: frozen-R K v without K
+    for (int d = 0; d < n; ++d) ws.rhs[d] -= b_ray * a1[d];
+  }
+  double rnorm = 0.0, fnorm = 0.0;
+  for (int d = 0; d < n; ++d) {
+    if (m.constrained[d]) ws.rhs[d] = 0.0;
+    rnorm += ws.rhs[d] * ws.rhs[d];
+    fnorm += m.f_gravity[d] * m.f_gravity[d] + ws.f_int[d] * ws.f_int[d];
+  }
+  ws.last_residual = fnorm > 0 ? std::sqrt(rnorm / fnorm) : std::sqrt(rnorm);
+  check_finite(ws.rhs, "residual", s);
+  // A = 4/dt^2 M + 2/dt D + K ([book] eq. 3.59; cM M + cK K in general), projected.
+  form_dynamic_matrix(m, s, ws, K);
+}
+
+void factorize_system(const Model& m, State& s, Workspace& ws) { factorize_for_policy(m, s, ws); }
+
+void solve_system(const Model& m, State& s, Workspace& ws) {
+  const int n = m.ndof();
+  solve_for_policy(m, ws);
+  if (ws.rescue_pending) return;  // the factorization stage runs again first
+  check_finite(ws.du, "displacement increment", s);
+  for (int d = 0; d < n; ++d) ws.delta[d] += ws.du[d];
+  ++ws.newton_iterations_done;
+  const int it = ws.iteration++;
+  const bool linear = m.material.model == MaterialModel::Linear;
+  const bool adaptive = !linear && m.rotation_tolerance > 0 && m.max_newton_iterations > m.newton_iterations;
+  if (it + 1 >= m.max_newton_iterations) {
+    ws.newton_done = true;
+    return;
+  }
+  if (it + 1 < m.newton_iterations) return;
+  if (!adaptive) {
+    ws.newton_done = true;
+    return;
+  }
+  // The rotations were frozen at the start of this iteration. If the result
+  // turns some point by more than rotation_tolerance, that linearisation was
+  // poor: iterate again from the result. Measured: on a partially incised
+  // soft beam the frozen-rotation error grows past 0.1 rad a few frames
+  // before one-iteration stepping diverges; on smooth frames it stays below.
+  double* x = ws.tmp.data();
+  for (int d = 0; d < n; ++d) x[d] = s.u[d] + ws.delta[d];
+  ws.newton_done = !(max_rotation_change(m, ws.work.plan, *ws.work.pool, x, s.R.data()) > m.rotation_tolerance);
+}
+
+void integrate(const Model& m, State& s, Workspace& ws) {
+  const int n = m.ndof();
+  const double t1 = s.time + m.dt;
+  const NewmarkCoefficients nc = newmark_coefficients(m);
+  // Newmark update ([book] eq. 3.58, general beta and gamma).
+  for (int d = 0; d < n; ++d) {
+    const double a1 = nc.a_d * ws.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
+    s.v[d] = nc.v_d * ws.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
     s.a[d] = a1;
-    s.u[d] += s.delta[d];
+    s.u[d] += ws.delta[d];
   }
   // Constrained DOFs move as prescribed, not as Newmark would integrate them:
   // from the increment alone, v1 = 2/dt Delta - v flips sign every frame once a
@@ -199,42 +274,39 @@ void step(const Model& m, State& s) {
   }
   s.time = t1;
   ++s.frame;
-  s.timing.ms[kStageOther] += clock.lap();
-  s.timing.frame_ms = frame_clock.ms();
-  s.timing.newton = s.newton_iterations_done;
 }
 
-const double* internal_forces(const Model& m, State& s, const double* x, bool tangent, bool reuse_tangent) {
+const double* internal_forces(const Model& m, State& s, Workspace& ws, const double* x, bool tangent, bool reuse_tangent) {
   if (m.material.model == MaterialModel::Linear) {
-    sym_matvec_parallel(m, s.work.plan, *s.work.pool, m.K0_csc.data(), x, s.f_int.data());
+    sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, m.K0_csc.data(), x, ws.f_int.data());
     return m.K0_csc.data();
   }
   // rotations, forces and (when asked) the tangent, on solver.threads workers
-  TangentCache* cache = reuse_tangent && tangent && m.tangent_reuse > 0.0 ? &s.tangent_cache : nullptr;
-  s.tangent_cache.updated = tangent ? m.nelem : 0;  // what a full assembly recomputes (the cache overwrites it)
-  if (tangent && !cache) s.tangent_cache.valid = false;  // K rebuilt without it (a static solve): no longer the kept sum
-  s.rotation_fallbacks += assemble_corotated(m, s.work.plan, *s.work.pool, x, s.R.data(), s.f_int.data(),
-                                             tangent ? s.K.data() : nullptr, cache);
-  return s.K.data();
+  TangentCache* cache = reuse_tangent && tangent && m.tangent_reuse > 0.0 ? &ws.tangent_cache : nullptr;
+  ws.tangent_cache.updated = tangent ? m.nelem : 0;  // what a full assembly recomputes (the cache overwrites it)
+  if (tangent && !cache) ws.tangent_cache.valid = false;  // K rebuilt without it (a static solve): no longer the kept sum
+  ws.rotation_fallbacks += assemble_corotated(m, ws.work.plan, *ws.work.pool, x, s.R.data(), ws.f_int.data(),
+                                             tangent ? ws.K.data() : nullptr, cache);
+  return ws.K.data();
 }
 
-void consistent_acceleration(const Model& m, State& s) {
+void consistent_acceleration(const Model& m, State& s, Workspace& ws) {
   const int n = m.ndof();
   // Forces and rotations only: the damping product K v is taken matrix-free
   // (R K0 R^T v, without the rotation term of a consistent tangent: this is an
   // estimate of a for the next step, and the tangent assembly cost as much as
   // the rest of a cut frame's rebuild, 10-20 ms at 10k DOF).
-  const double* K = internal_forces(m, s, s.u.data(), false);
+  const double* K = internal_forces(m, s, ws, s.u.data(), false);
   // r = f_ext - f_int - (a_ray M + b_ray K) v
   std::vector<double> r(n), Mv(n), Kv(n, 0.0), z(n), p(n), Ap(n), diag(n);
   mass_matvec(m, s.v.data(), Mv.data());
   if (m.material.rayleigh_stiffness > 0) {
     if (m.material.model == MaterialModel::Linear) sym_matvec(m, K, s.v.data(), Kv.data());
-    else stiffness_matvec(m, s.work.plan, *s.work.pool, s.R.data(), s.v.data(), Kv.data());
+    else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), s.v.data(), Kv.data());
   }
   for (int d = 0; d < n; ++d) {
     r[d] = m.constrained[d] ? 0.0
-                            : m.f_gravity[d] - s.f_int[d] - m.material.rayleigh_mass * Mv[d] -
+                            : m.f_gravity[d] - ws.f_int[d] - m.material.rayleigh_mass * Mv[d] -
                                   m.material.rayleigh_stiffness * Kv[d];
     diag[d] = m.mass_csc.empty() ? m.mass_lumped[d] : m.mass_csc[m.diag[d]];
   }
@@ -243,27 +315,8 @@ void consistent_acceleration(const Model& m, State& s) {
     for (int d = 0; d < n; ++d) s.a[d] = r[d] / diag[d];
     return;
   }
-  if (m.mass_kind == MassKind::Lumped) {
-    // Lumped with enrichment: each enriched DOF q couples only to its own node's
-    // standard DOF u with M_uq = M_qq = m_q (model_build.cpp, build_mass), so
-    //   m_u a_u + sum_q m_q a_q = r_u,  m_q (a_u + a_q) = r_q
-    // gives a_u = (r_u - sum_q r_q) / (m_u - sum_q m_q) (the home piece's mass)
-    // and a_q = r_q / m_q - a_u: a direct solve.
-    const int nstd = 3 * m.nnode;
-    std::vector<double> rsum(r.begin(), r.begin() + nstd), msum(diag.begin(), diag.begin() + nstd);
-    for (int c = nstd; c < n; ++c)
-      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
-        if (m.Ai[k] < nstd && m.mass_csc[k] != 0.0) {
-          rsum[m.Ai[k]] -= r[c];
-          msum[m.Ai[k]] -= m.mass_csc[k];
-        }
-    for (int d = 0; d < nstd; ++d) s.a[d] = m.constrained[d] ? 0.0 : rsum[d] / msum[d];
-    for (int c = nstd; c < n; ++c) {
-      s.a[c] = 0.0;
-      if (m.constrained[c]) continue;
-      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
-        if (m.Ai[k] < nstd && m.mass_csc[k] != 0.0) s.a[c] = r[c] / diag[c] - s.a[m.Ai[k]];
-    }
+  if (m.mass_kind == MassKind::Lumped) {  // with enrichment: a direct solve
+    lumped_xfem_acceleration(m, r, nullptr, s.a);
     return;
   }
   // PCG on the free DOFs (constrained rows of r and of every iterate stay 0).
@@ -296,9 +349,9 @@ void consistent_acceleration(const Model& m, State& s) {
   }
 }
 
-void consistent_acceleration_near(const Model& m, State& s, const std::vector<int>& changed) {
+void consistent_acceleration_near(const Model& m, State& s, Workspace& ws, const std::vector<int>& changed) {
   if (m.mass_kind != MassKind::Lumped || m.mass_csc.empty()) {
-    consistent_acceleration(m, s);
+    consistent_acceleration(m, s, ws);
     return;
   }
   const int nstd = m.nnode, n = m.ndof();
@@ -318,18 +371,16 @@ void consistent_acceleration_near(const Model& m, State& s, const std::vector<in
       }
   std::vector<double> f(n, 0.0), Kv(n, 0.0);
   const bool damp = m.material.rayleigh_stiffness > 0;
-  element_subset_forces(m, s.work.plan, ring, s.u.data(), s.R.data(), f.data(), damp ? s.v.data() : nullptr, Kv.data());
-  // M v and the lumped solve per mesh node (as in consistent_acceleration):
-  // M_uu, M_qq on the diagonal, M_uq = m_q in enriched column q's row u.
-  std::vector<double> Mv(n, 0.0), r(n, 0.0), rsum(3 * static_cast<size_t>(nstd), 0.0), msum(3 * static_cast<size_t>(nstd), 0.0);
-  std::vector<int> home(n, -1);  // enriched DOF -> its mesh node's DOF (the coupling's row)
+  element_subset_forces(m, ws.work.plan, ring, s.u.data(), s.R.data(), f.data(), damp ? s.v.data() : nullptr, Kv.data());
+  // M v on the marked DOF nodes (the diagonal and the u-q couplings), then the
+  // lumped solve per mesh node.
+  std::vector<double> Mv(n, 0.0), r(n, 0.0);
   for (int node = 0; node < m.ndofnode; ++node)
     for (int c = 3 * node; mark[node] && c < 3 * node + 3; ++c) Mv[c] = m.mass_csc[m.diag[c]] * s.v[c];
   for (int c = 3 * nstd; c < n; ++c) {
     if (!mark[c / 3]) continue;
     for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
       if (m.Ai[k] < 3 * nstd && m.mass_csc[k] != 0.0) {
-        home[c] = m.Ai[k];
         Mv[c] += m.mass_csc[k] * s.v[m.Ai[k]];
         Mv[m.Ai[k]] += m.mass_csc[k] * s.v[c];
       }
@@ -338,19 +389,7 @@ void consistent_acceleration_near(const Model& m, State& s, const std::vector<in
     for (int c = 3 * node; mark[node] && c < 3 * node + 3; ++c)
       r[c] = m.constrained[c] ? 0.0
                               : m.f_gravity[c] - f[c] - m.material.rayleigh_mass * Mv[c] - m.material.rayleigh_stiffness * Kv[c];
-  for (int c = 0; c < 3 * nstd; ++c)
-    if (mark[c / 3]) rsum[c] = r[c], msum[c] = m.mass_csc[m.diag[c]];
-  for (int c = 3 * nstd; c < n; ++c)
-    if (home[c] >= 0) {
-      rsum[home[c]] -= r[c];
-      msum[home[c]] -= m.mass_csc[m.diag[c]];
-    }
-  for (int c = 0; c < 3 * nstd; ++c)
-    if (mark[c / 3]) s.a[c] = m.constrained[c] ? 0.0 : rsum[c] / msum[c];
-  for (int c = 3 * nstd; c < n; ++c) {
-    if (!mark[c / 3]) continue;
-    s.a[c] = (m.constrained[c] || home[c] < 0) ? 0.0 : r[c] / m.mass_csc[m.diag[c]] - s.a[home[c]];
-  }
+  lumped_xfem_acceleration(m, r, &mark, s.a);
 }
 
 double total_energy(const Model& m, const State& s) {

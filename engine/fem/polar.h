@@ -8,6 +8,8 @@
 // inversion-robust models). Solved by the fixed-point rotation iteration of
 // Mueller et al. 2016 warm-started from last frame's R; falls back to an SVD if
 // it has not converged in a few dozen iterations.
+#include <vector>
+
 #include <Eigen/Core>
 
 namespace incise {
@@ -22,5 +24,7 @@ int extract_rotation(const Eigen::Matrix3d& F, Eigen::Matrix3d& R);
 // F) the full extraction is done instead. For thresholds (the adaptive Newton
 // check), at a third of the cost of extract_rotation.
 double rotation_angle_to(const Eigen::Matrix3d& F, const Eigen::Matrix3d& R);
+
+std::vector<double> identity_rotations(int nrot);  // (nrot, 9) column-major identities
 
 }  // namespace incise

@@ -1,7 +1,9 @@
 #include "engine/runtime/simulation.h"
 
+#include "engine/dynamics/step.h"
 #include "engine/mesh/mesh_io.h"
 #include "engine/runtime/timing.h"
+#include "engine/util/error.h"
 
 namespace incise {
 
@@ -11,10 +13,22 @@ std::unique_ptr<Simulation> load_simulation(const std::string& scene_path) {
   sim->scene = load_scene(scene_path);
   sim->mesh = read_mesh(sim->scene.mesh_file);
   sim->model = build_model(sim->mesh, sim->scene);
-  sim->cut_progress.assign(sim->scene.cuts.size(), -1.0);
-  init_state(sim->model, sim->state);
+  init_state(sim->model, sim->state, sim->ws);
+  sim->state.cut_progress.assign(sim->scene.cuts.size(), -1.0);
   sim->setup_ms = clock.ms();
   return sim;
+}
+
+void restore_state(Simulation& sim, const Model& model, const State& state) {
+  if (state.cut_progress.size() != sim.scene.cuts.size())
+    throw Error("state: cut_progress has " + std::to_string(state.cut_progress.size()) + " entries, the scene has " +
+                std::to_string(sim.scene.cuts.size()) + " cuts");
+  sim.cut_ahead.reset();
+  if (sim.cut_helper) sim.cut_helper->wait();  // (its task reads the model about to be replaced)
+  if (&model != &sim.model) sim.model = model;
+  ++sim.model_version;  // a cut prepared for the old model is not taken
+  attach_state(sim.model, state, sim.ws);
+  sim.state = state;
 }
 
 }  // namespace incise

@@ -1,22 +1,26 @@
 #pragma once
-// A loaded scene ready to step: Scene -> Mesh -> Model -> State.
+// A loaded scene ready to step: Scene -> Mesh -> Model -> State, with the
+// Workspace that steps it and the frame's Pipeline.
 #include <memory>
 #include <string>
 
-#include "engine/runtime/helper_thread.h"
+#include "engine/dynamics/state.h"
 #include "engine/mesh/mesh.h"
 #include "engine/model/model.h"
+#include "engine/runtime/helper_thread.h"
+#include "engine/runtime/pipeline.h"
 #include "engine/scene/scene.h"
-#include "engine/dynamics/state.h"
+#include "engine/solve/workspace.h"
 
 namespace incise {
 
 struct Simulation {
   Scene scene;
-  Mesh mesh;                          // as read (a cut rebuilds the model from it)
-  std::vector<double> cut_progress;   // (scene.cuts) share of each cut applied: -1 none, 1 whole
-  Model model;
-  State state;
+  Mesh mesh;              // as read (a cut rebuilds the model from it)
+  Model model;            // frozen between frames; a cut puts the next version in place
+  State state;            // the physical state: copyable, hashable
+  Workspace ws;           // factors, threads, caches, work arrays, timings
+  Pipeline pipeline;      // the frame's stages (engine/runtime/pipeline.h)
   double setup_ms = 0.0;  // reading the mesh, precomputation, symbolic analysis
   int model_version = 0;  // counts the models a cut put in place
   // cutting/cut_apply.cpp: the next frame's cut update being prepared on
@@ -27,8 +31,19 @@ struct Simulation {
   std::unique_ptr<HelperThread> cut_helper;
 };
 
-// Reads the scene and its mesh, builds the model, initialises the state.
-// Throws incise::Error with the file and field at fault.
+// Reads the scene and its mesh, builds the model, initialises the state and
+// workspace; the pipeline holds the dynamics stages only (modules plug in
+// theirs). Throws incise::Error with the file and field at fault.
 std::unique_ptr<Simulation> load_simulation(const std::string& scene_path);
+
+// One frame through sim.pipeline.
+inline FrameTiming advance_frame(Simulation& sim) { return sim.pipeline.run_frame(sim); }
+
+// Puts `state` (a copy of another run's, or one read from a file) and the
+// model it was stepped on in place: the next frame continues from it. The
+// model must come from the same scene and mesh (a copy of the other run's
+// sim.model; a model with no cuts when state.cut_progress applies none).
+// Throws incise::Error when the sizes do not match the model.
+void restore_state(Simulation& sim, const Model& model, const State& state);
 
 }  // namespace incise

@@ -6,11 +6,29 @@
 
 namespace incise {
 
-// render: offscreen drawing and read-back of the frame, only when asked
-// (`run --render`, `bench --render`); step() itself never renders.
-enum Stage { kStageCutting, kStageAssembly, kStageFactorization, kStageSolve, kStageRender, kStageOther, kNumStages };
-inline constexpr std::array<const char*, kNumStages> kStageNames = {"cutting", "assembly", "factorization", "solve", "render",
-                                                                    "other"};
+// The stages of a frame in loop order (../shared/DESIGN.md, "The frame as
+// stages"; engine/runtime/pipeline.h runs them). assembly, factorization and
+// solve run once per Newton iteration (solve decides whether another
+// follows; a lagged rescue runs factorization and solve again); the others
+// once per frame, or never when the scene does not call for them (no tool:
+// no tool poses, collision or contact publish; no cut: no cutting; render
+// and record only when asked).
+enum Stage {
+  kStageToolPoses,
+  kStageCollision,
+  kStageCutting,
+  kStageAssembly,
+  kStageFactorization,
+  kStageSolve,
+  kStageIntegration,
+  kStageContactPublish,
+  kStageRender,
+  kStageRecord,
+  kNumStages
+};
+inline constexpr std::array<const char*, kNumStages> kStageNames = {
+    "tool_poses", "collision", "cutting", "assembly", "factorization", "solve", "integration", "contact_publish",
+    "render", "record"};
 
 // Parts of the cutting stage in a cut frame (they sum to its ms[kStageCutting]
 // up to the surface set-up): the X-FEM layout, the Model rebuild, the transfer
@@ -21,7 +39,8 @@ inline constexpr std::array<const char*, kNumCutParts> kCutPartNames = {"  layou
                                                                        "  solver setup", "  acceleration"};
 
 struct FrameTiming {
-  std::array<double, kNumStages> ms{};  // per stage
+  std::array<double, kNumStages> ms{};  // per stage (all its runs this frame)
+  std::array<int, kNumStages> runs{};   // times each stage ran this frame (0: absent)
   std::array<double, kNumCutParts> cut_ms{};  // parts of ms[kStageCutting] (cut frames)
   double frame_ms = 0.0;                // whole frame, wall clock
   double cpu_ms = 0.0;                  // CPU time of the stepping thread in the frame (frame_ms - cpu_ms: time it waited or was preempted)
@@ -59,5 +78,16 @@ class Stopwatch {
  private:
   std::chrono::steady_clock::time_point t0_;
 };
+
+// Runs one stage and books its time and run: the only place a stage is
+// timed (the pipeline and the step's Newton loop call it; stages never time
+// themselves).
+template <class F>
+void run_stage(FrameTiming& timing, Stage stage, F&& fn) {
+  Stopwatch clock;
+  fn();
+  timing.ms[stage] += clock.ms();
+  ++timing.runs[stage];
+}
 
 }  // namespace incise

@@ -32,7 +32,10 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
     f.push_back(t.frame_ms);
     (t.cut_frame ? cut : plain).push_back(t.frame_ms);
     over += t.frame_ms > budget_ms;
-    for (int k = 0; k < kNumStages; ++k) st[k].push_back(t.ms[k]);
+    for (int k = 0; k < kNumStages; ++k) {
+      st[k].push_back(t.ms[k]);
+      s.runs[k] += t.runs[k];
+    }
     for (int k = 0; t.cut_frame && k < kNumCutParts; ++k) parts[k].push_back(t.cut_ms[k]);
     s.cut_ahead += t.cut_frame && t.cut_ahead;
   }
@@ -53,15 +56,20 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
 std::string format_summary(const TimingSummary& s) {
   std::string out;
   char line[160];
-  std::snprintf(line, sizeof line, "%-14s %10s %10s %10s %10s\n", "stage (ms)", "median", "p95", "p99", "max");
+  std::snprintf(line, sizeof line, "%-16s %10s %10s %10s %10s %8s\n", "stage (ms)", "median", "p95", "p99", "max", "runs");
   out += line;
-  auto row = [&](const char* name, const Percentiles& p) {
-    std::snprintf(line, sizeof line, "%-14s %10.3f %10.3f %10.3f %10.3f\n", name, p.median_ms, p.p95_ms, p.p99_ms,
+  auto row = [&](const char* name, const Percentiles& p, long long runs = -1) {
+    std::snprintf(line, sizeof line, "%-16s %10.3f %10.3f %10.3f %10.3f", name, p.median_ms, p.p95_ms, p.p99_ms,
                   p.max_ms);
     out += line;
+    if (runs >= 0) {
+      std::snprintf(line, sizeof line, " %8lld", runs);
+      out += line;
+    }
+    out += "\n";
   };
   for (int k = 0; k < kNumStages; ++k) {
-    row(kStageNames[k], s.stages[k]);
+    row(kStageNames[k], s.stages[k], s.runs[k]);
     // The cutting stage's parts, over the cut frames only.
     for (int j = 0; k == kStageCutting && s.cut_frames.count > 0 && j < kNumCutParts; ++j)
       row(kCutPartNames[j], s.cut_parts[j]);

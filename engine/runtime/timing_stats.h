@@ -17,6 +17,7 @@ Percentiles percentiles(std::vector<double> samples);
 struct TimingSummary {
   Percentiles frame;
   Percentiles stages[kNumStages];
+  long long runs[kNumStages] = {};  // times each stage ran over all the frames (0: absent from the pipeline)
   double over_budget = 0.0;  // share of frames with frame_ms > budget_ms
   Percentiles cut_frames;    // frames whose DOF set changed (a cut), frame_ms
   Percentiles plain_frames;  // the other frames
@@ -27,7 +28,7 @@ struct TimingSummary {
   double budget_ms = 1000.0 / 30.0;
 };
 TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms = 1000.0 / 30.0);
-// A fixed-width table: stage, median, p95, p99, max (ms).
+// A fixed-width table: stage, median, p95, p99, max (ms), runs.
 std::string format_summary(const TimingSummary& s);
 
 }  // namespace incise

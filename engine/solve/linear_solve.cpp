@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include "engine/dynamics/step.h"
 #include "engine/fem/assemble.h"
 #include "engine/solve/carried_ordering.h"
 #include "engine/util/error.h"
@@ -33,9 +34,7 @@ void form_matrix(const Model& m, const double* K, double* A) {
     for (int d = 0; d < m.ndof(); ++d) A[m.diag[d]] += cM * m.mass_lumped[d];
     for (int k : m.mass_coupling) A[k] += cM * m.mass_csc[k];
   }
-  for (int k : m.constrained_entries) A[k] = 0.0;
-  for (int d = 0; d < m.ndof(); ++d)
-    if (m.constrained[d]) A[m.diag[d]] = 1.0;
+  project_constraints(m, A);
 }
 
 double dot(const std::vector<double>& a, const std::vector<double>& b) {
@@ -46,25 +45,25 @@ double dot(const std::vector<double>& a, const std::vector<double>& b) {
 
 // One forward + back substitution, counted and timed (from the float copy
 // when the factor has one: lagged with solver.factor_copy float or half).
-void substitute(State& s, CholmodSolver& f, const double* b, double* x) {
+void substitute(Workspace& ws, CholmodSolver& f, const double* b, double* x) {
   Stopwatch w;
   const int takeovers = f.stats().takeovers;
   if (f.has_factor_copy()) f.solve_copy(b, x);
   else f.solve(b, x);
-  s.timing.solves += 1;
-  s.timing.solve_kernel_ms += w.ms();
-  s.timing.takeovers += f.stats().takeovers - takeovers;
+  ws.timing.solves += 1;
+  ws.timing.solve_kernel_ms += w.ms();
+  ws.timing.takeovers += f.stats().takeovers - takeovers;
 }
 
 // x = Rn A0^-1 Rn^T b with the rest factor in state.solver.
-void warped_apply(const Model& m, State& s, const double* b, double* x) {
-  auto& w = s.work;
+void warped_apply(const Model& m, Workspace& ws, const double* b, double* x) {
+  auto& w = ws.work;
   double* t = w.t.data();
   for (int node = 0; node < m.ndofnode; ++node) {
     const Eigen::Map<const Mat3> R(&w.Rn[9 * node]);
     Eigen::Map<Eigen::Vector3d>(t + 3 * node) = R.transpose() * Eigen::Map<const Eigen::Vector3d>(b + 3 * node);
   }
-  substitute(s, s.solver, t, t);
+  substitute(ws, ws.solver, t, t);
   for (int node = 0; node < m.ndofnode; ++node) {
     const Eigen::Map<const Mat3> R(&w.Rn[9 * node]);
     Eigen::Map<Eigen::Vector3d>(x + 3 * node) = R * Eigen::Map<const Eigen::Vector3d>(t + 3 * node);
@@ -77,9 +76,9 @@ void warped_apply(const Model& m, State& s, const double* b, double* x) {
 // x = 0). Records iterations, the starting and final residual and
 // convergence in state.timing.
 template <class Precond>
-void pcg(const Model& m, State& s, const double* A, const double* b, double* x, const Precond& precond,
+void pcg(const Model& m, Workspace& ws, const double* A, const double* b, double* x, const Precond& precond,
          int max_iterations, const double* x0 = nullptr) {
-  auto& w = s.work;
+  auto& w = ws.work;
   const int n = m.ndof();
   std::vector<double>& r = w.r;
   std::vector<double>& z = w.z;
@@ -88,8 +87,8 @@ void pcg(const Model& m, State& s, const double* A, const double* b, double* x, 
   std::copy(b, b + n, r.begin());
   std::fill(x, x + n, 0.0);
   const double bnorm = std::sqrt(dot(r, r));
-  s.timing.residual = 0.0;
-  s.timing.converged = true;
+  ws.timing.residual = 0.0;
+  ws.timing.converged = true;
   if (bnorm == 0.0) return;
   if (x0) {
     // min over alpha of |b - alpha q|^2, q = A x0: alpha = (b.q)/(q.q), |r|^2 = |b|^2 - alpha (b.q).
@@ -105,9 +104,9 @@ void pcg(const Model& m, State& s, const double* A, const double* b, double* x, 
       }
       if (std::sqrt(rr) < bnorm) {
         for (int i = 0; i < n; ++i) x[i] = alpha * x0[i];
-        s.timing.start_residual = std::sqrt(rr) / bnorm;
-        if (s.timing.start_residual <= m.solver.tolerance) {
-          s.timing.residual = s.timing.start_residual;
+        ws.timing.start_residual = std::sqrt(rr) / bnorm;
+        if (ws.timing.start_residual <= m.solver.tolerance) {
+          ws.timing.residual = ws.timing.start_residual;
           return;
         }
       } else {
@@ -139,32 +138,32 @@ void pcg(const Model& m, State& s, const double* A, const double* b, double* x, 
     rz = rz_new;
     for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
   }
-  s.timing.iterations += it;
-  s.timing.residual = rel;
-  s.timing.converged = s.timing.converged && rel <= tol;
+  ws.timing.iterations += it;
+  ws.timing.residual = rel;
+  ws.timing.converged = ws.timing.converged && rel <= tol;
 }
 
-CholmodSolver& slot_factor(State& s, int k) { return k == 0 ? s.solver : s.work.back; }
+CholmodSolver& slot_factor(Workspace& ws, int k) { return k == 0 ? ws.solver : ws.work.back; }
 
 // Synchronous factorization of the current A into slot k (analysis first when
 // the slot holds another pattern).
-void factor_now(const Model& m, State& s, int k) {
-  auto& w = s.work;
-  CholmodSolver& f = slot_factor(s, k);
+void factor_now(const Model& m, Workspace& ws, int k) {
+  auto& w = ws.work;
+  CholmodSolver& f = slot_factor(ws, k);
   if (w.slot_pattern[k] != w.pattern) {
     f.analyze(m.ndof(), m.Ap, m.Ai);
     w.slot_carried[k] = false;
     w.slot_pattern[k] = w.pattern;
     w.slot_n[k] = m.ndof();
   }
-  f.factorize(s.A.data());
+  f.factorize(ws.A.data());
   w.slot_map[k].clear();
   if (m.solver.warp) w.slot_Rn[k] = w.Rn;
-  ++s.refactorizations;
+  ++ws.refactorizations;
 }
 
-void take_job(State& s) {
-  auto& w = s.work;
+void take_job(Workspace& ws) {
+  auto& w = ws.work;
   w.wait_job();
   w.job_running = false;
   if (w.job_error) {
@@ -175,21 +174,21 @@ void take_job(State& s) {
   w.front = w.job_slot;
   w.front_frame = w.job_frame;
   w.job_slot = -1;
-  ++s.refactorizations;
+  ++ws.refactorizations;
 }
 
 // Starts the background factorization of the current A (and the analysis of
 // its pattern when the chosen slot has not seen it) in a slot other than the front.
-void launch_job(const Model& m, State& s) {
-  auto& w = s.work;
+void launch_job(const Model& m, Workspace& ws, int frame) {
+  auto& w = ws.work;
   const int k = w.front == 0 ? 1 : 0;  // any slot but the front (none is running)
-  assign_range_with_headroom(w.A_back, s.A.begin(), s.A.end());
+  assign_range_with_headroom(w.A_back, ws.A.begin(), ws.A.end());
   // While an incision goes on (a new pattern this frame or the last), a slot
   // analyzing the new pattern carries the front factor's ordering over
   // (solver.cut_ordering "carried"): no METIS in the job (39-44 ms at 10k DOF,
   // the factorization 53 ms), for 10-20% more flops in the factorization. Once
   // cutting pauses, a slot with a carried analysis is analyzed again with a search.
-  const bool cutting = s.frame - w.pattern_frame <= 1;
+  const bool cutting = frame - w.pattern_frame <= 1;
   w.job_analyze = w.slot_pattern[k] != w.pattern || (w.slot_carried[k] && !cutting);
   w.job_old_perm.clear();
   if (w.job_analyze) {
@@ -197,7 +196,7 @@ void launch_job(const Model& m, State& s) {
     w.job_Ai = m.Ai;
     w.slot_pattern[k] = w.pattern;
     w.slot_n[k] = m.ndof();
-    const CholmodSolver& front = slot_factor(s, w.front);
+    const CholmodSolver& front = slot_factor(ws, w.front);
     // Inputs checked here, so a mismatch falls back to a search instead of
     // failing the job.
     w.slot_carried[k] = m.solver.carry_ordering && cutting && m.has_cuts() && !w.slot_map[w.front].empty() &&
@@ -212,7 +211,7 @@ void launch_job(const Model& m, State& s) {
   }
   w.slot_map[k].clear();
   if (m.solver.warp) w.slot_Rn[k] = w.Rn;
-  CholmodSolver* f = &slot_factor(s, k);
+  CholmodSolver* f = &slot_factor(ws, k);
   SolverWork* wp = &w;
   const int n = m.ndof();
   w.job_done = false;
@@ -247,24 +246,24 @@ void launch_job(const Model& m, State& s) {
   });
   w.job_running = true;
   w.job_slot = k;
-  w.job_frame = w.last_launch = s.frame;
+  w.job_frame = w.last_launch = frame;
 }
 
 // Lagged: make the front factor current for this frame (refresh policy).
-void lagged_refresh(const Model& m, State& s, Stopwatch& clock) {
-  auto& w = s.work;
-  const int f = s.frame, k = m.solver.refresh_every;
-  if (!s.factor_current) {  // first frame, or the factor was invalidated
+void lagged_refresh(const Model& m, Workspace& ws, int frame) {
+  auto& w = ws.work;
+  const int f = frame, k = m.solver.refresh_every;
+  if (!ws.factor_current) {  // first frame, or the factor was invalidated
     w.wait_job();
     w.job_running = false;
     w.job_error = nullptr;
     w.front = 0;
-    factor_now(m, s, 0);
-    s.factor_current = true;
+    factor_now(m, ws, 0);
+    ws.factor_current = true;
     w.front_frame = w.last_launch = f;
   } else if (!m.solver.background) {
     if (f - w.front_frame >= k) {
-      factor_now(m, s, w.front);
+      factor_now(m, ws, w.front);
       w.front_frame = w.last_launch = f;
     }
   } else {
@@ -272,16 +271,15 @@ void lagged_refresh(const Model& m, State& s, Stopwatch& clock) {
     // now, waiting if it is late, so replays give the same states. "skip":
     // a late job is taken in the first frame it has finished in; no stall,
     // but the trajectory then depends on the machine's speed.
-    if (w.job_running && f - w.job_frame >= k && (!m.solver.skip_late_factor || w.job_done)) take_job(s);
-    if (!w.job_running && f - w.last_launch >= k) launch_job(m, s);
+    if (w.job_running && f - w.job_frame >= k && (!m.solver.skip_late_factor || w.job_done)) take_job(ws);
+    if (!w.job_running && f - w.last_launch >= k) launch_job(m, ws, f);
   }
-  s.timing.ms[kStageFactorization] += clock.lap();
 }
 
 // warp: Q_n = Rn_n * (the front slot's Rn of the same node)^T for every DOF
 // node whose three DOFs the slot knows as one node; identity elsewhere.
-void lagged_warp_rotations(const Model& m, State& s) {
-  auto& w = s.work;
+void lagged_warp_rotations(const Model& m, Workspace& ws) {
+  auto& w = ws.work;
   const int k = w.front;
   const std::vector<int>& map = w.slot_map[k];
   const std::vector<double>& Rl = w.slot_Rn[k];
@@ -305,9 +303,9 @@ void lagged_warp_rotations(const Model& m, State& s) {
 // cuts; 0 on the DOFs it does not know). With warp, Q = the node rotations
 // since the factor's frame: if the body turned rigidly by Q, A = Q A_lag Q^T
 // (lumped, isotropic mass) and this is exact.
-void factor_apply(const Model& m, State& s, const double* r, double* z) {
-  auto& w = s.work;
-  CholmodSolver& f = slot_factor(s, w.front);
+void factor_apply(const Model& m, Workspace& ws, const double* r, double* z) {
+  auto& w = ws.work;
+  CholmodSolver& f = slot_factor(ws, w.front);
   const std::vector<int>& map = w.slot_map[w.front];
   const bool warp = m.solver.warp;
   const double* rin = r;
@@ -318,12 +316,12 @@ void factor_apply(const Model& m, State& s, const double* r, double* z) {
     rin = z;
   }
   if (map.empty()) {
-    substitute(s, f, rin, z);
+    substitute(ws, f, rin, z);
   } else {
     w.t_slot.assign(f.size(), 0.0);  // capacity kept: no allocation after the first use
     for (int d = 0; d < m.ndof(); ++d)
       if (map[d] >= 0) w.t_slot[map[d]] = rin[d];
-    substitute(s, f, w.t_slot.data(), w.t_slot.data());
+    substitute(ws, f, w.t_slot.data(), w.t_slot.data());
     for (int d = 0; d < m.ndof(); ++d) z[d] = map[d] >= 0 ? w.t_slot[map[d]] : 0.0;
   }
   if (warp)
@@ -334,13 +332,13 @@ void factor_apply(const Model& m, State& s, const double* r, double* z) {
 }
 
 // z_p (+)= A_p^-1 r_p on the patch DOFs (r, z global).
-void patch_apply(State& s, const double* r, double* z, bool add) {
-  auto& w = s.work;
+void patch_apply(Workspace& ws, const double* r, double* z, bool add) {
+  auto& w = ws.work;
   const int np = static_cast<int>(w.patch_dof.size());
   for (int j = 0; j < np; ++j) w.patch_r[j] = r[w.patch_dof[j]];
   Stopwatch clock;
   w.patch.solve(w.patch_r.data(), w.patch_r.data());
-  s.timing.solve_kernel_ms += clock.ms();
+  ws.timing.solve_kernel_ms += clock.ms();
   for (int j = 0; j < np; ++j) z[w.patch_dof[j]] = (add ? z[w.patch_dof[j]] : 0.0) + w.patch_r[j];
 }
 
@@ -350,30 +348,30 @@ void patch_apply(State& s, const double* r, double* z, bool add) {
 // patch; Saad, Iterative Methods, sec. 14.3): z1 = E A_p^-1 E^T r, z2 = z1 +
 // F^-1 (r - A z1), z = z2 + E A_p^-1 E^T (r - A z2): one substitution and two
 // patch solves, and the residual products need A's patch rows only.
-void lagged_apply(const Model& m, State& s, const double* A, const double* r, double* z) {
-  auto& w = s.work;
+void lagged_apply(const Model& m, Workspace& ws, const double* A, const double* r, double* z) {
+  auto& w = ws.work;
   const std::vector<int>& map = w.slot_map[w.front];
   if (map.empty()) {
-    factor_apply(m, s, r, z);
+    factor_apply(m, ws, r, z);
   } else if (w.patch_dof.empty()) {
-    factor_apply(m, s, r, z);
+    factor_apply(m, ws, r, z);
     for (int d = 0; d < m.ndof(); ++d)
       if (map[d] < 0) z[d] = r[d] / A[m.diag[d]];
   } else if (!m.solver.multiplicative_patch) {
-    factor_apply(m, s, r, z);
-    patch_apply(s, r, z, /*add=*/true);
+    factor_apply(m, ws, r, z);
+    patch_apply(ws, r, z, /*add=*/true);
   } else {
     const int np = static_cast<int>(w.patch_dof.size());
     double* z1 = w.ms_z.data();  // patch-supported
     double* r1 = w.ms_r.data();
-    patch_apply(s, r, z1, /*add=*/false);
+    patch_apply(ws, r, z1, /*add=*/false);
     // r1 = r - A z1: z1 lives on the patch, so A z1 = sum over the patch rows (A symmetric).
     std::copy(r, r + m.ndof(), r1);
     for (int i = 0; i < np; ++i) {
       const double zi = z1[w.patch_dof[i]];
       for (int t = w.patch_row_ptr[i]; t < w.patch_row_ptr[i + 1]; ++t) r1[w.patch_row_col[t]] -= A[w.patch_row_k[t]] * zi;
     }
-    factor_apply(m, s, r1, z);
+    factor_apply(m, ws, r1, z);
     for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
     // r2 = r - A z on the patch rows, then z += E A_p^-1 r2.
     for (int i = 0; i < np; ++i) {
@@ -381,14 +379,14 @@ void lagged_apply(const Model& m, State& s, const double* A, const double* r, do
       for (int t = w.patch_row_ptr[i]; t < w.patch_row_ptr[i + 1]; ++t) acc -= A[w.patch_row_k[t]] * z[w.patch_row_col[t]];
       r1[w.patch_dof[i]] = acc;
     }
-    patch_apply(s, r1, z, /*add=*/true);
+    patch_apply(ws, r1, z, /*add=*/true);
   }
 }
 
 // The patch of the mapped front factor (see SolverWork::patch): built when
 // the front slot or the pattern changed, refactored with the current A.
-void lagged_patch(const Model& m, State& s, const double* A) {
-  auto& w = s.work;
+void lagged_patch(const Model& m, Workspace& ws, const double* A) {
+  auto& w = ws.work;
   const std::vector<int>& map = w.slot_map[w.front];
   if (map.empty()) {
     w.patch_dof.clear();
@@ -472,35 +470,37 @@ void lagged_patch(const Model& m, State& s, const double* A) {
   w.patch.factorize(w.patch_A.data());
 }
 
-void rest_factor(const Model& m, State& s, Stopwatch& clock) {
-  if (s.factor_current) return;
-  form_matrix(m, m.K0_csc.data(), s.A.data());
-  s.solver.factorize(s.A.data());
-  ++s.refactorizations;
-  s.factor_current = true;
-  s.timing.ms[kStageFactorization] += clock.lap();
+// The warped policies' factor of the rest matrix A0, once per model (its own
+// buffer: the assembly stage has already formed this iteration's A).
+void rest_factor(const Model& m, Workspace& ws) {
+  if (ws.factor_current) return;
+  std::vector<double> A0(m.nnz());
+  form_matrix(m, m.K0_csc.data(), A0.data());
+  ws.solver.factorize(A0.data());
+  ++ws.refactorizations;
+  ws.factor_current = true;
 }
 
 }  // namespace
 
 bool policy_needs_tangent(const Model& m) { return m.solver.policy != SolverPolicy::Warped; }
 
-bool solver_carries_over_cuts(const Model& m, const State& s) {
-  return m.solver.policy == SolverPolicy::Lagged && s.factor_current;
+bool solver_carries_over_cuts(const Model& m, const Workspace& ws) {
+  return m.solver.policy == SolverPolicy::Lagged && ws.factor_current;
 }
 
-void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_map, AssemblyPlan* plan) {
-  auto& w = s.work;
+void prepare_solver(const Model& m, Workspace& ws, int frame, const std::vector<int>* dofnode_map, AssemblyPlan* plan) {
+  auto& w = ws.work;
   const int threads = std::max(1, m.solver.threads);
   if (!w.pool || w.pool->size() != threads) w.pool = std::make_unique<ThreadPool>(threads);
   if (m.solver.substitution_threads > 1 && !w.substitution_worker)
     w.substitution_worker = std::make_unique<SubstitutionWorker>();
   if (m.solver.substitution_threads <= 1 && w.substitution_worker) {
-    s.solver.set_substitution_worker(nullptr);  // before the worker goes (a bin given up on may still run)
+    ws.solver.set_substitution_worker(nullptr);  // before the worker goes (a bin given up on may still run)
     w.back.set_substitution_worker(nullptr);
     w.substitution_worker.reset();
   }
-  s.solver.set_substitution_worker(w.substitution_worker.get());
+  ws.solver.set_substitution_worker(w.substitution_worker.get());
   w.back.set_substitution_worker(w.substitution_worker.get());
   // After the workers above exist (they keep the whole CPU set; ones started
   // later unpin themselves: unpin_if_split).
@@ -508,7 +508,7 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   if (plan && plan->nthreads == threads) w.plan = std::move(*plan);
   else w.plan = make_assembly_plan(m, threads);
   const int n = m.ndof();
-  if (dofnode_map && solver_carries_over_cuts(m, s)) {
+  if (dofnode_map && solver_carries_over_cuts(m, ws)) {
     // A cut: keep the factors; each maps the new DOFs onto its own (composed
     // over successive cuts). A DOF node the old model did not have (-1), or a
     // second new one on the same old one, is left to the patch (lagged_patch).
@@ -535,24 +535,24 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
       }
     }
     ++w.pattern;
-    w.pattern_frame = s.frame;
-    w.last_launch = std::min(w.last_launch, s.frame - 1000000);  // the next frame starts a job on the new pattern
+    w.pattern_frame = frame;
+    w.last_launch = std::min(w.last_launch, frame - 1000000);  // the next frame starts a job on the new pattern
   } else {
     w.wait_job();
     w.job_running = false;
     w.job_error = nullptr;
     w.job_slot = -1;
-    s.solver.configure(m.solver.factor, m.solver.ordering);
+    ws.solver.configure(m.solver.factor, m.solver.ordering);
     w.back.configure(m.solver.factor, m.solver.ordering);
     const bool lagged = m.solver.policy == SolverPolicy::Lagged;
     const FactorCopy copy = lagged ? m.solver.factor_copy : FactorCopy::None;
-    for (CholmodSolver* f : {&s.solver, &w.back}) {  // single needs the float copy: off first, on last
+    for (CholmodSolver* f : {&ws.solver, &w.back}) {  // single needs the float copy: off first, on last
       f->set_single_factorization(false);
       f->set_factor_copy(copy);
       f->set_single_factorization(lagged && m.solver.single_factorization);
     }
     ++w.pattern;
-    s.solver.analyze(n, m.Ap, m.Ai);
+    ws.solver.analyze(n, m.Ap, m.Ai);
     w.pattern_frame = -1000000;
     for (int k = 0; k < 2; ++k) {
       w.slot_carried[k] = false;
@@ -562,7 +562,7 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
     }
     w.front = 0;
     w.front_frame = w.last_launch = w.job_frame = -1;
-    s.factor_current = false;
+    ws.factor_current = false;
   }
   for (auto* v : {&w.r, &w.z, &w.p, &w.q, &w.t, &w.ms_r, &w.ms_z}) v->assign(n, 0.0);
   if (dofnode_map && !w.guess.empty()) {  // a cut: the start follows its DOF nodes, 0 on new ones
@@ -580,7 +580,7 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   std::vector<double> old_Rn = std::move(w.Rn);
   w.Rn.assign(9 * static_cast<size_t>(m.ndofnode), 0.0);
   for (int node = 0; node < m.ndofnode; ++node) w.Rn[9 * node] = w.Rn[9 * node + 4] = w.Rn[9 * node + 8] = 1.0;
-  if (dofnode_map && solver_carries_over_cuts(m, s))  // a cut: node rotations warm-start from the old node's
+  if (dofnode_map && solver_carries_over_cuts(m, ws))  // a cut: node rotations warm-start from the old node's
     for (int node = 0; node < m.ndofnode; ++node) {
       const int o = (*dofnode_map)[node];
       if (o >= 0 && 9 * static_cast<size_t>(o) + 9 <= old_Rn.size())
@@ -612,8 +612,8 @@ void prepare_solver(const Model& m, State& s, const std::vector<int>* dofnode_ma
   }
 }
 
-void update_node_rotations(const Model& m, State& s) {
-  auto& w = s.work;
+void update_node_rotations(const Model& m, const double* R, Workspace& ws) {
+  auto& w = ws.work;
   const auto& ep = w.plan.elem_rot_ptr;
   w.pool->run([&](int tid) {
     int b, e;
@@ -625,7 +625,7 @@ void update_node_rotations(const Model& m, State& s) {
     for (int el = b; el < e; ++el) {
       Eigen::Map<Mat3> Se(&w.elem_S[9 * static_cast<size_t>(el)]);
       Se.setZero();
-      for (int k = ep[el]; k < ep[el + 1]; ++k) Se += Eigen::Map<const Mat3>(&s.R[9 * static_cast<size_t>(w.plan.elem_rot[k])]);
+      for (int k = ep[el]; k < ep[el + 1]; ++k) Se += Eigen::Map<const Mat3>(&R[9 * static_cast<size_t>(w.plan.elem_rot[k])]);
       if (ep[el + 1] > ep[el]) Se *= m.elem_volume[el] / (ep[el + 1] - ep[el]);
     }
     w.pool->barrier();
@@ -646,79 +646,115 @@ void update_node_rotations(const Model& m, State& s) {
   });
 }
 
-void solve_system(const Model& m, State& s, const double* K, int iteration, Stopwatch& clock) {
+void form_dynamic_matrix(const Model& m, const State& s, Workspace& ws, const double* K) {
   const bool linear = m.material.model == MaterialModel::Linear;
-  double* du = s.du.data();
   switch (m.solver.policy) {
     case SolverPolicy::Exact:
-      if (!(linear && s.factor_current)) {
-        form_matrix(m, K, s.A.data());
-        s.timing.ms[kStageAssembly] += clock.lap();
-        s.solver.factorize(s.A.data());
-        ++s.refactorizations;
-        s.factor_current = true;
-        s.timing.ms[kStageFactorization] += clock.lap();
-      }
-      substitute(s, s.solver, s.rhs.data(), du);
+      if (!(linear && ws.factor_current)) form_matrix(m, K, ws.A.data());
       break;
     case SolverPolicy::Lagged:
-      form_matrix(m, K, s.A.data());
-      if (m.solver.warp) update_node_rotations(m, s);
-      s.timing.ms[kStageAssembly] += clock.lap();
-      if (iteration == 0 || !s.factor_current) lagged_refresh(m, s, clock);
-      if (m.solver.warp) lagged_warp_rotations(m, s);
-      if (iteration == 0 || s.work.patch_key < 0) lagged_patch(m, s, s.A.data());
-      s.timing.ms[kStageFactorization] += clock.lap();
-      s.timing.factor_age = s.frame - s.work.front_frame;
-      s.timing.patch_dofs = static_cast<int>(s.work.patch_dof.size());
-      {
-        const auto precond = [&](const double* r, double* z) { lagged_apply(m, s, s.A.data(), r, z); };
-        const int rescue = m.solver.rescue_after;
-        const bool converged_before = s.timing.converged;
+      form_matrix(m, K, ws.A.data());
+      if (m.solver.warp) update_node_rotations(m, s.R.data(), ws);
+      break;
+    case SolverPolicy::Warped:
+      update_node_rotations(m, s.R.data(), ws);
+      break;
+    case SolverPolicy::WarpedCG:
+      form_matrix(m, K, ws.A.data());
+      update_node_rotations(m, s.R.data(), ws);
+      break;
+  }
+}
+
+bool factorization_due(const Model& m, const Workspace& ws) {
+  switch (m.solver.policy) {
+    case SolverPolicy::Exact:
+      return !(m.material.model == MaterialModel::Linear && ws.factor_current);
+    case SolverPolicy::Lagged:
+      return true;  // the refresh policy, the warp and the patch decide per iteration
+    case SolverPolicy::Warped:
+    case SolverPolicy::WarpedCG:
+      return !ws.factor_current;
+  }
+  return true;
+}
+
+void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
+  const bool linear = m.material.model == MaterialModel::Linear;
+  switch (m.solver.policy) {
+    case SolverPolicy::Exact:
+      if (!(linear && ws.factor_current)) {
+        ws.solver.factorize(ws.A.data());
+        ++ws.refactorizations;
+        ws.factor_current = true;
+      }
+      break;
+    case SolverPolicy::Lagged: {
+      // A rescue (solve_for_policy gave up on CG) factors A now,
+      // synchronously (waiting for a running background job).
+      const bool rescue = ws.rescue_pending;
+      if (rescue || ws.iteration == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
+      if (m.solver.warp) lagged_warp_rotations(m, ws);
+      if (rescue || ws.iteration == 0 || ws.work.patch_key < 0) lagged_patch(m, ws, ws.A.data());
+      ws.timing.factor_age = s.frame - ws.work.front_frame;
+      ws.timing.patch_dofs = static_cast<int>(ws.work.patch_dof.size());
+      break;
+    }
+    case SolverPolicy::Warped:
+    case SolverPolicy::WarpedCG:
+      rest_factor(m, ws);
+      break;
+  }
+}
+
+void solve_for_policy(const Model& m, Workspace& ws) {
+  double* du = ws.du.data();
+  const int iteration = ws.iteration;
+  switch (m.solver.policy) {
+    case SolverPolicy::Exact:
+      substitute(ws, ws.solver, ws.rhs.data(), du);
+      break;
+    case SolverPolicy::Lagged: {
+      const auto precond = [&](const double* r, double* z) { lagged_apply(m, ws, ws.A.data(), r, z); };
+      const int rescue = m.solver.rescue_after;
+      auto& guess = ws.work.guess;
+      if (ws.rescue_pending) {  // the rescue factor is in place: CG again from 0
+        ws.rescue_pending = false;
+        ws.timing.converged = ws.converged_before_rescue;
+        pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, m.solver.max_iterations);
+      } else {
+        ws.converged_before_rescue = ws.timing.converged;
         // The first Newton iteration's increment alternates in sign between
         // frames (the trapezoidal rule's undamped sawtooth about the
         // constant-velocity predictor): the last one, scaled, starts CG close.
-        auto& guess = s.work.guess;
         const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
-        pcg(m, s, s.A.data(), s.rhs.data(), du, precond,
+        pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond,
             rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations, use_guess ? guess.data() : nullptr);
-        if (rescue > 0 && !s.timing.converged && rescue < m.solver.max_iterations) {
-          // The lagged factor is too far from A (fast large rotations): factor
-          // A now, synchronously (waiting for a running background job), and
-          // solve again with it, instead of hundreds of CG iterations.
-          s.timing.ms[kStageSolve] += clock.lap();
-          s.factor_current = false;
-          lagged_refresh(m, s, clock);
-          if (m.solver.warp) lagged_warp_rotations(m, s);
-          lagged_patch(m, s, s.A.data());
-          s.timing.ms[kStageFactorization] += clock.lap();
-          ++s.timing.rescues;
-          s.timing.converged = converged_before;
-          pcg(m, s, s.A.data(), s.rhs.data(), du, precond, m.solver.max_iterations);
+        if (rescue > 0 && !ws.timing.converged && rescue < m.solver.max_iterations) {
+          // The lagged factor is too far from A (fast large rotations): the
+          // factorization stage factors A now and CG runs again with it,
+          // instead of hundreds of CG iterations.
+          ws.rescue_pending = true;
+          ws.factor_current = false;
+          ++ws.timing.rescues;
+          return;
         }
-        if (iteration == 0 && m.solver.previous_guess) s.work.guess.assign(du, du + m.ndof());
-        break;
       }
-    case SolverPolicy::Warped:
-      rest_factor(m, s, clock);
-      update_node_rotations(m, s);
-      warped_apply(m, s, s.rhs.data(), du);
+      if (iteration == 0 && m.solver.previous_guess) guess.assign(du, du + m.ndof());
       break;
-    case SolverPolicy::WarpedCG:
-      rest_factor(m, s, clock);
-      form_matrix(m, K, s.A.data());
-      update_node_rotations(m, s);
-      s.timing.ms[kStageAssembly] += clock.lap();
-      {
-        auto& guess = s.work.guess;
-        const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
-        pcg(m, s, s.A.data(), s.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, s, r, z); },
-            m.solver.max_iterations, use_guess ? guess.data() : nullptr);
-        if (iteration == 0 && m.solver.previous_guess) guess.assign(du, du + m.ndof());
-        break;
-      }
+    }
+    case SolverPolicy::Warped:
+      warped_apply(m, ws, ws.rhs.data(), du);
+      break;
+    case SolverPolicy::WarpedCG: {
+      auto& guess = ws.work.guess;
+      const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
+      pcg(m, ws, ws.A.data(), ws.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, ws, r, z); },
+          m.solver.max_iterations, use_guess ? guess.data() : nullptr);
+      if (iteration == 0 && m.solver.previous_guess) guess.assign(du, du + m.ndof());
+      break;
+    }
   }
-  s.timing.ms[kStageSolve] += clock.lap();
 }
 
 }  // namespace incise

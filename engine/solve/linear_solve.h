@@ -17,42 +17,61 @@
 //   warped_cg  CG on the current A preconditioned by the warped solve
 //
 // Iterations, substitutions, the final CG residual and convergence go into
-// State::timing, so no policy is silent about what it did.
+// Workspace::timing, so no policy is silent about what it did.
 #include <vector>
 
-#include "engine/model/model.h"
 #include "engine/dynamics/state.h"
+#include "engine/model/model.h"
 #include "engine/runtime/timing.h"
+#include "engine/solve/workspace.h"
 
 namespace incise {
 
 // Worker pool, assembly plan, factor configuration and symbolic analysis, node
 // rotation adjacency. Called by init_state; call again after the Model changes
-// (a cut) before the next step. Invalidates the factor, except where
-// solver_carries_over_cuts() and the cut passes `dofnode_map` (new DOF node ->
-// old DOF node, -1 for a new one): then no analysis or factorization runs in
-// the cut frame; the lagged factors keep preconditioning through the map (an
-// exact solve on a patch around the DOFs they do not know) and the next
-// background job (or synchronous refresh) analyzes and factorizes the new pattern.
+// (a cut) before the next step; `frame` is the State's. Invalidates the
+// factor, except where solver_carries_over_cuts() and the cut passes
+// `dofnode_map` (new DOF node -> old DOF node, -1 for a new one): then no
+// analysis or factorization runs in the cut frame; the lagged factors keep
+// preconditioning through the map (an exact solve on a patch around the DOFs
+// they do not know) and the next background job (or synchronous refresh)
+// analyzes and factorizes the new pattern.
 // `plan`: make_assembly_plan(model, its solver.threads) made ahead (a cut's
 // helper thread), taken instead of making one here.
-void prepare_solver(const Model& model, State& state, const std::vector<int>* dofnode_map = nullptr,
+void prepare_solver(const Model& model, Workspace& ws, int frame, const std::vector<int>* dofnode_map = nullptr,
                     AssemblyPlan* plan = nullptr);
 
 // The lagged policy with a valid factor: a cut keeps it (see prepare_solver).
-bool solver_carries_over_cuts(const Model& model, const State& state);
+bool solver_carries_over_cuts(const Model& model, const Workspace& ws);
 
 // Whether the policy needs the assembled corotated tangent K (warped does not).
 bool policy_needs_tangent(const Model& model);
 
-// du = A^-1 rhs (state.rhs -> state.du) for Newton iteration `iteration` of the
-// current frame; K is the tangent in the pattern (K0 for the linear model; may
-// be null for warped). Adds stage times to state.timing through `clock`.
-void solve_system(const Model& model, State& state, const double* K, int iteration, Stopwatch& clock);
+// The policy's three parts of a Newton iteration, one per stage of the step
+// (engine/dynamics/step.cpp):
+// assembly:      ws.A = cM M + cK K (eq. 3.59 in general form), projected
+//                (Algorithm 1), and the warped policies' node rotations; K is
+//                the tangent in the pattern (K0 for the linear model; may be
+//                null for warped);
+// factorization: the factor the solve needs now (exact: of A; lagged: the
+//                refresh policy, its warp and patch, or a rescue; warped: of
+//                the rest matrix, once);
+// solve:         ws.du = A^-1 ws.rhs (substitution or CG). Lagged may instead
+//                set ws.rescue_pending: the factorization and solve stages
+//                then run again.
+// Iterations, substitutions, residuals and rescues go into ws.timing.
+void form_dynamic_matrix(const Model& model, const State& state, Workspace& ws, const double* K);
+// Whether the factorization stage has work this iteration: not when the
+// factor in hand serves (the linear model's, factored once; the warped
+// policies' rest factor). The step skips the stage then, so a linear scene
+// shows one factorization run in all.
+bool factorization_due(const Model& model, const Workspace& ws);
+void factorize_for_policy(const Model& model, const State& state, Workspace& ws);
+void solve_for_policy(const Model& model, Workspace& ws);
 
-// Node rotations of the warped policies from the slot rotations in state.R:
+// Node rotations of the warped policies from the slot rotations R (nrot, 9):
 // the polar rotation of the volume-weighted sum of the incident slots' R;
 // identity on nodes with some but not all components constrained.
-void update_node_rotations(const Model& model, State& state);
+void update_node_rotations(const Model& model, const double* R, Workspace& ws);
 
 }  // namespace incise

@@ -43,26 +43,26 @@ IncisionRun incision(const SolverSettings& solver, double tangent_reuse = 0.0, d
     const FrameTiming t = advance_frame(*sim);
     r.cut_frames += t.cut_frame;
     r.ndof.push_back(sim->model.ndof());
-    const bool carried = !sim->state.work.slot_map[sim->state.work.front].empty();
+    const bool carried = !sim->ws.work.slot_map[sim->ws.work.front].empty();
     r.carried_frames += carried;
     if (carried) r.iterations += t.iterations;
     if (carried_cut_frames && t.cut_frame && t.tangent_updates < sim->model.nelem) ++*carried_cut_frames;
-    if (t.cut_frame && sim->state.tangent_cache.valid &&
-        sim->state.tangent_cache.kl_ptr != std::vector<int>(sim->model.elem_scatter_ptr.begin(), sim->model.elem_scatter_ptr.end() - 1))
+    if (t.cut_frame && sim->ws.tangent_cache.valid &&
+        sim->ws.tangent_cache.kl_ptr != std::vector<int>(sim->model.elem_scatter_ptr.begin(), sim->model.elem_scatter_ptr.end() - 1))
       ++r.blocks_left_in_place;
-    if (k_mismatch && t.cut_frame && sim->state.tangent_cache.valid) {
+    if (k_mismatch && t.cut_frame && sim->ws.tangent_cache.valid) {
       // K (after this frame's step) against the kept blocks re-summed.
       const Model& m = sim->model;
       std::vector<double> K(m.nnz(), 0.0);
-      const TangentCache& c = sim->state.tangent_cache;
+      const TangentCache& c = sim->ws.tangent_cache;
       for (int e = 0; e < m.nelem; ++e)
         for (int k = m.elem_scatter_ptr[e]; k < m.elem_scatter_ptr[e + 1]; ++k)
           if (m.elem_scatter[k] >= 0) K[m.elem_scatter[k]] += c.blocks(e)[k - m.elem_scatter_ptr[e]];
-      *k_mismatch = std::max(*k_mismatch, test::rel_diff(sim->state.K, K));
+      *k_mismatch = std::max(*k_mismatch, test::rel_diff(sim->ws.K, K));
     }
   }
   r.u = sim->state.u;
-  r.single_factorizations = sim->state.solver.stats().single_factorizations + sim->state.work.back.stats().single_factorizations;
+  r.single_factorizations = sim->ws.solver.stats().single_factorizations + sim->ws.work.back.stats().single_factorizations;
   return r;
 }
 
@@ -191,8 +191,8 @@ TEST(CutPolicies, CarriedOrderingWhileCuttingIsSearchedAgainAfterwards) {
   for (int k = 0; k < 40; ++k) {
     const FrameTiming t = advance_frame(*sim);
     if (t.cut_frame) last_cut = k;
-    SolverWork& w = sim->state.work;
-    CholmodSolver& front = w.front == 0 ? sim->state.solver : w.back;
+    SolverWork& w = sim->ws.work;
+    CholmodSolver& front = w.front == 0 ? sim->ws.solver : w.back;
     if (front.stats().ordering != "given") continue;
     ++given_fronts;
     EXPECT_GT(k, 0);
@@ -206,8 +206,8 @@ TEST(CutPolicies, CarriedOrderingWhileCuttingIsSearchedAgainAfterwards) {
   }
   ASSERT_GE(last_cut, 5);
   EXPECT_GE(given_fronts, 3) << "jobs during the cut carried the ordering";
-  sim->state.work.wait_job();  // no job writes a slot while its stats are read
-  for (CholmodSolver* f : {&sim->state.solver, &sim->state.work.back})
+  sim->ws.work.wait_job();  // no job writes a slot while its stats are read
+  for (CholmodSolver* f : {&sim->ws.solver, &sim->ws.work.back})
     EXPECT_NE(f->stats().ordering, "given") << "analyzed again after the cut";
 }
 
@@ -229,7 +229,7 @@ TEST(CutPolicies, CutsPreparedDuringThePreviousStepGiveTheSameStates) {
     cut_frames += t.cut_frame;
     prepared += t.cut_frame && t.cut_ahead;
     update_cuts(*plain, plain->state.time, plain->state.time + plain->model.dt);
-    step(plain->model, plain->state);
+    step(plain->model, plain->state, plain->ws);
     ASSERT_EQ(ahead->model.ndof(), plain->model.ndof()) << "frame " << k;
     ASSERT_EQ(ahead->state.u, plain->state.u) << "frame " << k;
     ASSERT_EQ(ahead->state.v, plain->state.v) << "frame " << k;

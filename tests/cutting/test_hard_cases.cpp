@@ -40,18 +40,18 @@ TEST(HardCases, CutsNearANodeKeepTheScaledSystemConditioned) {
       const CutUpdate up = update_cuts(*sim, 0, 0);
       ASSERT_TRUE(up.changed);
       EXPECT_EQ(up.report.bodies, 2);
-      for (int k = 0; k < 5; ++k) step(sim->model, sim->state);
+      for (int k = 0; k < 5; ++k) step(sim->model, sim->state, sim->ws);
       for (double x : sim->state.u) ASSERT_TRUE(std::isfinite(x));
       // residual of the last solve, relative to the right-hand side
       std::vector<double> Ax(sim->model.ndof());
-      sym_matvec(sim->model, sim->state.A.data(), sim->state.du.data(), Ax.data());
+      sym_matvec(sim->model, sim->ws.A.data(), sim->ws.du.data(), Ax.data());
       double r = 0, b = 0;
       for (int d = 0; d < sim->model.ndof(); ++d) {
-        r += (Ax[d] - sim->state.rhs[d]) * (Ax[d] - sim->state.rhs[d]);
-        b += sim->state.rhs[d] * sim->state.rhs[d];
+        r += (Ax[d] - sim->ws.rhs[d]) * (Ax[d] - sim->ws.rhs[d]);
+        b += sim->ws.rhs[d] * sim->ws.rhs[d];
       }
       EXPECT_LT(std::sqrt(r / b), 1e-10) << "order " << order << " distance " << rel << " h";
-      const double cond = scaled_condition(sim->model, sim->state.A);
+      const double cond = scaled_condition(sim->model, sim->ws.A);
       if (rel == 0.3) cond_ref = cond;
       std::printf("order %d cut at %.0e h from a node: min piece fraction %.2e, scaled condition %.3e\n", order, rel,
                   up.report.min_fraction, cond);
@@ -71,7 +71,7 @@ TEST(HardCases, TinyFragmentFallsOffWithoutNaN) {
     const CutUpdate up = update_cuts(*sim, 0, 0);
     EXPECT_EQ(up.report.bodies, 2);
     EXPECT_LT(up.report.min_fraction, 1e-4);
-    for (int k = 0; k < 30; ++k) step(sim->model, sim->state);
+    for (int k = 0; k < 30; ++k) step(sim->model, sim->state, sim->ws);
     for (double x : sim->state.u) ASSERT_TRUE(std::isfinite(x));
     const double p[3] = {1.0 - 1e-4, 1.0 - 1e-4, 1.0 - 1e-4};
     const ProbeHit h = locate_point(sim->model, p);
@@ -92,7 +92,7 @@ TEST(HardCases, ProgressiveCutWithTheBladeTipInsideAnElement) {
   ASSERT_TRUE(up.changed);
   EXPECT_GT(up.report.front_elements, 0);
   EXPECT_EQ(up.report.bodies, 1);
-  for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+  for (int k = 0; k < 10; ++k) step(sim->model, sim->state, sim->ws);
   // Behind the tip the cut is open (the two sides differ); at the bottom,
   // below the front, the material is continuous.
   auto uz_pair = [&](double z) {
@@ -126,7 +126,7 @@ double energy_growth(int order, double nu, double dt, int steps, MaterialModel m
   update_cuts(*sim, 0, 0);
   double prev = total_energy(sim->model, sim->state), growth = 0, scale = 0;
   for (int k = 0; k < steps; ++k) {
-    step(sim->model, sim->state);
+    step(sim->model, sim->state, sim->ws);
     const double E = total_energy(sim->model, sim->state);
     growth = std::max(growth, E - prev);
     double work = 0;
@@ -177,7 +177,7 @@ TEST(HardCases, MillimetresAndMetresGiveTheSameDimensionlessResult) {
     s.cuts = {test::plane_cut({0.13 * L, 0, 0}, {1, 0.2, 0.1})};
     auto sim = test::make_sim(make_beam(0.2 * L, 0.05 * L, 0.05 * L, 8, 2, 2, 1), s);
     update_cuts(*sim, 0, 0);
-    for (int f = 0; f < 20; ++f) step(sim->model, sim->state);
+    for (int f = 0; f < 20; ++f) step(sim->model, sim->state, sim->ws);
     const double p[3] = {0.1 * L, 0.025 * L, 0.025 * L};
     tip[k] = interpolate_displacement(sim->model, sim->state.u.data(), locate_point(sim->model, p))[2] / L;
   }

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "cutting/cut_apply.h"
+#include "cutting/cut_stage.h"
 #include "cutting/cut_surface.h"
 #include "cutting/xfem_layout.h"
 #include "engine/mesh/mesh_tools.h"
@@ -49,14 +50,16 @@ inline CutSpec swept_blade(std::array<Vec3, 2> start, std::array<Vec3, 2> end, d
   return c;
 }
 
-// A Simulation built in memory (no files).
+// A Simulation built in memory (no files); its pipeline has the cutting
+// stage when the scene declares cuts (as load_checked_simulation sets it up).
 inline std::unique_ptr<Simulation> make_sim(const Mesh& mesh, const Scene& scene) {
   auto sim = std::make_unique<Simulation>();
   sim->scene = scene;
   sim->mesh = mesh;
   sim->model = build_model(mesh, scene);
-  sim->cut_progress.assign(scene.cuts.size(), -1.0);
-  init_state(sim->model, sim->state);
+  sim->state.cut_progress.assign(scene.cuts.size(), -1.0);
+  init_state(sim->model, sim->state, sim->ws);
+  install_cutting_stage(*sim);
   return sim;
 }
 

@@ -46,7 +46,7 @@ TEST(Xfem, CutOffPieceFallsFreelyAndNoForceCrossesTheCut) {
       ASSERT_TRUE(up.changed);
       EXPECT_EQ(up.report.bodies, 2);
       EXPECT_GT(up.report.enriched_nodes, 0);
-      for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+      for (int k = 0; k < 10; ++k) step(sim->model, sim->state, sim->ws);
       const double g = 9.81;
       EXPECT_NEAR(piece_acceleration(*sim, 2.3) / -g, 1.0, 0.01) << "order " << order;
       // the free piece is not stretched: its displacement is uniform (rigid fall)
@@ -85,7 +85,7 @@ TEST(Xfem, MassesPositiveAndSumToTheUncutMass) {
 TEST(Xfem, ProbesAboveAndBelowTheCutReportEachSide) {
   auto sim = cantilever(2, {test::plane_cut({2.3, 0, 0}, {1, 0, 0})});
   update_cuts(*sim, 0.0, 0.0);
-  for (int k = 0; k < 15; ++k) step(sim->model, sim->state);
+  for (int k = 0; k < 15; ++k) step(sim->model, sim->state, sim->ws);
   const double below[3] = {2.3 - 1e-6, 0.5, 0.5}, above[3] = {2.3 + 1e-6, 0.5, 0.5};
   const ProbeHit hb = locate_point(sim->model, below), ha = locate_point(sim->model, above);
   ASSERT_EQ(hb.elem, ha.elem);  // same element, different pieces
@@ -106,7 +106,7 @@ TEST(Xfem, CutExactlyThroughNodesAndFacesSeparates) {
     EXPECT_EQ(up.report.cut_elements, 0);
     EXPECT_GT(up.report.separated_faces, 0);
     EXPECT_EQ(up.report.bodies, 2);
-    for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+    for (int k = 0; k < 10; ++k) step(sim->model, sim->state, sim->ws);
     EXPECT_NEAR(piece_acceleration(*sim, 2.0) / -9.81, 1.0, 0.01);
   }
 }
@@ -144,7 +144,7 @@ TEST(Xfem, DisplayShowsTheCutOpeningWithInnerFacesFlagged) {
   for (unsigned char f : before.face_flags) cut_faces += (f & kFaceCut) != 0;
   EXPECT_EQ(cut_faces, 0);
   update_cuts(*sim, 0.0, 0.0);
-  for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+  for (int k = 0; k < 10; ++k) step(sim->model, sim->state, sim->ws);
   const DisplayMesh after = display_mesh(sim->model, sim->state);
   EXPECT_GT(after.ncell(), before.ncell());
   // Cut faces exist, and the faces on the two sides have moved apart: the
@@ -198,14 +198,14 @@ TEST(Xfem, FaceAlignedSlitEqualsANodeDuplicatedMesh) {
       const CutUpdate up = apply_all_cuts(*sim);
       EXPECT_EQ(up.report.cut_elements, 0);
       EXPECT_GT(up.report.separated_faces, 0);
-      ASSERT_TRUE(solve_static(sim->model, sim->state, 1e-10, 100).converged);
+      ASSERT_TRUE(solve_static(sim->model, sim->state, sim->ws, 1e-10, 100).converged);
       // conforming mesh
       Scene sc = s;
       sc.cuts.clear();
       const Mesh dup = duplicate_nodes_along_slit(order == 2 ? raise_to_tet10(beam) : beam, 2.0, 0.5);
       sc.order = order;
       auto ref = test::make_sim(dup, sc);
-      ASSERT_TRUE(solve_static(ref->model, ref->state, 1e-10, 100).converged);
+      ASSERT_TRUE(solve_static(ref->model, ref->state, ref->ws, 1e-10, 100).converged);
       double err = 0, mag = 0;
       for (double x : {0.7, 1.9, 2.1, 3.3, 4.0})
         for (double z : {0.1, 0.9}) {
@@ -275,13 +275,13 @@ TEST(Xfem, CutAlongAnEdgeAndAFlapCutTwice) {
   auto sim = cantilever(2, {test::plane_cut({2.0, 0.0, 0.0}, {1, 0.37, 0})});
   CutUpdate up = update_cuts(*sim, 0.0, 0.0);
   EXPECT_EQ(up.report.bodies, 2);
-  for (int k = 0; k < 10; ++k) step(sim->model, sim->state);
+  for (int k = 0; k < 10; ++k) step(sim->model, sim->state, sim->ws);
   for (double x : sim->state.u) ASSERT_TRUE(std::isfinite(x));
   // Two parallel cuts through the same column of elements: three bodies.
   auto twice = cantilever(1, {test::plane_cut({2.3, 0, 0}, {1, 0, 0}), test::plane_cut({2.4, 0, 0}, {1, 0, 0}, "cuts[1]")});
   up = update_cuts(*twice, 0.0, 0.0);
   EXPECT_EQ(up.report.bodies, 3);
-  for (int k = 0; k < 10; ++k) step(twice->model, twice->state);
+  for (int k = 0; k < 10; ++k) step(twice->model, twice->state, twice->ws);
   // the thin slab between the cuts falls freely too
   const double p[3] = {2.35, 0.5, 0.5};
   const double t = twice->state.time;
@@ -349,7 +349,7 @@ TEST(Xfem, LumpedAccelerationAfterACutSolvesTheMassSystem) {
       st.u[d] = m.constrained[d] ? 0.0 : 1e-3 * std::sin(0.7 * d);
       st.v[d] = m.constrained[d] ? 0.0 : 1e-2 * std::cos(1.3 * d);
     }
-    consistent_acceleration(m, st);
+    consistent_acceleration(m, st, sim->ws);
     std::vector<double> Ma(m.ndof()), Mv(m.ndof());
     mass_matvec(m, st.a.data(), Ma.data());
     mass_matvec(m, st.v.data(), Mv.data());
@@ -359,7 +359,7 @@ TEST(Xfem, LumpedAccelerationAfterACutSolvesTheMassSystem) {
         EXPECT_EQ(st.a[d], 0.0);
         continue;
       }
-      const double rhs = m.f_gravity[d] - st.f_int[d] - s.material.rayleigh_mass * Mv[d];
+      const double rhs = m.f_gravity[d] - sim->ws.f_int[d] - s.material.rayleigh_mass * Mv[d];
       err = std::max(err, std::abs(Ma[d] - rhs));
       ref = std::max(ref, std::abs(rhs));
     }
@@ -496,8 +496,8 @@ TEST(Xfem, ConsistentTangentOfACutModelParallelEqualsSerialAndStepsStably) {
   }
   EXPECT_LT(dk, 1e-13 * kn);
   for (int k = 0; k < 60; ++k) {
-    step(sim->model, sim->state);
-    ASSERT_EQ(sim->state.newton_iterations_done, 1) << "frame " << k;
+    step(sim->model, sim->state, sim->ws);
+    ASSERT_EQ(sim->ws.newton_iterations_done, 1) << "frame " << k;
   }
   for (double x : sim->state.u) ASSERT_TRUE(std::isfinite(x));
 }
@@ -571,14 +571,14 @@ TEST(Xfem, CutFrameAccelerationIsRecomputedNearTheChangedElementsOnly) {
   s.cuts = {test::swept_blade({Vec3{2.3, -0.5, 1.2}, Vec3{2.3, 1.5, 1.2}}, {Vec3{2.3, -0.5, -0.2}, Vec3{2.3, 1.5, -0.2}})};
   auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
   ASSERT_TRUE(update_cuts(*sim, 0.0, 0.35).changed);  // the blade a third of the way down
-  for (int k = 0; k < 8; ++k) step(sim->model, sim->state);  // the beam swings under gravity
+  for (int k = 0; k < 8; ++k) step(sim->model, sim->state, sim->ws);  // the beam swings under gravity
   const Model before = sim->model;
   const Kinematics moved = transfer_kinematics(before, {sim->state.u, sim->state.v, sim->state.a}, before);
   ASSERT_TRUE(update_cuts(*sim, 0.0, 0.75).changed);  // deeper: new split elements
   const Model& m = sim->model;
   const std::vector<double> near = sim->state.a;
   const Kinematics carried = transfer_kinematics(before, moved, m);
-  consistent_acceleration(m, sim->state);
+  consistent_acceleration(m, sim->state, sim->ws);
   const std::vector<double> global = sim->state.a;
   double amax = 0;
   for (double x : global) amax = std::max(amax, std::abs(x));

@@ -18,7 +18,7 @@
 #include "engine/mesh/mesh_io.h"
 #include "engine/mesh/mesh_tools.h"
 #include "engine/model/model.h"
-#include "engine/dynamics/state.h"
+#include "engine/dynamics/step.h"
 #include "render/image.h"
 #include "render/renderer.h"
 
@@ -36,7 +36,7 @@ inline DisplayMesh display_of(const Mesh& mesh) {
   s.material.density = 1.0;
   s.gravity = {0, 0, 0};
   const Model m = build_model(mesh, s);
-  State st;
+  State st; Workspace ws;
   st.u.assign(m.ndof(), 0.0);
   st.v.assign(m.ndof(), 0.0);
   return display_mesh(m, st);

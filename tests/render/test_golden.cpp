@@ -5,6 +5,8 @@
 
 #include <cmath>
 
+#include "cutting/cut_stage.h"
+#include "engine/dynamics/step.h"
 #include "engine/output/display_mesh.h"
 #include "render/camera.h"
 #include "tools/frame_loop.h"
@@ -134,8 +136,9 @@ TEST(Golden, CutBlockGapIsVisible) {
   sim.scene = sc;
   sim.mesh = make_beam(2, 1, 1, 4, 2, 2, 1);
   sim.model = build_model(sim.mesh, sc);
-  sim.cut_progress.assign(1, -1.0);
-  init_state(sim.model, sim.state);
+  sim.state.cut_progress.assign(1, -1.0);
+  init_state(sim.model, sim.state, sim.ws);
+  install_cutting_stage(sim);
   r->update(display_mesh(sim.model, sim.state));
   const Image before = r->render();
   EXPECT_EQ(r->stats().ncut, 0);

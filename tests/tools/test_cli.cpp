@@ -123,8 +123,13 @@ TEST_F(Cli, BenchJsonHasTheDocumentedFields) {
   std::ifstream js(path("b.json"));
   const auto j = nlohmann::json::parse(js);
   for (const char* k : {"median_ms", "p95_ms", "p99_ms", "max_ms", "over_budget"}) EXPECT_TRUE(j["frame"].contains(k)) << k;
-  for (const char* s : {"assembly", "factorization", "solve", "render", "other"})
-    for (const char* k : {"median_ms", "p95_ms", "p99_ms", "max_ms"}) EXPECT_TRUE(j["stages"][s].contains(k)) << s << k;
+  for (const char* s : {"tool_poses", "collision", "cutting", "assembly", "factorization", "solve", "integration",
+                        "contact_publish", "render", "record"})
+    for (const char* k : {"median_ms", "p95_ms", "p99_ms", "max_ms", "runs"}) EXPECT_TRUE(j["stages"][s].contains(k)) << s << k;
+  EXPECT_EQ(j["stages"]["cutting"]["runs"].get<int>(), 0) << "no cut in the scene: no cutting stage";
+  EXPECT_EQ(j["stages"]["render"]["runs"].get<int>(), 0) << "no --render: no render stage";
+  EXPECT_EQ(j["stages"]["integration"]["runs"].get<int>(), j["frames"].get<int>());
+  EXPECT_EQ(j["stages"]["factorization"]["runs"].get<int>(), 1) << "a linear scene factors once";
   EXPECT_EQ(j["dof"], 3 * 17 * 5 * 5);
   EXPECT_GT(j["factor"]["nnz_L"].get<double>(), 0.0);
   EXPECT_GT(j["factor"]["flops"].get<double>(), 0.0);
@@ -312,7 +317,7 @@ TEST_F(Cli, BenchTraceHasOneRowPerTimedFrameWithTheCutParts) {
   std::ifstream is(path("t.csv"));
   std::string header, line;
   std::getline(is, header);
-  EXPECT_EQ(header.rfind("frame,frame_ms,cut_frame,cutting_ms,", 0), 0u) << header;
+  EXPECT_EQ(header.rfind("frame,frame_ms,cut_frame,tool_poses_ms,collision_ms,cutting_ms,", 0), 0u) << header;
   EXPECT_NE(header.find("cut_model_ms"), std::string::npos) << header;
   EXPECT_NE(header.find(",patch_dofs,tangent_updates"), std::string::npos) << header;
   int rows = 0, cut_rows = 0, first = -1;

@@ -30,12 +30,12 @@ TEST(Newmark, UndampedLinearConservesEnergyOver1000Steps) {
     Scene s = cantilever_scene(MaterialModel::Linear);
     s.mass = mk;
     const Model m = build_model(mesh, s);
-    State st;
-    init_state(m, st);
+    State st; Workspace ws;
+    init_state(m, st, ws);
     const double E0 = total_energy(m, st);
     double scale = 0, drift = 0;
     for (int k = 0; k < 1000; ++k) {
-      step(m, st);
+      step(m, st, ws);
       const double E = total_energy(m, st);
       drift = std::max(drift, std::abs(E - E0));
       // the energy that sloshes between kinetic and potential sets the scale
@@ -47,7 +47,7 @@ TEST(Newmark, UndampedLinearConservesEnergyOver1000Steps) {
     }
     EXPECT_GT(scale, 0.0);
     EXPECT_LT(drift / scale, 1e-6) << "drift " << drift << " scale " << scale;
-    EXPECT_EQ(st.refactorizations, 1) << "a linear scene factors once";
+    EXPECT_EQ(ws.refactorizations, 1) << "a linear scene factors once";
   }
 }
 
@@ -60,11 +60,11 @@ TEST(Newmark, RayleighDampedEnergyDecaysMonotonically) {
     s.material.rayleigh_mass = 2.0;
     s.material.rayleigh_stiffness = 0.01;
     const Model m = build_model(mesh, s);
-    State st;
-    init_state(m, st);
+    State st; Workspace ws;
+    init_state(m, st, ws);
     double prev = total_energy(m, st);
     for (int k = 0; k < 600; ++k) {
-      step(m, st);
+      step(m, st, ws);
       const double E = total_energy(m, st);
       EXPECT_LE(E, prev + 1e-12 * std::abs(prev)) << "step " << k;
       prev = E;
@@ -88,10 +88,10 @@ TEST(Newmark, PrescribedRampIsFollowedExactly) {
   p.ramp = 0.5;
   s.prescribed.push_back(p);
   const Model m = build_model(mesh, s);
-  State st;
-  init_state(m, st);
+  State st; Workspace ws;
+  init_state(m, st, ws);
   for (int k = 0; k < 30; ++k) {
-    step(m, st);
+    step(m, st, ws);
     const double expect = 0.3 * std::min(1.0, st.time / 0.5);
     for (const auto& pd : m.prescribed) ASSERT_NEAR(st.u[pd.dof], expect, 1e-14);
     for (int d : m.fixed_dofs) ASSERT_EQ(st.u[d], 0.0);
@@ -116,10 +116,10 @@ TEST(Newmark, GammaAboveOneHalfDampsAndOneHalfConserves) {
     s.newmark_gamma = k == 0 ? 0.5 : 0.6;
     s.newmark_beta = 0.25 * (s.newmark_gamma + 0.5) * (s.newmark_gamma + 0.5);
     const Model m = build_model(mesh, s);
-    State st;
-    init_state(m, st);
+    State st; Workspace ws;
+    init_state(m, st, ws);
     for (int f = 0; f < 300; ++f) {
-      step(m, st);
+      step(m, st, ws);
       if (f < 240) continue;  // the last 60 steps (2 s, several periods)
       std::vector<double> Mv(m.ndof());
       mass_matvec(m, st.v.data(), Mv.data());
@@ -154,12 +154,12 @@ TEST(Newmark, NaNInTheStateStopsTheStepWithAMessage) {
   const Mesh mesh = make_beam(2.0, 0.5, 0.5, 4, 1, 1, 1);
   for (MaterialModel mm : {MaterialModel::Linear, MaterialModel::Corotated}) {
     const Model m = build_model(mesh, cantilever_scene(mm));
-    State st;
-    init_state(m, st);
-    step(m, st);
+    State st; Workspace ws;
+    init_state(m, st, ws);
+    step(m, st, ws);
     st.u[3 * (m.nnode - 1) + 1] = std::nan("");
     try {
-      step(m, st);
+      step(m, st, ws);
       FAIL() << "expected an error";
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find("non-finite"), std::string::npos) << e.what();
@@ -184,12 +184,12 @@ TEST(Newmark, AdaptiveIterationsApproachTheConvergedStep) {
     s.max_newton_iterations = 4;
     s.rotation_tolerance = tol;
     const Model m = build_model(mesh, s);
-    State st;
-    init_state(m, st);
+    State st; Workspace ws;
+    init_state(m, st, ws);
     int total = 0;
     for (int k = 0; k < 20; ++k) {
-      step(m, st);
-      total += st.newton_iterations_done;
+      step(m, st, ws);
+      total += ws.newton_iterations_done;
     }
     return std::make_pair(st.u, total);
   };

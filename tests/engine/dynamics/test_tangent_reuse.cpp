@@ -32,12 +32,12 @@ const Mesh& beam_mesh() {
 
 std::vector<double> run(double theta, int frames, int* min_updates = nullptr) {
   const Model m = build_model(beam_mesh(), swing(theta));
-  State st;
-  init_state(m, st);
+  State st; Workspace ws;
+  init_state(m, st, ws);
   int least = m.nelem;
   for (int k = 0; k < frames; ++k) {
-    step(m, st);
-    if (k > 0) least = std::min(least, st.timing.tangent_updates);
+    step(m, st, ws);
+    if (k > 0) least = std::min(least, ws.timing.tangent_updates);
   }
   if (min_updates) *min_updates = least;
   return st.u;
@@ -45,10 +45,10 @@ std::vector<double> run(double theta, int frames, int* min_updates = nullptr) {
 
 TEST(TangentReuse, KIsTheSumOfTheKeptBlocksAndForcesAreExact) {
   const Model m = build_model(beam_mesh(), swing(0.1));
-  State st;
-  init_state(m, st);
-  for (int k = 0; k < 6; ++k) step(m, st);
-  const TangentCache& c = st.tangent_cache;
+  State st; Workspace ws;
+  init_state(m, st, ws);
+  for (int k = 0; k < 6; ++k) step(m, st, ws);
+  const TangentCache& c = ws.tangent_cache;
   ASSERT_TRUE(c.valid);
   EXPECT_LT(c.updated, m.nelem) << "theta 0.1 should keep some element's blocks";
   // K re-summed from the kept blocks.
@@ -63,15 +63,15 @@ TEST(TangentReuse, KIsTheSumOfTheKeptBlocksAndForcesAreExact) {
       if (pos >= 0) K[pos] += c.blocks(e)[k];
     }
   }
-  EXPECT_LT(test::rel_diff(st.K, K), 1e-12);
+  EXPECT_LT(test::rel_diff(ws.K, K), 1e-12);
   // Forces at the current state: a full assembly gives the same f_int bit for
   // bit up to summation order (the cache only skips tangent blocks).
-  State fresh;
-  init_state(m, fresh);
+  State fresh; Workspace fresh_ws;
+  init_state(m, fresh, fresh_ws);
   fresh.R = st.R;
   std::vector<double> f_cached(m.ndof()), f_full(m.ndof()), Kfull(m.nnz());
-  TangentCache cache = st.tangent_cache;
-  std::vector<double> R1 = st.R, R2 = st.R, Kc = st.K;
+  TangentCache cache = ws.tangent_cache;
+  std::vector<double> R1 = st.R, R2 = st.R, Kc = ws.K;
   AssemblyPlan plan = make_assembly_plan(m, 1);
   ThreadPool pool(1);
   assemble_corotated(m, plan, pool, st.u.data(), R1.data(), f_cached.data(), Kc.data(), &cache);
@@ -104,19 +104,19 @@ TEST(TangentReuse, NewModelStartsWithAFullAssembly) {
   Scene sc = swing(0.4);
   sc.rotation_tolerance = 0.0;  // one linearised solve per frame: one assembly
   const Model m = build_model(beam_mesh(), sc);
-  State st;
-  init_state(m, st);
-  step(m, st);
-  EXPECT_EQ(st.timing.tangent_updates, m.nelem);
-  step(m, st);
-  EXPECT_LT(st.timing.tangent_updates, m.nelem / 2) << "theta 0.4 keeps most elements' blocks";
-  ASSERT_TRUE(st.tangent_cache.valid);
-  internal_forces(m, st, st.u.data(), /*tangent=*/true);  // as a static solve assembles: K rebuilt whole
-  EXPECT_FALSE(st.tangent_cache.valid) << "K is no longer the sum of the kept blocks";
-  step(m, st);
-  EXPECT_EQ(st.timing.tangent_updates, m.nelem) << "so the next step assembles every element";
-  size_state(m, st);  // what a cut's rebuild does
-  EXPECT_FALSE(st.tangent_cache.valid);
+  State st; Workspace ws;
+  init_state(m, st, ws);
+  step(m, st, ws);
+  EXPECT_EQ(ws.timing.tangent_updates, m.nelem);
+  step(m, st, ws);
+  EXPECT_LT(ws.timing.tangent_updates, m.nelem / 2) << "theta 0.4 keeps most elements' blocks";
+  ASSERT_TRUE(ws.tangent_cache.valid);
+  internal_forces(m, st, ws, st.u.data(), /*tangent=*/true);  // as a static solve assembles: K rebuilt whole
+  EXPECT_FALSE(ws.tangent_cache.valid) << "K is no longer the sum of the kept blocks";
+  step(m, st, ws);
+  EXPECT_EQ(ws.timing.tangent_updates, m.nelem) << "so the next step assembles every element";
+  size_workspace(m, ws);  // what a cut's rebuild does (carry_workspace_over_cut)
+  EXPECT_FALSE(ws.tangent_cache.valid);
 }
 
 // While (nearly) every element moves past theta the cache is bypassed: full

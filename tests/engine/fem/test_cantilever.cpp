@@ -7,7 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/mesh/mesh_tools.h"
-#include "engine/dynamics/state.h"
+#include "engine/dynamics/step.h"
 #include "engine/dynamics/static_solve.h"
 #include "tests/engine/test_util.h"
 
@@ -25,9 +25,9 @@ double tip_deflection(int order, RotationMode rot, MaterialModel mm, int nx, int
   s.gravity = {0.0, 0.0, -1.0};
   s.fixed.push_back(test::box_region({-1, -1, -1}, {0, 2, 2}));
   const Model m = build_model(mesh, s);
-  State st;
-  init_state(m, st);
-  const StaticResult r = solve_static(m, st, 1e-7, 60);
+  State st; Workspace ws;
+  init_state(m, st, ws);
+  const StaticResult r = solve_static(m, st, ws, 1e-7, 60);
   std::printf("order %d nx %d: %d iterations, residual %.2e\n", order, nx, r.iterations, r.residual);
   EXPECT_TRUE(r.converged) << "residual " << r.residual;
   double w = 0;

@@ -9,7 +9,7 @@
 
 #include "engine/fem/element.h"
 #include "engine/mesh/mesh_tools.h"
-#include "engine/dynamics/state.h"
+#include "engine/dynamics/step.h"
 #include "engine/dynamics/static_solve.h"
 #include "tests/engine/test_util.h"
 
@@ -76,9 +76,9 @@ double l2_error(int order, int n) {
         for (int d = 0; d < 3; ++d) m.f_gravity[3 * nodes[a] + d] += w * N[a] * b[d];
     }
   }
-  State st;
-  init_state(m, st);
-  EXPECT_TRUE(solve_static(m, st, 1e-12, 2).converged);
+  State st; Workspace ws;
+  init_state(m, st, ws);
+  EXPECT_TRUE(solve_static(m, st, ws, 1e-12, 2).converged);
   double err2 = 0;
   for (int e = 0; e < m.nelem; ++e) {
     const int* nodes = &m.mesh.tet[e * npe];

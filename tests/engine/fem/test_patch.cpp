@@ -61,9 +61,9 @@ double patch_error(int order, Field field, Vec3 gravity) {
     }
   }
   const Model m = build_model(mesh, s);
-  State st;
-  init_state(m, st);
-  const StaticResult res = solve_static(m, st, 1e-12, 3);
+  State st; Workspace ws;
+  init_state(m, st, ws);
+  const StaticResult res = solve_static(m, st, ws, 1e-12, 3);
   EXPECT_TRUE(res.converged);
   double err = 0, umax = 0;
   for (int n = 0; n < m.nnode; ++n) {

@@ -29,8 +29,8 @@ std::vector<double> rigid_step(SolverPolicy policy, int order, RotationMode rot)
   s.material.rayleigh_mass = 0.5;
   s.solver.policy = policy;
   const Model m = build_model(mesh, s);
-  State st;
-  init_state(m, st);
+  State st; Workspace ws;
+  init_state(m, st, ws);
   const Eigen::Matrix3d Q = Eigen::AngleAxisd(1.2, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
   for (int n = 0; n < m.nnode; ++n) {
     const Eigen::Vector3d X(m.X[3 * n], m.X[3 * n + 1], m.X[3 * n + 2]);
@@ -40,7 +40,7 @@ std::vector<double> rigid_step(SolverPolicy policy, int order, RotationMode rot)
       st.v[3 * n + d] = 0.1 * (d + 1);  // a rigid translation velocity
     }
   }
-  step(m, st);
+  step(m, st, ws);
   return st.u;
 }
 
@@ -104,11 +104,11 @@ Scene swing_scene(SolverSettings solver) {
 std::vector<double> run_swing(const SolverSettings& solver, int frames, std::vector<int>* iterations = nullptr) {
   const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
   const Model m = build_model(mesh, swing_scene(solver));
-  State st;
-  init_state(m, st);
+  State st; Workspace ws;
+  init_state(m, st, ws);
   for (int k = 0; k < frames; ++k) {
-    step(m, st);
-    if (iterations) iterations->push_back(st.timing.iterations);
+    step(m, st, ws);
+    if (iterations) iterations->push_back(ws.timing.iterations);
   }
   return st.u;
 }
@@ -165,12 +165,12 @@ TEST(SolverPolicies, WarpedIsExactForTheLinearMaterial) {
   Scene se = swing_scene(SolverSettings{}), sw = swing_scene(w);
   se.material.model = sw.material.model = MaterialModel::Linear;
   const Model me = build_model(mesh, se), mw = build_model(mesh, sw);
-  State a, b;
-  init_state(me, a);
-  init_state(mw, b);
+  State a, b; Workspace a_ws, b_ws;
+  init_state(me, a, a_ws);
+  init_state(mw, b, b_ws);
   for (int k = 0; k < 20; ++k) {
-    step(me, a);
-    step(mw, b);
+    step(me, a, a_ws);
+    step(mw, b, b_ws);
   }
   EXPECT_LT(test::rel_diff(b.u, a.u), 1e-13);
 }
@@ -180,13 +180,13 @@ TEST(SolverPolicies, WarpedAloneIsReportedAsOneSubstitutionAndNoIterations) {
   w.policy = SolverPolicy::Warped;
   const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
   const Model m = build_model(mesh, swing_scene(w));
-  State st;
-  init_state(m, st);
-  step(m, st);
-  step(m, st);
-  EXPECT_EQ(st.timing.solves, 1);
-  EXPECT_EQ(st.timing.iterations, 0);
-  EXPECT_EQ(st.refactorizations, 1) << "the rest factor is computed once";
+  State st; Workspace ws;
+  init_state(m, st, ws);
+  step(m, st, ws);
+  step(m, st, ws);
+  EXPECT_EQ(ws.timing.solves, 1);
+  EXPECT_EQ(ws.timing.iterations, 0);
+  EXPECT_EQ(ws.refactorizations, 1) << "the rest factor is computed once";
 }
 
 TEST(SolverPolicies, BackgroundFactorizationIsDeterministic) {
@@ -214,11 +214,11 @@ TEST(SolverPolicies, BackgroundJobRunsAtIdlePriorityOnlyWhenTheStepNeverWaitsFor
       solver.skip_late_factor = skip;
       solver.idle_background = idle;
       const Model m = build_model(mesh, swing_scene(solver));
-      State st;
-      init_state(m, st);
-      for (int k = 0; k < 8; ++k) step(m, st);
-      st.work.wait_job();
-      EXPECT_EQ(st.work.job_policy, idle && skip ? SCHED_IDLE : SCHED_OTHER)
+      State st; Workspace ws;
+      init_state(m, st, ws);
+      for (int k = 0; k < 8; ++k) step(m, st, ws);
+      ws.work.wait_job();
+      EXPECT_EQ(ws.work.job_policy, idle && skip ? SCHED_IDLE : SCHED_OTHER)
           << (idle ? "idle" : "normal") << ", late_factor " << (skip ? "skip" : "wait");
     }
 }
@@ -267,15 +267,15 @@ TEST(SolverPolicies, PreviousIncrementStartSavesIterationsAndKeepsTheTrajectory)
       s.previous_guess = g == 1;
       const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
       const Model m = build_model(mesh, swing_scene(s));
-      State st;
-      init_state(m, st);
+      State st; Workspace ws;
+      init_state(m, st, ws);
       int helped = 0;
       for (int k = 0; k < frames; ++k) {
-        step(m, st);
-        total[g] += st.timing.iterations;
-        EXPECT_LE(st.timing.start_residual, 1.0);
-        helped += st.timing.start_residual < 1.0;
-        EXPECT_TRUE(st.timing.converged);
+        step(m, st, ws);
+        total[g] += ws.timing.iterations;
+        EXPECT_LE(ws.timing.start_residual, 1.0);
+        helped += ws.timing.start_residual < 1.0;
+        EXPECT_TRUE(ws.timing.converged);
       }
       if (g == 0) {
         EXPECT_EQ(helped, 0) << "no start but zero without the guess";
@@ -310,14 +310,14 @@ TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
   s.rescue_after = 3;
   const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
   const Model m = build_model(mesh, swing_scene(s));
-  State st;
-  init_state(m, st);
+  State st; Workspace ws;
+  init_state(m, st, ws);
   int rescues = 0, worst = 0;
   for (int k = 0; k < frames; ++k) {
-    step(m, st);
-    rescues += st.timing.rescues;
-    worst = std::max(worst, st.timing.iterations / std::max(1, st.newton_iterations_done));
-    EXPECT_TRUE(st.timing.converged) << "frame " << k;
+    step(m, st, ws);
+    rescues += ws.timing.rescues;
+    worst = std::max(worst, ws.timing.iterations / std::max(1, ws.newton_iterations_done));
+    EXPECT_TRUE(ws.timing.converged) << "frame " << k;
   }
   EXPECT_GT(*std::max_element(slow.begin(), slow.end()), 10) << "without rescue CG must struggle";
   EXPECT_GT(rescues, 0);

@@ -1,0 +1,26 @@
+#include "cutting/cut_stage.h"
+
+#include "cutting/cut_apply.h"
+
+namespace incise {
+
+void cutting_stage(Simulation& sim) {
+  const double t = sim.state.time, dt = sim.model.dt;
+  const CutUpdate cut = update_cuts(sim, t, t + dt);
+  // The next frame's layout and model build run beside this step (the times
+  // as the next frame will compute them: t1 = t + dt, then t1 + dt).
+  // (t1 + dt, not t + 2 dt: the next frame sums its times the same way, and
+  // a prepared update is taken only for exactly its times.)
+  const double t1 = t + dt;
+  start_cut_ahead(sim, t1, t1 + dt);
+  FrameTiming& ft = sim.ws.timing;
+  ft.cut_ms = cut.part_ms;
+  ft.cut_frame = cut.changed;
+  ft.cut_ahead = cut.ahead;
+}
+
+void install_cutting_stage(Simulation& sim) {
+  if (!sim.scene.cuts.empty()) sim.pipeline.set(kStageCutting, cutting_stage);
+}
+
+}  // namespace incise

@@ -1,0 +1,116 @@
+#include "engine/dynamics/state.h"
+
+#include <cmath>
+#include <cstring>
+#include <istream>
+#include <limits>
+#include <ostream>
+
+#include "engine/model/model.h"
+#include "engine/fem/polar.h"
+#include "engine/util/error.h"
+
+namespace incise {
+
+namespace {
+
+constexpr std::uint64_t kFnvOffset = 1469598103934665603ULL, kFnvPrime = 1099511628211ULL;
+
+std::uint64_t fnv(const void* data, size_t bytes, std::uint64_t h = kFnvOffset) {
+  const unsigned char* p = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * kFnvPrime;
+  return h;
+}
+
+std::uint64_t fnv(const std::vector<double>& x) {
+  const std::uint64_t n = x.size();
+  return fnv(x.data(), x.size() * sizeof(double), fnv(&n, sizeof n));
+}
+
+constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '1'};  // format version 1
+
+template <class T>
+void put(std::ostream& os, const T& v) {
+  os.write(reinterpret_cast<const char*>(&v), sizeof v);
+}
+
+template <class T>
+T get(std::istream& is, const std::string& what, const char* field) {
+  T v{};
+  if (!is.read(reinterpret_cast<char*>(&v), sizeof v))
+    throw Error(what + ": state truncated in " + field + " (at byte " + std::to_string(static_cast<long long>(is.tellg())) + ")");
+  return v;
+}
+
+}  // namespace
+
+std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& s) {
+  std::array<std::uint64_t, kNumStateFields> h{};
+  h[kFieldClock] = fnv(&s.frame, sizeof s.frame, fnv(&s.time, sizeof s.time));
+  h[kFieldU] = fnv(s.u);
+  h[kFieldV] = fnv(s.v);
+  h[kFieldA] = fnv(s.a);
+  h[kFieldR] = fnv(s.R);
+  h[kFieldTopology] = fnv(s.cut_progress);
+  return h;
+}
+
+std::uint64_t state_hash(const State& s) {
+  const auto h = state_field_hashes(s);
+  return fnv(h.data(), sizeof h);
+}
+
+void write_state(std::ostream& os, const State& s) {
+  os.write(kMagic, sizeof kMagic);
+  put(os, s.time);
+  put<std::int64_t>(os, s.frame);
+  for (const std::vector<double>* f : {&s.u, &s.v, &s.a, &s.R, &s.cut_progress}) {
+    put<std::uint64_t>(os, f->size());
+    os.write(reinterpret_cast<const char*>(f->data()), static_cast<std::streamsize>(f->size() * sizeof(double)));
+  }
+  put<std::uint64_t>(os, state_hash(s));
+}
+
+State read_state(std::istream& is, const std::string& what) {
+  char magic[sizeof kMagic];
+  if (!is.read(magic, sizeof magic) || std::memcmp(magic, kMagic, sizeof kMagic) != 0)
+    throw Error(what + ": not an incise state file of version 1 (header 'INCSTAT1' expected)");
+  // Bytes left, so a corrupted length is refused before anything is allocated.
+  const auto here = is.tellg();
+  is.seekg(0, std::ios::end);
+  const long long left = static_cast<long long>(is.tellg() - here);
+  is.seekg(here);
+  State s;
+  s.time = get<double>(is, what, "time");
+  const std::int64_t frame = get<std::int64_t>(is, what, "frame");
+  if (!std::isfinite(s.time) || frame < 0 || frame > std::numeric_limits<int>::max())
+    throw Error(what + ": state time or frame out of range (time " + std::to_string(s.time) + ", frame " +
+                std::to_string(frame) + ")");
+  s.frame = static_cast<int>(frame);
+  const char* names[] = {"u", "v", "a", "R", "cut_progress"};
+  std::vector<double>* fields[] = {&s.u, &s.v, &s.a, &s.R, &s.cut_progress};
+  for (int k = 0; k < 5; ++k) {
+    const std::uint64_t n = get<std::uint64_t>(is, what, names[k]);
+    if (n > static_cast<std::uint64_t>(left) / sizeof(double))
+      throw Error(what + ": state field " + names[k] + " claims " + std::to_string(n) + " values, more than the file holds");
+    fields[k]->resize(n);
+    if (!is.read(reinterpret_cast<char*>(fields[k]->data()), static_cast<std::streamsize>(n * sizeof(double))))
+      throw Error(what + ": state truncated in " + names[k]);
+    for (std::uint64_t i = 0; i < n; ++i)
+      if (!std::isfinite((*fields[k])[i]))
+        throw Error(what + ": state field " + names[k] + "[" + std::to_string(i) + "] is not finite");
+  }
+  const std::uint64_t stored = get<std::uint64_t>(is, what, "hash");
+  if (stored != state_hash(s)) throw Error(what + ": state hash mismatch (the file is corrupted)");
+  return s;
+}
+
+void size_state(const Model& m, State& s) {
+  const size_t n = static_cast<size_t>(m.ndof());
+  s.u.assign(n, 0.0);
+  s.v.assign(n, 0.0);
+  s.a.assign(n, 0.0);
+  s.R = identity_rotations(m.nrot);
+}
+
+}  // namespace incise

@@ -1,0 +1,51 @@
+#pragma once
+// The frame as a pipeline of named stages, in the order of the loop
+// (../shared/DESIGN.md, "The frame as stages"; engine/runtime/timing.h):
+//
+//   tool poses -> collision -> cutting -> [assembly -> factorization -> solve]
+//   per Newton iteration -> integration -> contact publish -> render -> record
+//
+// The dynamics stages (assembly .. integration) are the engine's own
+// (engine/dynamics/step.h) and always run. The others are slots that a
+// module fills when the scene calls for it, once, when the simulation is set
+// up: cutting/ the cutting stage (a scene with cuts), render/ the render
+// stage (when asked), and later collision, instruments, haptics and replay.
+// engine/ knows none of them. An empty slot is absent: it costs nothing and
+// its run count stays 0, which `incise bench` prints.
+//
+// The pipeline times every stage through run_stage; a stage never times
+// itself (it may record details, such as the parts of a cut, in
+// sim.ws.timing).
+#include <array>
+#include <functional>
+#include <string>
+
+#include "engine/runtime/timing.h"
+
+namespace incise {
+
+struct Simulation;
+
+using StageFn = std::function<void(Simulation&)>;
+
+class Pipeline {
+ public:
+  // Fills a stage's slot (replacing what it held). Throws incise::Error for a
+  // dynamics stage: those are the step's (engine/dynamics/step.h).
+  void set(Stage stage, StageFn fn);
+  bool has(Stage stage) const;
+  // One frame: the stages in loop order. Returns the frame's timing (also
+  // left in sim.ws.timing): each stage's time and runs, the frame's wall and
+  // CPU time, and the details the stages recorded.
+  FrameTiming run_frame(Simulation& sim) const;
+  // The stages in order, each with "engine", "plugged in" or "absent".
+  std::string describe() const;
+
+ private:
+  std::array<StageFn, kNumStages> slots_{};
+};
+
+// Whether a stage is the engine's own (the step's).
+bool is_dynamics_stage(Stage stage);
+
+}  // namespace incise

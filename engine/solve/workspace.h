@@ -1,0 +1,61 @@
+#pragma once
+// The solver Workspace a simulation owns beside its State: work arrays sized
+// once, the factorization(s) and their threads (SolverWork), the tangent
+// cache, the Newton loop's progress and the last frame's timings. Nothing in
+// it is physical state: a copied State stepped with a fresh Workspace gives
+// the same frames (deterministic solver settings). A cut carries it over to
+// the next Model in carry_workspace_over_cut (engine/solve/workspace_carry.h).
+#include <vector>
+
+#include "engine/fem/assemble_parallel.h"
+#include "engine/runtime/timing.h"
+#include "engine/solve/cholmod_solver.h"
+#include "engine/solve/solver_work.h"
+
+namespace incise {
+
+struct Model;
+
+struct Workspace {
+  // Work arrays (ndof or nnz), reused every frame.
+  std::vector<double> f_int;             // (ndof) internal force at the current iterate
+  std::vector<double> K;                 // (nnz) tangent stiffness
+  std::vector<double> A;                 // (nnz) dynamic matrix cM M + cK K, projected
+  std::vector<double> rhs, du;           // (ndof) Newton residual and increment
+  std::vector<double> delta;             // (ndof) step increment Delta = u(t + dt) - u(t)
+  std::vector<double> tmp, tmp2;         // (ndof) scratch
+  TangentCache tangent_cache;   // integrator.tangent_reuse: element blocks kept in K between frames
+  CholmodSolver solver;
+  bool factor_current = false;  // the factor in `solver` is valid for the policy (linear: never changes)
+  SolverWork work;              // policies, worker pool, assembly plan (engine/solve/linear_solve.h)
+
+  // The Newton loop of the step in progress (engine/dynamics/step.cpp).
+  int iteration = 0;             // linearised solves done this step
+  bool newton_done = false;      // set by the solve stage: no further iteration
+  bool rescue_pending = false;   // lagged: the solve stage asks the factorization stage for a rescue factor
+  bool converged_before_rescue = true;
+
+  FrameTiming timing;           // the last (or current) frame
+  int refactorizations = 0;     // numeric factorizations so far
+  int rotation_fallbacks = 0;   // SVD fallbacks in the last frame (inverted points)
+  double last_residual = 0.0;      // relative residual of the last Newton iteration
+  int newton_iterations_done = 0;  // linearised solves in the last step
+
+  Workspace() = default;
+  Workspace(const Workspace&) = delete;
+  Workspace& operator=(const Workspace&) = delete;
+  // `work` goes first: its background job may be factorizing `solver`, and a
+  // substitution bin given up on may still read it on work's worker.
+  ~Workspace() {
+    work.wait_job();
+    solver.set_substitution_worker(nullptr);
+  }
+};
+
+// Sizes the work arrays for the model. zero = false only sizes them (a cut,
+// whose step writes every work array and A before reading them; K is filled
+// by the tangent carry or a full assembly): zeroing 8 MB at 10k DOF took
+// 0.85 ms of each cut frame.
+void size_workspace(const Model& model, Workspace& ws, bool zero = true);
+
+}  // namespace incise

@@ -1,0 +1,162 @@
+// The physical State as a value: copied, saved, restored and hashed.
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "engine/dynamics/state.h"
+#include "engine/dynamics/step.h"
+#include "engine/util/error.h"
+#include "tests/engine/test_util.h"
+
+namespace incise {
+namespace {
+
+// A soft corotated beam fixed at x = 0, sagging and swinging under gravity:
+// large rotations, adaptive Newton iterations.
+Scene sagging_beam() {
+  Scene s = test::basic_scene(2);
+  s.material.young = 2e3;
+  s.material.poisson = 0.4;
+  s.material.rayleigh_mass = 0.1;
+  s.gravity = {0.0, 0.0, -9.81};
+  s.fixed.push_back(test::box_region({-1, -1, -1}, {1e-9, 2, 2}));
+  return s;
+}
+
+void run(const Model& m, State& s, Workspace& ws, int frames) {
+  for (int k = 0; k < frames; ++k) step(m, s, ws);
+}
+
+TEST(State, ACopySteppedOnAFreshWorkspaceMatchesBitForBit) {
+  const Model m = build_model(make_beam(4, 1, 1, 6, 2, 2, 1), sagging_beam());
+  State a;
+  Workspace wa;
+  init_state(m, a, wa);
+  run(m, a, wa, 20);
+  const State copy = a;  // mid-run, after the beam has started to swing
+  State b = copy;
+  Workspace wb;
+  attach_state(m, b, wb);
+  for (int k = 0; k < 100; ++k) {
+    step(m, a, wa);
+    step(m, b, wb);
+    ASSERT_EQ(state_hash(a), state_hash(b)) << "frame " << a.frame;
+  }
+  EXPECT_TRUE(a == b);
+  EXPECT_EQ(a.frame, 120);
+  EXPECT_GT(wa.newton_iterations_done, 0);
+  double umax = 0;
+  for (double x : a.u) umax = std::max(umax, std::abs(x));
+  EXPECT_GT(umax, 0.1) << "the beam moved: the test compares a real trajectory";
+}
+
+TEST(State, HashSeesEveryFieldAndOneBit) {
+  const Model m = build_model(make_beam(2, 1, 1, 2, 1, 1, 1), sagging_beam());
+  State s;
+  Workspace ws;
+  init_state(m, s, ws);
+  run(m, s, ws, 3);
+  s.cut_progress = {-1.0};
+  const auto h0 = state_field_hashes(s);
+  const std::uint64_t all = state_hash(s);
+  for (int field : {kFieldU, kFieldV, kFieldA, kFieldR, kFieldTopology}) {
+    State t = s;
+    std::vector<double>* f[] = {nullptr, &t.u, &t.v, &t.a, &t.R, &t.cut_progress};
+    std::uint64_t bits;
+    std::memcpy(&bits, f[field]->data(), sizeof bits);
+    bits ^= 1;  // the last bit of the mantissa of the first value
+    std::memcpy(f[field]->data(), &bits, sizeof bits);
+    const auto h = state_field_hashes(t);
+    for (int k = 0; k < kNumStateFields; ++k)
+      EXPECT_EQ(h[k] != h0[k], k == field) << kStateFieldNames[k] << " when " << kStateFieldNames[field] << " changed";
+    EXPECT_NE(state_hash(t), all);
+  }
+  State t = s;
+  t.frame += 1;
+  EXPECT_NE(state_field_hashes(t)[kFieldClock], h0[kFieldClock]);
+}
+
+TEST(State, SaveAndRestoreKeepTheHashAndTheTrajectory) {
+  const Model m = build_model(make_beam(4, 1, 1, 4, 2, 2, 1), sagging_beam());
+  State a;
+  Workspace wa;
+  init_state(m, a, wa);
+  run(m, a, wa, 10);
+  std::stringstream file;
+  write_state(file, a);
+  State b = read_state(file, "saved.state");
+  EXPECT_EQ(state_hash(b), state_hash(a));
+  EXPECT_TRUE(b == a);
+  Workspace wb;
+  attach_state(m, b, wb);
+  run(m, a, wa, 30);
+  run(m, b, wb, 30);
+  EXPECT_EQ(state_hash(b), state_hash(a));
+}
+
+std::string saved(const State& s) {
+  std::stringstream os;
+  write_state(os, s);
+  return os.str();
+}
+
+std::string read_error(const std::string& bytes) {
+  std::stringstream is(bytes);
+  try {
+    read_state(is, "run.state");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(State, DamagedFilesAreRefusedWithTheField) {
+  State s;
+  s.time = 0.5;
+  s.frame = 15;
+  s.u = {1, 2, 3};
+  s.v = {0, 0, 0};
+  s.a = {0, 0, 1};
+  s.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  s.cut_progress = {0.25};
+  const std::string good = saved(s);
+  EXPECT_EQ(read_error(good), "");
+  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 1"), std::string::npos);
+  EXPECT_NE(read_error(good.substr(0, 40)).find("run.state: state truncated in"), std::string::npos);
+  // u's length claims 2^60 values: refused before any allocation.
+  std::string huge = good;
+  const std::uint64_t n = 1ULL << 60;
+  std::memcpy(&huge[8 + 8 + 8], &n, sizeof n);
+  EXPECT_NE(read_error(huge).find("state field u claims"), std::string::npos) << read_error(huge);
+  // One flipped byte in v: the stored hash catches it.
+  std::string flipped = good;
+  flipped[8 + 8 + 8 + 8 + 3 * 8 + 8 + 2] ^= 0x10;
+  EXPECT_NE(read_error(flipped).find("hash mismatch"), std::string::npos) << read_error(flipped);
+  // A NaN written into a: named.
+  State bad = s;
+  bad.a[1] = std::nan("");
+  EXPECT_NE(read_error(saved(bad)).find("state field a[1] is not finite"), std::string::npos) << read_error(saved(bad));
+}
+
+TEST(State, AttachRefusesAStateOfAnotherModel) {
+  const Model m = build_model(make_beam(2, 1, 1, 2, 1, 1, 1), sagging_beam());
+  State s;
+  Workspace ws;
+  init_state(m, s, ws);
+  s.v.pop_back();
+  try {
+    attach_state(m, s, ws);
+    FAIL() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("state: v has " + std::to_string(m.ndof() - 1) + " values, the model needs " +
+                                         std::to_string(m.ndof())),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace incise

@@ -1,0 +1,101 @@
+// The frame as a pipeline of named stages: order, run counts, absent stages.
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "engine/dynamics/step.h"
+#include "engine/runtime/pipeline.h"
+#include "engine/runtime/simulation.h"
+#include "engine/util/error.h"
+#include "tests/engine/test_util.h"
+
+namespace incise {
+namespace {
+
+std::unique_ptr<Simulation> beam_sim(const SolverSettings& solver = {}) {
+  auto sim = std::make_unique<Simulation>();
+  Scene& s = sim->scene;
+  s = test::basic_scene(2);
+  s.material.young = 2e3;
+  s.gravity = {0.0, 0.0, -9.81};
+  s.fixed.push_back(test::box_region({-1, -1, -1}, {1e-9, 2, 2}));
+  s.solver = solver;
+  sim->mesh = make_beam(4, 1, 1, 4, 2, 2, 1);
+  sim->model = build_model(sim->mesh, s);
+  init_state(sim->model, sim->state, sim->ws);
+  return sim;
+}
+
+TEST(Pipeline, AStageTheSceneDoesNotCallForRunsZeroTimes) {
+  auto sim = beam_sim();
+  FrameTiming total;
+  for (int k = 0; k < 5; ++k) {
+    const FrameTiming t = advance_frame(*sim);
+    for (int s = 0; s < kNumStages; ++s) total.runs[s] += t.runs[s];
+    EXPECT_EQ(t.runs[kStageAssembly], t.newton) << "one assembly per Newton iteration";
+    EXPECT_EQ(t.runs[kStageSolve], t.newton) << "no rescue under exact";
+    EXPECT_EQ(t.runs[kStageFactorization], t.runs[kStageSolve]);
+    EXPECT_GT(t.frame_ms, 0.0);
+  }
+  for (Stage s : {kStageToolPoses, kStageCollision, kStageCutting, kStageContactPublish, kStageRender, kStageRecord}) {
+    EXPECT_EQ(total.runs[s], 0) << kStageNames[s];
+    EXPECT_FALSE(sim->pipeline.has(s)) << kStageNames[s];
+  }
+  EXPECT_EQ(total.runs[kStageIntegration], 5);
+  EXPECT_GE(total.runs[kStageAssembly], 5);
+  EXPECT_EQ(sim->state.frame, 5);
+  EXPECT_NE(sim->pipeline.describe().find("cutting: absent\n"), std::string::npos) << sim->pipeline.describe();
+  EXPECT_NE(sim->pipeline.describe().find("assembly: engine\n"), std::string::npos);
+}
+
+TEST(Pipeline, PluggedStagesRunInLoopOrderAroundTheStep) {
+  auto sim = beam_sim();
+  std::vector<std::string> seen;
+  for (Stage s : {kStageRecord, kStageToolPoses, kStageRender, kStageCollision, kStageContactPublish, kStageCutting})
+    sim->pipeline.set(s, [s, &seen](Simulation& x) { seen.push_back(std::string(kStageNames[s]) + "@" + std::to_string(x.state.frame)); });
+  const FrameTiming t = advance_frame(*sim);
+  const std::vector<std::string> expect = {"tool_poses@0", "collision@0", "cutting@0", "contact_publish@1", "render@1",
+                                           "record@1"};
+  EXPECT_EQ(seen, expect) << "before the step: frame 0; after it: frame 1";
+  for (Stage s : {kStageToolPoses, kStageCollision, kStageCutting, kStageContactPublish, kStageRender, kStageRecord})
+    EXPECT_EQ(t.runs[s], 1) << kStageNames[s];
+  double sum = 0;
+  for (int s = 0; s < kNumStages; ++s) sum += t.ms[s];
+  EXPECT_LE(sum, t.frame_ms) << "the stages' times lie within the frame's";
+}
+
+TEST(Pipeline, TheStepsOwnStagesCannotBeReplaced) {
+  auto sim = beam_sim();
+  for (Stage s : {kStageAssembly, kStageFactorization, kStageSolve, kStageIntegration}) {
+    try {
+      sim->pipeline.set(s, [](Simulation&) {});
+      FAIL() << kStageNames[s] << " was replaced";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string("stage '") + kStageNames[s] + "' is the engine's own step"),
+                std::string::npos);
+    }
+  }
+}
+
+// A lagged rescue (CG gave up after rescue_after iterations) runs the
+// factorization and solve stages once more in the same Newton iteration.
+TEST(Pipeline, ALaggedRescueRunsFactorizationAndSolveAgain) {
+  SolverSettings lagged;
+  lagged.policy = SolverPolicy::Lagged;
+  lagged.refresh_every = 1000;  // the factor of frame 1 preconditions every later frame
+  lagged.rescue_after = 1;
+  lagged.tolerance = 1e-13;     // one CG iteration with a stale factor cannot reach it
+  lagged.max_iterations = 200;
+  auto sim = beam_sim(lagged);
+  advance_frame(*sim);
+  const FrameTiming t = advance_frame(*sim);
+  ASSERT_GT(t.rescues, 0);
+  EXPECT_EQ(t.runs[kStageSolve], t.newton + t.rescues);
+  EXPECT_EQ(t.runs[kStageFactorization], t.runs[kStageSolve]);
+  EXPECT_EQ(t.runs[kStageAssembly], t.newton);
+  EXPECT_TRUE(t.converged);
+}
+
+}  // namespace
+}  // namespace incise
