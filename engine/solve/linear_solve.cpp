@@ -55,7 +55,7 @@ void substitute(Workspace& ws, CholmodSolver& f, const double* b, double* x) {
   ws.timing.takeovers += f.stats().takeovers - takeovers;
 }
 
-// x = Rn A0^-1 Rn^T b with the rest factor in state.solver.
+// x = Rn A0^-1 Rn^T b with the rest factor in ws.solver.
 void warped_apply(const Model& m, Workspace& ws, const double* b, double* x) {
   auto& w = ws.work;
   double* t = w.t.data();
@@ -74,7 +74,7 @@ void warped_apply(const Model& m, Workspace& ws, const double* b, double* x) {
 // (solver.initial_guess "previous"), from x = alpha x0 with the alpha that
 // minimises |b - alpha A x0| (one product more; never a larger residual than
 // x = 0). Records iterations, the starting and final residual and
-// convergence in state.timing.
+// convergence in ws.timing.
 template <class Precond>
 void pcg(const Model& m, Workspace& ws, const double* A, const double* b, double* x, const Precond& precond,
          int max_iterations, const double* x0 = nullptr) {
@@ -489,7 +489,11 @@ bool solver_carries_over_cuts(const Model& m, const Workspace& ws) {
   return m.solver.policy == SolverPolicy::Lagged && ws.factor_current;
 }
 
-void prepare_solver(const Model& m, Workspace& ws, int frame, const std::vector<int>* dofnode_map, AssemblyPlan* plan) {
+namespace {
+
+// The assembly workers, the substitution worker and the stepping thread's
+// CPU (solver.threads, substitution_threads, affinity); the assembly plan.
+void prepare_workers(const Model& m, Workspace& ws, AssemblyPlan* plan) {
   auto& w = ws.work;
   const int threads = std::max(1, m.solver.threads);
   if (!w.pool || w.pool->size() != threads) w.pool = std::make_unique<ThreadPool>(threads);
@@ -507,63 +511,77 @@ void prepare_solver(const Model& m, Workspace& ws, int frame, const std::vector<
   if (m.solver.split_affinity) set_thread_role(ThreadRole::Stepping);
   if (plan && plan->nthreads == threads) w.plan = std::move(*plan);
   else w.plan = make_assembly_plan(m, threads);
+}
+
+// A cut: keep the factors; each maps the new DOFs onto its own (composed
+// over successive cuts). A DOF node the old model did not have (-1), or a
+// second new one on the same old one, is left to the patch (lagged_patch).
+void map_factors_over_cut(const Model& m, Workspace& ws, int frame, const std::vector<int>& dofnode_map) {
+  auto& w = ws.work;
   const int n = m.ndof();
-  if (dofnode_map && solver_carries_over_cuts(m, ws)) {
-    // A cut: keep the factors; each maps the new DOFs onto its own (composed
-    // over successive cuts). A DOF node the old model did not have (-1), or a
-    // second new one on the same old one, is left to the patch (lagged_patch).
-    for (int k = 0; k < 2; ++k) {
-      if (k != w.front && k != w.job_slot) {
-        w.slot_map[k].clear();
-        w.slot_pattern[k] = -1;  // free: holds nothing usable
-        continue;
-      }
-      const std::vector<int> old = std::move(w.slot_map[k]);
-      std::vector<int>& nm = w.slot_map[k];
-      nm.assign(n, -1);
-      std::vector<char> taken(w.slot_n[k], 0);
-      for (int node = 0; node < m.ndofnode; ++node) {
-        const int o = (*dofnode_map)[node];
-        if (o < 0) continue;
-        for (int c = 0; c < 3; ++c) {
-          const int od = 3 * o + c;
-          const int fd = old.empty() ? od : (od < static_cast<int>(old.size()) ? old[od] : -1);
-          if (fd < 0 || fd >= static_cast<int>(taken.size()) || taken[fd]) continue;
-          taken[fd] = 1;
-          nm[3 * node + c] = fd;
-        }
-      }
-    }
-    ++w.pattern;
-    w.pattern_frame = frame;
-    w.last_launch = std::min(w.last_launch, frame - 1000000);  // the next frame starts a job on the new pattern
-  } else {
-    w.wait_job();
-    w.job_running = false;
-    w.job_error = nullptr;
-    w.job_slot = -1;
-    ws.solver.configure(m.solver.factor, m.solver.ordering);
-    w.back.configure(m.solver.factor, m.solver.ordering);
-    const bool lagged = m.solver.policy == SolverPolicy::Lagged;
-    const FactorCopy copy = lagged ? m.solver.factor_copy : FactorCopy::None;
-    for (CholmodSolver* f : {&ws.solver, &w.back}) {  // single needs the float copy: off first, on last
-      f->set_single_factorization(false);
-      f->set_factor_copy(copy);
-      f->set_single_factorization(lagged && m.solver.single_factorization);
-    }
-    ++w.pattern;
-    ws.solver.analyze(n, m.Ap, m.Ai);
-    w.pattern_frame = -1000000;
-    for (int k = 0; k < 2; ++k) {
-      w.slot_carried[k] = false;
-      w.slot_pattern[k] = k == 0 ? w.pattern : -1;
-      w.slot_n[k] = k == 0 ? n : 0;
+  for (int k = 0; k < 2; ++k) {
+    if (k != w.front && k != w.job_slot) {
       w.slot_map[k].clear();
+      w.slot_pattern[k] = -1;  // free: holds nothing usable
+      continue;
     }
-    w.front = 0;
-    w.front_frame = w.last_launch = w.job_frame = -1;
-    ws.factor_current = false;
+    const std::vector<int> old = std::move(w.slot_map[k]);
+    std::vector<int>& nm = w.slot_map[k];
+    nm.assign(n, -1);
+    std::vector<char> taken(w.slot_n[k], 0);
+    for (int node = 0; node < m.ndofnode; ++node) {
+      const int o = dofnode_map[node];
+      if (o < 0) continue;
+      for (int c = 0; c < 3; ++c) {
+        const int od = 3 * o + c;
+        const int fd = old.empty() ? od : (od < static_cast<int>(old.size()) ? old[od] : -1);
+        if (fd < 0 || fd >= static_cast<int>(taken.size()) || taken[fd]) continue;
+        taken[fd] = 1;
+        nm[3 * node + c] = fd;
+      }
+    }
   }
+  ++w.pattern;
+  w.pattern_frame = frame;
+  w.last_launch = std::min(w.last_launch, frame - 1000000);  // the next frame starts a job on the new pattern
+}
+
+// No factor survives: configure both slots for the policy and analyze the pattern.
+void reset_factors(const Model& m, Workspace& ws) {
+  auto& w = ws.work;
+  const int n = m.ndof();
+  w.wait_job();
+  w.job_running = false;
+  w.job_error = nullptr;
+  w.job_slot = -1;
+  ws.solver.configure(m.solver.factor, m.solver.ordering);
+  w.back.configure(m.solver.factor, m.solver.ordering);
+  const bool lagged = m.solver.policy == SolverPolicy::Lagged;
+  const FactorCopy copy = lagged ? m.solver.factor_copy : FactorCopy::None;
+  for (CholmodSolver* f : {&ws.solver, &w.back}) {  // single needs the float copy: off first, on last
+    f->set_single_factorization(false);
+    f->set_factor_copy(copy);
+    f->set_single_factorization(lagged && m.solver.single_factorization);
+  }
+  ++w.pattern;
+  ws.solver.analyze(n, m.Ap, m.Ai);
+  w.pattern_frame = -1000000;
+  for (int k = 0; k < 2; ++k) {
+    w.slot_carried[k] = false;
+    w.slot_pattern[k] = k == 0 ? w.pattern : -1;
+    w.slot_n[k] = k == 0 ? n : 0;
+    w.slot_map[k].clear();
+  }
+  w.front = 0;
+  w.front_frame = w.last_launch = w.job_frame = -1;
+  ws.factor_current = false;
+}
+
+// CG work vectors, and CG's start: mapped through a cut (0 on new DOFs),
+// dropped otherwise.
+void prepare_cg(const Model& m, Workspace& ws, const std::vector<int>* dofnode_map) {
+  auto& w = ws.work;
+  const int n = m.ndof();
   for (auto* v : {&w.r, &w.z, &w.p, &w.q, &w.t, &w.ms_r, &w.ms_z}) v->assign(n, 0.0);
   if (dofnode_map && !w.guess.empty()) {  // a cut: the start follows its DOF nodes, 0 on new ones
     std::vector<double> old = std::move(w.guess);
@@ -576,13 +594,18 @@ void prepare_solver(const Model& m, Workspace& ws, int frame, const std::vector<
   } else if (!dofnode_map) {
     w.guess.clear();
   }
-  // Node -> element adjacency for the warped policies (below).
+}
+
+// The warped policies' node rotations: warm starts (from the old node's
+// across a cut that keeps the factors), the nodes held at R = I, and the
+// node -> element adjacency.
+void prepare_node_rotations(const Model& m, Workspace& ws, const std::vector<int>* carried_map) {
+  auto& w = ws.work;
   std::vector<double> old_Rn = std::move(w.Rn);
-  w.Rn.assign(9 * static_cast<size_t>(m.ndofnode), 0.0);
-  for (int node = 0; node < m.ndofnode; ++node) w.Rn[9 * node] = w.Rn[9 * node + 4] = w.Rn[9 * node + 8] = 1.0;
-  if (dofnode_map && solver_carries_over_cuts(m, ws))  // a cut: node rotations warm-start from the old node's
+  w.Rn = identity_rotations(m.ndofnode);
+  if (carried_map)  // a cut: node rotations warm-start from the old node's
     for (int node = 0; node < m.ndofnode; ++node) {
-      const int o = (*dofnode_map)[node];
+      const int o = (*carried_map)[node];
       if (o >= 0 && 9 * static_cast<size_t>(o) + 9 <= old_Rn.size())
         std::copy_n(old_Rn.begin() + 9 * static_cast<size_t>(o), 9, w.Rn.begin() + 9 * static_cast<size_t>(node));
     }
@@ -610,6 +633,17 @@ void prepare_solver(const Model& m, Workspace& ws, int frame, const std::vector<
     w.node_elem_ptr.assign(m.ndofnode + 1, 0);
     w.node_elem.clear();
   }
+}
+
+}  // namespace
+
+void prepare_solver(const Model& m, Workspace& ws, int frame, const std::vector<int>* dofnode_map, AssemblyPlan* plan) {
+  prepare_workers(m, ws, plan);
+  const bool carried = dofnode_map && solver_carries_over_cuts(m, ws);
+  if (carried) map_factors_over_cut(m, ws, frame, *dofnode_map);
+  else reset_factors(m, ws);
+  prepare_cg(m, ws, dofnode_map);
+  prepare_node_rotations(m, ws, carried ? dofnode_map : nullptr);
 }
 
 void update_node_rotations(const Model& m, const double* R, Workspace& ws) {

@@ -1,6 +1,6 @@
 #pragma once
 // Run-time resources of the linear-solver policies and of parallel assembly,
-// held by State: the worker pool, the assembly plan, the second (background)
+// held by the Workspace (engine/solve/workspace.h): the worker pool, the assembly plan, the second (background)
 // factor of the lagged policy, node rotations of the warped policies, and CG
 // vectors. Built by prepare_solver (engine/solve/linear_solve.h).
 #include <atomic>
@@ -21,11 +21,11 @@ struct SolverWork {
   AssemblyPlan plan;
   // solver.substitution_threads 2: the second thread of every substitution
   // (set on both factor slots; engine/solve/split_substitution.h). Null with 1.
-  // Declared before `back` so that it outlives it; State's destructor takes
-  // it from State::solver (CholmodSolver::set_substitution_worker).
+  // Declared before `back` so that it outlives it; the Workspace destructor takes
+  // it from Workspace::solver (CholmodSolver::set_substitution_worker).
   std::unique_ptr<SubstitutionWorker> substitution_worker;
 
-  // lagged: two factor slots (0 = State::solver, 1 = `back`). The
+  // lagged: two factor slots (0 = Workspace::solver, 1 = `back`). The
   // front slot preconditions CG; the background job factorizes a copy of an
   // earlier frame's matrix into another slot, which becomes the front when
   // taken. A cut does not discard them: each slot keeps a map from the

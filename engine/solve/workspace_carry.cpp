@@ -34,7 +34,7 @@ std::vector<int> slot_ptr(const Model& m) {
 // theta per frame and little would be kept. (Not the last assembly: after a
 // skipped carry it recomputes all.) Every fifth cut in a row carries anyway,
 // so the next assembly measures the motion again.
-// The blocks stay in their array (see in_place below), the slots' F go to
+// The blocks stay in their array (place_blocks), the slots' F go to
 // the previous cut's spare buffer, and K keeps its buffer: 10k incision,
 // 10 MB of copies per cut frame -> 0.5 MB.
 // A cut that carries no blocks still hands the old cache's arrays on (valid
@@ -52,65 +52,61 @@ void keep_buffers(TangentCache& old, TangentCache& c, bool with_F) {
   }
 }
 
-void carry_tangent_cache(const Model& from, TangentCache& old, std::vector<double>& old_K, const Model& to,
-                         const std::vector<int>& changed, Workspace& ws) {
-  ws.tangent_cache.last_partial = old.last_partial;
-  ws.tangent_cache.bypass = old.bypass;  // still moving: the new model's assemblies keep no blocks either
-  if (old.bypass && old.F.size() == 9 * static_cast<size_t>(from.nrot) && from.nelem == to.nelem) {
-    // The bypass's F of the slots the cut left alone, so the next assembly
-    // can tell whether the body calmed (during an incision every frame is a
-    // cut frame: without them the bypass would never end).
-    std::vector<char> fresh(to.nelem, 0);
+// Which elements keep their blocks across the cut: those it left alone with
+// the same blocks and slots.
+struct KeptElements {
+  const Model& from;
+  const Model& to;
+  std::vector<char> fresh;         // (to.nelem) the cut changed it
+  std::vector<int> old_ptr, new_ptr;  // slot_ptr of each model
+  KeptElements(const Model& f, const Model& t, const std::vector<int>& changed)
+      : from(f), to(t), fresh(t.nelem, 0), old_ptr(slot_ptr(f)), new_ptr(slot_ptr(t)) {
     for (int e : changed) fresh[e] = 1;
-    const std::vector<int> old_ptr = slot_ptr(from), new_ptr = slot_ptr(to);
-    std::vector<double>& F = ws.tangent_cache.F;
-    F = std::move(old.spare_F);
-    assign_with_headroom(F, 9 * static_cast<size_t>(to.nrot), std::nan(""));
-    for (int e = 0; e < to.nelem; ++e)
-      if (!fresh[e] && new_ptr[e + 1] - new_ptr[e] == old_ptr[e + 1] - old_ptr[e])
-        std::copy(old.F.begin() + 9 * static_cast<size_t>(old_ptr[e]),
-                  old.F.begin() + 9 * static_cast<size_t>(old_ptr[e + 1]), F.begin() + 9 * static_cast<size_t>(new_ptr[e]));
-    keep_buffers(old, ws.tangent_cache, /*with_F=*/false);
-    return;
   }
-  if (!old.valid || !(to.tangent_reuse > 0.0) || old.kl_ptr.size() != static_cast<size_t>(from.nelem)) {
-    keep_buffers(old, ws.tangent_cache, /*with_F=*/true);
-    return;
+  int old_blocks(int e) const { return from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e]; }
+  int new_blocks(int e) const { return to.elem_scatter_ptr[e + 1] - to.elem_scatter_ptr[e]; }
+  int old_slots(int e) const { return old_ptr[e + 1] - old_ptr[e]; }
+  int new_slots(int e) const { return new_ptr[e + 1] - new_ptr[e]; }
+  bool kept(int e) const {
+    return e < from.nelem && !fresh[e] && new_blocks(e) == old_blocks(e) && new_slots(e) == old_slots(e);
   }
-  if ((old.last_partial < 0 || 2 * old.last_partial > from.nelem) && old.skipped_carries < 4) {
-    ws.tangent_cache.skipped_carries = old.skipped_carries + 1;
-    keep_buffers(old, ws.tangent_cache, /*with_F=*/true);
-    return;
-  }
-  std::vector<char> fresh(to.nelem, 0);
-  for (int e : changed) fresh[e] = 1;
-  const std::vector<int> old_ptr = slot_ptr(from), new_ptr = slot_ptr(to);
-  const auto old_blocks = [&](int e) { return from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e]; };
-  const auto new_blocks = [&](int e) { return to.elem_scatter_ptr[e + 1] - to.elem_scatter_ptr[e]; };
-  const auto kept_elem = [&](int e) {
-    return e < from.nelem && !fresh[e] && new_blocks(e) == old_blocks(e) &&
-           new_ptr[e + 1] - new_ptr[e] == old_ptr[e + 1] - old_ptr[e];
-  };
-  // In place: an element the cut left alone keeps its blocks where they are
-  // (TangentCache::kl_ptr), one it changed reuses its old range when that is
-  // large enough and otherwise gets a new one at the end, so nothing is read
-  // after something else landed on it. Once the unused ranges would pass
-  // half of the used ones, the blocks are compacted into the spare buffer in
-  // the new model's order (10k incision: a 7 MB copy every cut frame before).
-  // The slots' F (0.5 MB) go to the spare buffer: a cut may renumber slots
-  // either way.
+};
+
+// The bypass's F of the slots the cut left alone, so the next assembly can
+// tell whether the body calmed (during an incision every frame is a cut
+// frame: without them the bypass would never end).
+void carry_bypass(const KeptElements& k, TangentCache& old, TangentCache& c) {
+  std::vector<double>& F = c.F;
+  F = std::move(old.spare_F);
+  assign_with_headroom(F, 9 * static_cast<size_t>(k.to.nrot), std::nan(""));
+  for (int e = 0; e < k.to.nelem; ++e)
+    if (!k.fresh[e] && k.new_slots(e) == k.old_slots(e))
+      std::copy(old.F.begin() + 9 * static_cast<size_t>(k.old_ptr[e]), old.F.begin() + 9 * static_cast<size_t>(k.old_ptr[e + 1]),
+                F.begin() + 9 * static_cast<size_t>(k.new_ptr[e]));
+  keep_buffers(old, c, /*with_F=*/false);
+}
+
+// Where the carried blocks go. In place: an element the cut left alone keeps
+// its blocks where they are (TangentCache::kl_ptr), one it changed reuses
+// its old range when that is large enough and otherwise gets a new one at
+// the end, so nothing is read after something else landed on it. Once the
+// unused ranges would pass half of the used ones, the blocks are compacted
+// into the spare buffer in the new model's order (10k incision: a 7 MB copy
+// every cut frame before). The slots' F (0.5 MB) go to the spare buffer: a
+// cut may renumber slots either way. Returns whether in place.
+bool place_blocks(const KeptElements& k, TangentCache& old, TangentCache& c) {
+  const Model& to = k.to;
   size_t appended = 0, freed = 0;
-  bool in_place = from.nelem == to.nelem && old.kl_ptr.size() == static_cast<size_t>(from.nelem);
+  bool in_place = k.from.nelem == to.nelem && old.kl_ptr.size() == static_cast<size_t>(k.from.nelem);
   for (int e = 0; e < to.nelem && in_place; ++e)
-    if (!kept_elem(e) && new_blocks(e) > old_blocks(e)) {
-      appended += new_blocks(e);
-      freed += old_blocks(e);
+    if (!k.kept(e) && k.new_blocks(e) > k.old_blocks(e)) {
+      appended += k.new_blocks(e);
+      freed += k.old_blocks(e);
     }
   in_place = in_place && 2 * (old.kl_garbage + freed) <= to.elem_scatter.size() &&
              old.Kl.size() + appended <= old.Kl.capacity();  // (a reallocation would copy it all)
-  TangentCache& c = ws.tangent_cache;
-  const size_t old_size = old.Kl.size();
   if (in_place) {
+    const size_t old_size = old.Kl.size();
     c.Kl = std::move(old.Kl);
     c.kl_ptr = std::move(old.kl_ptr);
     c.kl_garbage = old.kl_garbage;
@@ -126,51 +122,93 @@ void carry_tangent_cache(const Model& from, TangentCache& old, std::vector<doubl
   }
   c.F = std::move(old.spare_F);
   resize_with_headroom(c.F, 9 * static_cast<size_t>(to.nrot));
-  const double* src_Kl = in_place ? c.Kl.data() : old.Kl.data();
-  // The mesh nodes' columns: positions [0, split) the same in both patterns,
-  // so K keeps old_K's buffer (swapped in: no 3 MB copy).
+  return in_place;
+}
+
+// The mesh nodes' columns: positions [0, split) the same in both patterns,
+// so K keeps old_K's buffer (swapped in: no 3 MB copy). Returns split (0:
+// the patterns differ there, K is summed anew). The enriched columns are zeroed.
+int keep_mesh_columns(const Model& from, const Model& to, std::vector<double>& old_K, std::vector<double>& K) {
   const int cstd = 3 * to.nnode;
   const bool same_std = from.nnode == to.nnode && from.nelem == to.nelem && old_K.size() == static_cast<size_t>(from.Ap.back()) &&
                         from.Ap.size() > static_cast<size_t>(cstd) && to.Ap.size() > static_cast<size_t>(cstd) &&
                         std::equal(from.Ap.begin(), from.Ap.begin() + cstd + 1, to.Ap.begin());
   const int split = same_std ? to.Ap[cstd] : 0;
   if (same_std) {
-    ws.K.swap(old_K);  // old_K now holds the other buffer (the caller's next spare)
-    resize_with_headroom(ws.K, static_cast<size_t>(to.nnz()));
+    K.swap(old_K);  // old_K now holds the other buffer (the caller's next spare)
+    resize_with_headroom(K, static_cast<size_t>(to.nnz()));
   }
-  std::fill(ws.K.begin() + split, ws.K.end(), 0.0);  // the enriched columns: summed below
+  std::fill(K.begin() + split, K.end(), 0.0);  // the enriched columns: summed by carry_blocks
+  return split;
+}
+
+// Per element: a kept one's blocks and F stay (copied when not in place) and
+// its blocks in enriched columns are summed into K; a changed one's old
+// blocks leave K's kept columns, its new range is zeroed and its F set to
+// NaN, so the next assembly recomputes it (K += blocks - 0).
+void carry_blocks(const KeptElements& k, TangentCache& old, bool in_place, size_t old_size, int split,
+                  TangentCache& c, std::vector<double>& K) {
+  const Model& from = k.from;
+  const Model& to = k.to;
+  const double* src_Kl = in_place ? c.Kl.data() : old.Kl.data();
   size_t end = old_size;  // next free position at the end of Kl (in place)
   for (int e = 0; e < to.nelem; ++e) {
-    const int nb = new_blocks(e), ns = new_ptr[e + 1] - new_ptr[e];
+    const int nb = k.new_blocks(e), ns = k.new_slots(e);
     const int src = e < from.nelem ? (in_place ? c.kl_ptr[e] : old.kl_ptr[e]) : 0;
-    if (!kept_elem(e)) {  // recomputed at the next assembly
+    if (!k.kept(e)) {
       if (split > 0 && e < from.nelem) {  // its old blocks leave the kept columns
         const int* sc = &from.elem_scatter[from.elem_scatter_ptr[e]];
         const double* kl = src_Kl + src;
-        for (int k = 0; k < old_blocks(e); ++k)
-          if (sc[k] >= 0 && sc[k] < split) ws.K[sc[k]] -= kl[k];
+        for (int b = 0; b < k.old_blocks(e); ++b)
+          if (sc[b] >= 0 && sc[b] < split) K[sc[b]] -= kl[b];
       }
       if (in_place) {
-        if (nb > old_blocks(e)) {
+        if (nb > k.old_blocks(e)) {
           c.kl_ptr[e] = static_cast<int>(end);
           end += nb;
-          c.kl_garbage += old_blocks(e);
+          c.kl_garbage += k.old_blocks(e);
         } else {
-          c.kl_garbage += old_blocks(e) - nb;
+          c.kl_garbage += k.old_blocks(e) - nb;
         }
       }
       std::fill_n(c.Kl.begin() + c.kl_ptr[e], nb, 0.0);
-      std::fill_n(c.F.begin() + 9 * static_cast<size_t>(new_ptr[e]), 9 * ns, std::nan(""));
+      std::fill_n(c.F.begin() + 9 * static_cast<size_t>(k.new_ptr[e]), 9 * ns, std::nan(""));
       continue;
     }
     double* kl = c.Kl.data() + c.kl_ptr[e];
     if (!in_place) std::copy_n(src_Kl + src, nb, kl);
-    std::copy_n(old.F.data() + 9 * static_cast<size_t>(old_ptr[e]), 9 * ns, c.F.data() + 9 * static_cast<size_t>(new_ptr[e]));
+    std::copy_n(old.F.data() + 9 * static_cast<size_t>(k.old_ptr[e]), 9 * ns, c.F.data() + 9 * static_cast<size_t>(k.new_ptr[e]));
     if (split > 0 && to.elem_dof_ptr[e + 1] - to.elem_dof_ptr[e] == to.mesh.npe()) continue;  // all in kept columns
     const int* sc = &to.elem_scatter[to.elem_scatter_ptr[e]];
-    for (int k = 0; k < nb; ++k)
-      if (sc[k] >= split) ws.K[sc[k]] += kl[k];
+    for (int b = 0; b < nb; ++b)
+      if (sc[b] >= split) K[sc[b]] += kl[b];
   }
+}
+
+// integrator.tangent_reuse across a rebuild (see the comment above keep_buffers).
+void carry_tangent_cache(const Model& from, TangentCache& old, std::vector<double>& old_K, const Model& to,
+                         const std::vector<int>& changed, Workspace& ws) {
+  TangentCache& c = ws.tangent_cache;
+  c.last_partial = old.last_partial;
+  c.bypass = old.bypass;  // still moving: the new model's assemblies keep no blocks either
+  if (old.bypass && old.F.size() == 9 * static_cast<size_t>(from.nrot) && from.nelem == to.nelem) {
+    carry_bypass(KeptElements(from, to, changed), old, c);
+    return;
+  }
+  if (!old.valid || !(to.tangent_reuse > 0.0) || old.kl_ptr.size() != static_cast<size_t>(from.nelem)) {
+    keep_buffers(old, c, /*with_F=*/true);
+    return;
+  }
+  if ((old.last_partial < 0 || 2 * old.last_partial > from.nelem) && old.skipped_carries < 4) {
+    c.skipped_carries = old.skipped_carries + 1;
+    keep_buffers(old, c, /*with_F=*/true);
+    return;
+  }
+  const KeptElements k(from, to, changed);
+  const size_t old_size = old.Kl.size();
+  const bool in_place = place_blocks(k, old, c);
+  const int split = keep_mesh_columns(from, to, old_K, ws.K);
+  carry_blocks(k, old, in_place, old_size, split, c, ws.K);
   c.valid = true;
   if (!in_place) c.spare_Kl = std::move(old.Kl);
   c.spare_F = std::move(old.F);
