@@ -5,6 +5,7 @@
 // Stages a scene does not call for cost nothing: no cuts, no cutting work.
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "engine/runtime/simulation.h"
 #include "engine/runtime/timing.h"
@@ -16,6 +17,8 @@ FrameTiming advance_frame(Simulation& sim);
 // load_simulation, then every scene cut built once at its full extent so a bad
 // cut (a missing or malformed surface file, a non-convex polygon) fails at
 // load, not in the middle of a run.
-std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path);
+// `patches`: command-line overrides of scene keys (load_scene).
+std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path,
+                                                    const std::vector<ScenePatch>& patches = {});
 
 }  // namespace incise

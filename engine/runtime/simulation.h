@@ -2,6 +2,7 @@
 // A loaded scene ready to step: Scene -> Mesh -> Model -> State.
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "engine/runtime/helper_thread.h"
 #include "engine/mesh/mesh.h"
@@ -27,8 +28,9 @@ struct Simulation {
   std::unique_ptr<HelperThread> cut_helper;
 };
 
-// Reads the scene and its mesh, builds the model, initialises the state.
-// Throws incise::Error with the file and field at fault.
-std::unique_ptr<Simulation> load_simulation(const std::string& scene_path);
+// Reads the scene (with `patches` applied to its JSON first: load_scene) and
+// its mesh, builds the model, initialises the state. Throws incise::Error with
+// the file (or patch) and field at fault.
+std::unique_ptr<Simulation> load_simulation(const std::string& scene_path, const std::vector<ScenePatch>& patches = {});
 
 }  // namespace incise
