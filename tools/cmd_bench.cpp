@@ -21,14 +21,13 @@ struct BenchOptions {
   int frames = 100, warmup = 0;
   double bandwidth_gbs = 11.0;
   double pace_hz = 0.0;  // start frames at this rate (a real-time loop); 0 = back to back
-  SolverOverrides solver;
+  std::vector<ScenePatch> patches;  // --set and the solver flags, in order
   bool render = false;  // the render stage is 0 unless asked for
   std::string platform;
 };
 
 void bench(const BenchOptions& o) {
-  auto sim = load_checked_simulation(o.scene);
-  apply_solver_overrides(*sim, o.solver);
+  auto sim = load_checked_simulation(o.scene, o.patches);
   print_model_summary(*sim);
   std::unique_ptr<Renderer> renderer = o.render ? make_renderer(sim->scene.render, o.platform) : nullptr;
   Image image;
@@ -79,7 +78,8 @@ void add_bench_command(CLI::App& app) {
                   "work gets the rest of each period")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--trace", opts->trace, "Write one CSV row per timed frame: stages, cutting parts, CG iterations");
-  add_solver_options(cmd, opts->solver);
+  add_set_option(*cmd, opts->patches);
+  add_solver_aliases(*cmd, opts->patches);
   cmd->add_flag("--render", opts->render, "Render each frame offscreen (scene's render settings) and time it as the render stage");
   cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
       ->check(CLI::IsMember({"auto", "device", "surfaceless"}));

@@ -23,8 +23,34 @@ namespace {
 struct CompareOptions {
   std::string scene, frames = "1,30,300", json;
   std::vector<std::string> policies;
-  SolverOverrides solver;
+  std::vector<ScenePatch> patches;  // --set and the solver flags, in order; each policy run gets them
 };
+
+// The patches of one policy's run: the command line's, less those of solver
+// keys the policy does not use (one set of flags serves every policy: a
+// --refresh-every is for lagged), the scene file's own such keys removed
+// (null), then solver.policy. The scene parser checks the result.
+std::vector<ScenePatch> policy_patches(const CompareOptions& o, const Scene& file, const std::string& policy) {
+  std::vector<ScenePatch> out;
+  int known = -1;
+  for (int k = 0; k < 4; ++k)
+    if (policy == policy_name(static_cast<SolverPolicy>(k))) known = k;
+  auto unused = [&](const std::string& key) {
+    return known >= 0 && key.rfind("solver.", 0) == 0 &&
+           !solver_key_used_by(key.substr(7), static_cast<SolverPolicy>(known));
+  };
+  for (const ScenePatch& p : o.patches) {
+    if (unused(p.key)) std::printf("%s: without %s (%s is not used by that policy)\n", policy.c_str(), p.given.c_str(), p.key.c_str());
+    else out.push_back(p);
+  }
+  for (const auto& [key, origin] : file.origin)
+    if (origin.kind == SettingOrigin::Kind::Scene && unused(key)) {
+      std::printf("%s: without the scene's %s (not used by that policy)\n", policy.c_str(), key.c_str());
+      out.push_back({key, "null", "compare --policy " + policy});
+    }
+  out.push_back({"solver.policy", policy, "--policy " + policy});
+  return out;
+}
 
 std::vector<int> parse_frames(const std::string& text) {
   std::vector<int> out;
@@ -43,13 +69,27 @@ std::vector<int> parse_frames(const std::string& text) {
 }
 
 void compare(const CompareOptions& o) {
-  if (o.policies.empty()) throw Error("compare: --policy is required");
   const std::vector<int> checkpoints = parse_frames(o.frames);
-  auto ref = load_checked_simulation(o.scene);
-  SolverOverrides exact;
-  exact.policy = "exact";
-  exact.threads = o.solver.threads;
-  apply_solver_overrides(*ref, exact);
+  // Every run's scene is resolved (and checked) before the reference starts.
+  const Scene file = load_scene(o.scene);
+  std::vector<std::string> policies = o.policies;
+  std::vector<std::vector<ScenePatch>> runs;
+  std::vector<Scene> resolved;
+  for (const std::string& policy : policies) {
+    runs.push_back(policy_patches(o, file, policy));
+    resolved.push_back(load_scene(o.scene, runs.back()));
+  }
+  if (policies.empty()) {  // no --policy: the scene's own (after its preset and the patches)
+    runs.push_back(o.patches);
+    resolved.push_back(load_scene(o.scene, o.patches));
+    policies.push_back(policy_name(resolved.back().solver.policy));
+  }
+  // The reference: the same scene and patches, then the whole solver object
+  // replaced by solver.preset "reference" (exact), no tangent reuse, the
+  // runs' integrator.tangent. No preset or solver flag reaches it.
+  std::vector<ScenePatch> reference = o.patches;
+  for (ScenePatch& p : exact_reference_patches(resolved.front())) reference.push_back(std::move(p));
+  auto ref = load_checked_simulation(o.scene, reference);
   print_model_summary(*ref);
   // The reference runs first, then each policy: never two at once, because a
   // lagged background factorization must be the only BLAS user with a serial
@@ -68,12 +108,11 @@ void compare(const CompareOptions& o) {
   j["exact"] = {{"frame_median_ms", sr.frame.median_ms}, {"frame_p99_ms", sr.frame.p99_ms},
                 {"nnz_L", ref->ws.solver.stats().nnz_L}};
   j["policies"] = nlohmann::json::array();
-  for (const std::string& policy : o.policies) {
-    SolverOverrides ov = o.solver;
-    ov.policy = policy;
-    auto sim = load_checked_simulation(o.scene);
-    apply_solver_overrides(*sim, ov);
+  for (size_t r = 0; r < policies.size(); ++r) {
+    const std::string& policy = policies[r];
+    auto sim = load_checked_simulation(o.scene, runs[r]);
     std::printf("--- %s\n", policy.c_str());
+    std::printf("%s", format_resolved_settings(sim->scene).c_str());
     std::printf("%8s %14s %14s\n", "frame", "rel L2 error", "|u_exact|");
     std::vector<FrameTiming> t_pol;
     nlohmann::json rows = nlohmann::json::array();
@@ -129,15 +168,18 @@ void compare(const CompareOptions& o) {
 void add_compare_command(CLI::App& app) {
   auto opts = std::make_shared<CompareOptions>();
   auto* cmd = app.add_subcommand(
-      "compare", "Run a scene under solver.policy exact and under --policy; print the relative L2 displacement error");
+      "compare",
+      "Run a scene under the exact reference and under --policy (or its own solver settings); print the relative L2 "
+      "displacement error");
   cmd->add_option("scene", opts->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--frames", opts->frames, "Frames at which to report the error, comma-separated (default 1,30,300)");
   cmd->add_option("--json", opts->json, "Write the errors and timings as JSON");
-  cmd->add_option("--policy", opts->policies, "Policy (or comma-separated policies) to compare with exact")
-      ->required()
-      ->delimiter(',')
-      ->check(CLI::IsMember({"exact", "lagged", "warped", "warped_cg"}));
-  add_solver_options(cmd, opts->solver, /*with_policy=*/false);
+  cmd->add_option("--policy", opts->policies,
+                  "Policy (or comma-separated policies) to compare with exact (default: the scene's solver.policy, "
+                  "after its preset and --set)")
+      ->delimiter(',');
+  add_set_option(*cmd, opts->patches);
+  add_solver_aliases(*cmd, opts->patches, /*with_policy=*/false);
   cmd->callback([opts] { compare(*opts); });
 }
 

@@ -5,8 +5,9 @@
 
 namespace incise {
 
-std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path) {
-  auto sim = load_simulation(scene_path);
+std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path,
+                                                    const std::vector<ScenePatch>& patches) {
+  auto sim = load_simulation(scene_path, patches);
   for (const CutSpec& c : sim->scene.cuts) {
     try {
       make_cut_surface(c, c.at_time + c.duration);

@@ -5,6 +5,7 @@
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
 #include "render/render_stage.h"
+#include "tools/solver_report.h"
 
 namespace incise {
 
@@ -12,10 +13,11 @@ namespace {
 struct RenderOptions {
   std::string scene, out, platform;
   int frame = 0, width = 0, height = 0;  // 0: the scene's render.width/height
+  std::vector<ScenePatch> patches;        // --set
 };
 
 void render_command(const RenderOptions& o) {
-  auto sim = load_checked_simulation(o.scene);
+  auto sim = load_checked_simulation(o.scene, o.patches);
   RenderSettings settings = sim->scene.render;
   if (o.width > 0) settings.width = o.width;
   if (o.height > 0) settings.height = o.height;
@@ -43,6 +45,7 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--height", opts->height, "Height in pixels (default: render.height)")->check(CLI::Range(16, 8192));
   cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
       ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
+  add_set_option(*cmd, opts->patches);
   cmd->callback([opts] { render_command(*opts); });
 }
 

@@ -11,6 +11,7 @@
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
 #include "render/render_stage.h"
+#include "tools/solver_report.h"
 #include "tools/timing_json.h"
 
 namespace incise {
@@ -21,6 +22,7 @@ struct RunOptions {
   int frames = 0;  // 0: the scene's run.frames
   std::string out;
   std::string render_dir, platform;  // --render DIR: PNG frames (and an MP4 when ffmpeg is installed)
+  std::vector<ScenePatch> patches;   // --set
 };
 
 std::string frame_png(const std::string& dir, int frame) {
@@ -30,7 +32,7 @@ std::string frame_png(const std::string& dir, int frame) {
 }
 
 void run(const RunOptions& o) {
-  auto sim = load_checked_simulation(o.scene);
+  auto sim = load_checked_simulation(o.scene, o.patches);
   const State& s = sim->state;
   print_model_summary(*sim);
   const int frames = o.frames > 0 ? o.frames : sim->scene.frames;
@@ -91,6 +93,7 @@ void add_run_command(CLI::App& app) {
   cmd->add_option("--render", opts->render_dir, "Render every frame offscreen to DIR/frame_00000.png ... (+ DIR/frames.mp4 with ffmpeg)");
   cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
       ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
+  add_set_option(*cmd, opts->patches);
   cmd->callback([opts] { run(*opts); });
 }
 

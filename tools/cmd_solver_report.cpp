@@ -112,108 +112,102 @@ nlohmann::json solver_report_json(const SolverReport& r) {
 
 #include <CLI/CLI.hpp>
 
-#include "engine/util/error.h"
-#include "engine/dynamics/step.h"
-
 namespace incise {
 
-void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy) {
-  auto* cmd = static_cast<CLI::App*>(cli_app);
-  if (with_policy)
-    cmd->add_option("--policy", o.policy, "Solver policy (overrides solver.policy)")
-        ->check(CLI::IsMember({"exact", "lagged", "warped", "warped_cg"}));
-  cmd->add_option("--tolerance", o.tolerance, "CG relative tolerance (lagged, warped_cg)")->check(CLI::Range(1e-300, 0.999));
-  cmd->add_option("--max-iterations", o.max_iterations, "CG iterations per solve")->check(CLI::PositiveNumber);
-  cmd->add_option("--refresh-every", o.refresh_every, "lagged: refactor every K frames")->check(CLI::PositiveNumber);
-  cmd->add_flag("--background", o.background, "lagged: factorize on a second thread");
-  cmd->add_option("--rescue-after", o.rescue_after,
-                  "lagged: after N CG iterations factor the current matrix now and finish with it (0 = never)")
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--late-factor", o.late_factor,
-                  "lagged, background: wait for a late factor (deterministic) or skip it until it is ready")
-      ->check(CLI::IsMember({"wait", "skip"}));
-  cmd->add_option("--patch", o.patch,
-                  "lagged after cuts: combine the lagged factor with the patch of new DOFs additively or multiplicatively")
-      ->check(CLI::IsMember({"additive", "multiplicative"}));
-  cmd->add_option("--cut-ordering", o.cut_ordering,
-                  "lagged, background, while cutting: analyze each new pattern with a carried-over ordering or search one")
-      ->check(CLI::IsMember({"search", "carried"}));
-  cmd->add_option("--background-priority", o.background_priority,
-                  "lagged, background: run the background factorization at idle priority (the default) or normal")
-      ->check(CLI::IsMember({"idle", "normal"}));
-  cmd->add_option("--affinity", o.affinity,
-                  "none: the kernel places the threads; split: the stepping thread gets a CPU of its own, the cut-ahead "
-                  "helper and the background factorization the others (solver.affinity)")
-      ->check(CLI::IsMember({"none", "split"}));
-  cmd->add_flag("--warp", o.warp, "lagged: rotate the lagged factor by the node rotations since its frame");
-  cmd->add_option("--single-precision", o.single_precision, "lagged: float copy of the factor for the substitutions")
-      ->check(CLI::IsMember({"true", "false"}));
-  cmd->add_option("--factor-copy", o.factor_copy,
-                  "lagged: the factor copy the preconditioner substitutes with (none = CHOLMOD's doubles; half = binary16 "
-                  "scaled per supernode)")
-      ->check(CLI::IsMember({"none", "float", "half"}));
-  cmd->add_option("--factor-precision", o.factor_precision,
-                  "lagged: factor in double (CHOLMOD, then the copy) or in single precision straight into the float "
-                  "copy (solver.factor_precision)")
-      ->check(CLI::IsMember({"double", "single"}));
-  cmd->add_option("--initial-guess", o.initial_guess,
-                  "CG's start in the first Newton iteration: zero, or the last frame's increment scaled to the best "
-                  "fit (solver.initial_guess)")
-      ->check(CLI::IsMember({"zero", "previous"}));
-  cmd->add_option("--threads", o.threads, "Assembly worker threads (solver.threads)")->check(CLI::Range(1, 64));
-  cmd->add_option("--tangent-reuse", o.tangent_reuse,
-                  "integrator.tangent_reuse of the policy runs: keep an element's tangent while its F moves less than "
-                  "this (compare's exact reference keeps the scene's)")
-      ->check(CLI::Range(0.0, 0.4999));
-  cmd->add_option("--substitution-threads", o.substitution_threads,
-                  "Threads of each substitution with a supernodal factor (solver.substitution_threads)")
-      ->check(CLI::Range(1, 2));
-  cmd->add_option("--factorization", o.factorization, "CHOLMOD method")
-      ->check(CLI::IsMember({"auto", "supernodal", "simplicial"}));
-  cmd->add_option("--ordering", o.ordering, "Fill-reducing ordering")->check(CLI::IsMember({"auto", "amd", "metis"}));
+std::string format_resolved_settings(const Scene& s) {
+  std::string out = "settings";
+  if (!s.preset.empty()) out += " (solver.preset \"" + s.preset + "\")";
+  out += ": [preset], [scene], [--set] or the flag that set a value; unmarked: the default\n";
+  std::string section, line;
+  auto flush = [&] {
+    if (!line.empty()) out += line + "\n";
+    line.clear();
+  };
+  for (const ResolvedSetting& r : resolved_settings(s)) {
+    const size_t dot = r.key.find('.');
+    const std::string sec = r.key.substr(0, dot), name = r.key.substr(dot + 1);
+    std::string item = name + " " + r.value;
+    switch (r.origin.kind) {
+      case SettingOrigin::Kind::Default: break;
+      case SettingOrigin::Kind::Scene: item += " [scene]"; break;
+      case SettingOrigin::Kind::Preset: item += " [preset]"; break;
+      case SettingOrigin::Kind::Patch: {
+        const std::string& g = r.origin.detail;
+        // "--set solver.x=1" -> [--set], "--policy lagged" -> [--policy], "compare reference: ..." -> [compare reference]
+        item += " [" + (g.rfind("--", 0) == 0 ? g.substr(0, g.find(' ')) : g.substr(0, g.find(':'))) + "]";
+        break;
+      }
+    }
+    if (sec != section) {
+      flush();
+      section = sec;
+      line = "  " + sec + ": " + item;
+    } else if (line.size() + item.size() + 2 > 110) {
+      out += line + ",\n";
+      line = std::string(4 + sec.size(), ' ') + item;
+    } else {
+      line += ", " + item;
+    }
+  }
+  flush();
+  return out;
 }
 
-void apply_solver_overrides(Simulation& sim, const SolverOverrides& o) {
-  // The scene's settings too: a cut rebuilds the model from the scene.
-  SolverSettings& s = sim.scene.solver;
-  if (!o.policy.empty()) {
-    const char* names[] = {"exact", "lagged", "warped", "warped_cg"};
-    for (int k = 0; k < 4; ++k)
-      if (o.policy == names[k]) s.policy = static_cast<SolverPolicy>(k);
+void add_set_option(CLI::App& cmd, std::vector<ScenePatch>& patches) {
+  cmd.add_option_function<std::string>(
+         "--set", [&patches](const std::string& text) { patches.push_back(parse_scene_patch(text)); },
+         "Override a scene key before the scene is parsed, e.g. --set solver.preset=realtime, --set integrator.dt=0.01, "
+         "--set cuts.0.at_time=0.5 (repeatable; the value is JSON when it parses as JSON, else a string; null removes "
+         "the key)")
+      ->trigger_on_parse()
+      ->type_name("KEY=VALUE");
+}
+
+void add_solver_aliases(CLI::App& cmd, std::vector<ScenePatch>& patches, bool with_policy) {
+  struct Alias {
+    const char* flag;
+    const char* key;
+    const char* help;
+  };
+  static const Alias options[] = {
+      {"--policy", "solver.policy", "exact, lagged, warped or warped_cg"},
+      {"--tolerance", "solver.tolerance", "CG relative tolerance (lagged, warped_cg)"},
+      {"--max-iterations", "solver.max_iterations", "CG iterations per solve"},
+      {"--refresh-every", "solver.refresh_every", "lagged: refactor every K frames"},
+      {"--rescue-after", "solver.rescue_after", "lagged: after N CG iterations factor the current matrix now (0 = never)"},
+      {"--late-factor", "solver.late_factor", "lagged, background: wait or skip"},
+      {"--patch", "solver.patch", "lagged after cuts: additive or multiplicative"},
+      {"--cut-ordering", "solver.cut_ordering", "lagged, background, while cutting: search or carried"},
+      {"--background-priority", "solver.background_priority", "lagged, background: idle or normal"},
+      {"--affinity", "solver.affinity", "none or split"},
+      {"--single-precision", "solver.single_precision", "lagged: true (float factor copy) or false"},
+      {"--factor-copy", "solver.factor_copy", "lagged: none, float or half"},
+      {"--factor-precision", "solver.factor_precision", "lagged: double or single"},
+      {"--initial-guess", "solver.initial_guess", "CG's start: zero or previous"},
+      {"--threads", "solver.threads", "assembly worker threads"},
+      {"--tangent-reuse", "integrator.tangent_reuse",
+       "keep an element's tangent while its F moves less than this (compare's exact reference: 0)"},
+      {"--substitution-threads", "solver.substitution_threads", "1 or 2"},
+      {"--factorization", "solver.factorization", "auto, supernodal or simplicial"},
+      {"--ordering", "solver.ordering", "auto, amd or metis"},
+  };
+  for (const Alias& a : options) {
+    if (!with_policy && std::string(a.flag) == "--policy") continue;
+    const std::string flag = a.flag, key = a.key;
+    cmd.add_option_function<std::string>(
+           flag, [&patches, flag, key](const std::string& v) { patches.push_back({key, v, flag + " " + v}); },
+           std::string("= --set ") + a.key + "=VALUE: " + a.help)
+        ->trigger_on_parse();
   }
-  if (o.tolerance > 0) s.tolerance = o.tolerance;
-  if (o.max_iterations > 0) s.max_iterations = o.max_iterations;
-  if (o.refresh_every > 0) s.refresh_every = o.refresh_every;
-  if (o.background) s.background = true;
-  if (o.rescue_after >= 0) s.rescue_after = o.rescue_after;
-  if (!o.late_factor.empty()) s.skip_late_factor = o.late_factor == "skip";
-  if (!o.patch.empty()) s.multiplicative_patch = o.patch == "multiplicative";
-  if (!o.cut_ordering.empty()) s.carry_ordering = o.cut_ordering == "carried";
-  if (!o.background_priority.empty()) s.idle_background = o.background_priority == "idle";
-  if (!o.affinity.empty()) s.split_affinity = o.affinity == "split";
-  if (o.warp) s.warp = true;
-  if (o.single_precision == "true") s.factor_copy = FactorCopy::Float;
-  if (o.single_precision == "false") s.factor_copy = FactorCopy::None;
-  if (!o.factor_copy.empty())
-    s.factor_copy = o.factor_copy == "half" ? FactorCopy::Half : o.factor_copy == "float" ? FactorCopy::Float : FactorCopy::None;
-  if (!o.initial_guess.empty()) s.previous_guess = o.initial_guess == "previous";
-  if (!o.factor_precision.empty()) s.single_factorization = o.factor_precision == "single";
-  if (s.single_factorization && s.factor_copy != FactorCopy::Float)
-    throw Error("--factor-precision single factors straight into the float copy: it needs --factor-copy float");
-  if (!o.factorization.empty() && o.factorization == "simplicial" && s.single_factorization)
-    throw Error("--factor-precision single factors supernodes: it cannot go with --factorization simplicial");
-  if (o.threads > 0) s.threads = o.threads;
-  if (o.substitution_threads > 0) s.substitution_threads = o.substitution_threads;
-  if (o.tangent_reuse >= 0) sim.scene.tangent_reuse = sim.model.tangent_reuse = o.tangent_reuse;
-  if (!o.factorization.empty())
-    s.factor = o.factorization == "simplicial" ? FactorMethod::Simplicial
-               : o.factorization == "supernodal" ? FactorMethod::Supernodal
-                                                 : FactorMethod::Auto;
-  if (!o.ordering.empty())
-    s.ordering = o.ordering == "amd" ? OrderingMethod::Amd : o.ordering == "metis" ? OrderingMethod::Metis : OrderingMethod::Auto;
-  sim.model.solver = s;
-  if (model_needs_rest_stiffness(sim.model) && sim.model.K0_csc.empty()) sim.model.K0_csc = rest_stiffness(sim.model);
-  init_state(sim.model, sim.state, sim.ws);
+  static const Alias flags[] = {{"--background", "solver.background", "lagged: factorize on a second thread"},
+                                {"--warp", "solver.warp", "lagged: rotate the lagged factor by the node rotations"}};
+  for (const Alias& a : flags) {
+    const std::string flag = a.flag, key = a.key;
+    cmd.add_flag_function(
+           flag, [&patches, flag, key](std::int64_t) { patches.push_back({key, "true", flag}); },
+           std::string("= --set ") + a.key + "=true: " + a.help)
+        ->trigger_on_parse();
+  }
 }
 
 }  // namespace incise

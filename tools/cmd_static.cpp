@@ -14,12 +14,14 @@
 #include "engine/dynamics/static_solve.h"
 #include "tools/commands.h"
 #include "tools/frame_loop.h"
+#include "tools/solver_report.h"
 
 namespace incise {
 
 namespace {
 struct StaticOptions {
   std::string scene, probe, out, vtu;
+  std::vector<ScenePatch> patches;  // --set
 };
 
 // x,y,z per line; an optional header line; blank lines and '#' comments skipped.
@@ -48,7 +50,7 @@ std::vector<std::array<double, 3>> read_probe_points(const std::string& path) {
 }
 
 void run_static(const StaticOptions& o) {
-  auto sim = load_checked_simulation(o.scene);
+  auto sim = load_checked_simulation(o.scene, o.patches);
   if (!sim->scene.cuts.empty()) {
     const CutUpdate cut = apply_all_cuts(*sim);  // static: every cut at once
     std::printf("cuts: %d elements split into %d pieces, %d separated faces, %d enriched DOF nodes, %d bodies (%.1f ms)\n",
@@ -111,6 +113,7 @@ void add_static_command(CLI::App& app) {
   cmd->add_option("--probe", opts->probe, "CSV of reference points x,y,z (header allowed)")->check(CLI::ExistingFile);
   cmd->add_option("--out", opts->out, "Probe result CSV x,y,z,ux,uy,uz (default: stdout)");
   cmd->add_option("--vtu", opts->vtu, "Also write the deformed mesh with fields to this .vtu");
+  add_set_option(*cmd, opts->patches);
   cmd->callback([opts] { run_static(*opts); });
 }
 

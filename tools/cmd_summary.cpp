@@ -3,6 +3,7 @@
 #include "engine/runtime/simulation.h"
 #include "engine/runtime/thread_affinity.h"
 #include "tools/commands.h"
+#include "tools/solver_report.h"
 
 namespace incise {
 
@@ -58,6 +59,7 @@ void print_model_summary(const Simulation& sim) {
   else if (o.split_affinity)
     std::printf(", affinity split not applied (fewer than two CPUs)");
   std::printf("\n");
+  std::printf("%s", format_resolved_settings(sim.scene).c_str());
 }
 
 }  // namespace incise

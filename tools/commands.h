@@ -8,7 +8,7 @@ void add_run_command(CLI::App& app);     // incise run SCENE --frames N [--out D
 void add_static_command(CLI::App& app);  // incise static SCENE [--probe P.csv] [--out R.csv]
 void add_bench_command(CLI::App& app);    // incise bench SCENE --frames N [--json F] [--render]
 void add_mesh_command(CLI::App& app);     // incise mesh beam|convert ...
-void add_compare_command(CLI::App& app);  // incise compare SCENE --policy P [--frames 1,30,300]
+void add_compare_command(CLI::App& app);  // incise compare SCENE [--policy P] [--frames 1,30,300]
 void add_render_command(CLI::App& app);   // incise render SCENE --frame K --out F.png
 
 // Prints the model summary (DOFs, elements, factor) used by run/static/bench.

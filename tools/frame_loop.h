@@ -7,6 +7,7 @@
 // (engine/runtime/simulation.h) runs one frame.
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "engine/runtime/simulation.h"
 
@@ -15,6 +16,8 @@ namespace incise {
 // load_simulation, then every scene cut built once at its full extent so a bad
 // cut (a missing or malformed surface file, a non-convex polygon) fails at
 // load, not in the middle of a run; then the pipeline's stages.
-std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path);
+// `patches`: command-line overrides of scene keys (load_scene).
+std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path,
+                                                    const std::vector<ScenePatch>& patches = {});
 
 }  // namespace incise

@@ -43,31 +43,26 @@ nlohmann::json solver_report_json(const SolverReport& r);
 
 }  // namespace incise
 
+namespace CLI {
+class App;
+}
+
 namespace incise {
 
-// Command-line overrides of the scene's solver.* keys (bench, compare).
-struct SolverOverrides {
-  std::string policy;  // empty: the scene's
-  double tolerance = 0;  // 0: the scene's
-  int max_iterations = 0, refresh_every = 0, threads = 0, substitution_threads = 0;
-  int rescue_after = -1;  // -1: the scene's
-  double tangent_reuse = -1;  // integrator.tangent_reuse of the runs under test (-1: the scene's; not the exact reference)
-  bool background = false;
-  bool warp = false;
-  std::string single_precision;  // "", "true" or "false"
-  std::string factor_copy;       // "", "none", "float" or "half"
-  std::string factor_precision;  // "", "double" or "single"
-  std::string initial_guess;     // "", "zero" or "previous"
-  std::string late_factor;       // "", "wait" or "skip"
-  std::string patch;             // "", "additive" or "multiplicative"
-  std::string cut_ordering;      // "", "search" or "carried"
-  std::string background_priority;  // "", "idle" or "normal"
-  std::string affinity;             // "", "none" or "split"
-  std::string factorization, ordering;  // empty: the scene's
-};
-// Registers --policy, --tolerance, ... on a sub-command.
-void add_solver_options(void* cli_app, SolverOverrides& o, bool with_policy = true);
-// Applies the overrides to the model and re-initialises the state (t = 0).
-void apply_solver_overrides(Simulation& sim, const SolverOverrides& o);
+// The resolved solver.* and integrator.* settings of a loaded scene, each
+// marked with where it came from ([preset], [scene], [--set] for a patch;
+// unmarked: the default): a short block printed by run, bench and compare.
+std::string format_resolved_settings(const Scene& s);
+
+// --set KEY=VALUE on a sub-command (repeatable): a patch of the scene's JSON
+// before it is parsed (engine/scene/scene.h, ScenePatch).
+void add_set_option(CLI::App& cmd, std::vector<ScenePatch>& patches);
+// The solver flags of bench and compare as aliases of --set, each adding the
+// patch it names: --policy P = --set solver.policy=P, --tolerance X =
+// --set solver.tolerance=X, --background = --set solver.background=true,
+// --tangent-reuse X = --set integrator.tangent_reuse=X, ... (docs/scene-format.md).
+// Patches keep the command line's order. No value is checked here: the
+// scene parser checks them all.
+void add_solver_aliases(CLI::App& cmd, std::vector<ScenePatch>& patches, bool with_policy = true);
 
 }  // namespace incise

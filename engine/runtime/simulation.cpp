@@ -7,10 +7,10 @@
 
 namespace incise {
 
-std::unique_ptr<Simulation> load_simulation(const std::string& scene_path) {
+std::unique_ptr<Simulation> load_simulation(const std::string& scene_path, const std::vector<ScenePatch>& patches) {
   Stopwatch clock;
   auto sim = std::make_unique<Simulation>();
-  sim->scene = load_scene(scene_path);
+  sim->scene = load_scene(scene_path, patches);
   sim->mesh = read_mesh(sim->scene.mesh_file);
   sim->model = build_model(sim->mesh, sim->scene);
   init_state(sim->model, sim->state, sim->ws);

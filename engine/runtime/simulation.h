@@ -3,6 +3,7 @@
 // Workspace that steps it and the frame's Pipeline.
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "engine/dynamics/state.h"
 #include "engine/mesh/mesh.h"
@@ -31,10 +32,11 @@ struct Simulation {
   std::unique_ptr<HelperThread> cut_helper;
 };
 
-// Reads the scene and its mesh, builds the model, initialises the state and
-// workspace; the pipeline holds the dynamics stages only (modules plug in
-// theirs). Throws incise::Error with the file and field at fault.
-std::unique_ptr<Simulation> load_simulation(const std::string& scene_path);
+// Reads the scene (with `patches` applied to its JSON first: load_scene) and
+// its mesh, builds the model, initialises the state and workspace; the
+// pipeline holds the dynamics stages only (modules plug in theirs). Throws
+// incise::Error with the file (or patch) and field at fault.
+std::unique_ptr<Simulation> load_simulation(const std::string& scene_path, const std::vector<ScenePatch>& patches = {});
 
 // One frame through sim.pipeline.
 inline FrameTiming advance_frame(Simulation& sim) { return sim.pipeline.run_frame(sim); }

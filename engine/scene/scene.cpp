@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <climits>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
@@ -12,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "engine/scene/scene_patch.h"
 #include "engine/util/error.h"
 
 namespace incise {
@@ -57,13 +59,25 @@ size_t edit_distance(const std::string& a, const std::string& b) {
   return prev[b.size()];
 }
 
-// Builds JSON paths and throws errors that start with the scene path.
+// Builds JSON paths and throws errors that start with the scene path, or
+// with the command-line patch that set the key at fault.
 class Parser {
  public:
-  explicit Parser(std::string scene_path) : path_(std::move(scene_path)) {}
+  explicit Parser(std::string scene_path, const std::vector<AppliedPatch>* patches = nullptr)
+      : path_(std::move(scene_path)), patches_(patches) {}
+
+  // The keys solver.preset added, and its name (for messages).
+  void set_preset(std::string name, std::vector<std::string> keys) {
+    preset_ = std::move(name);
+    preset_keys_ = std::move(keys);
+  }
 
   [[noreturn]] void fail(const std::string& where, const std::string& what) const {
     // `what` starts with " must ..." or ": ...".
+    if (std::find(preset_keys_.begin(), preset_keys_.end(), where) != preset_keys_.end())
+      throw Error(path_ + ": " + where + " (from solver.preset \"" + preset_ + "\")" + what);
+    if (patches_)
+      if (const ScenePatch* pt = patch_for(*patches_, where)) throw Error(pt->given + ": " + where + what);
     throw Error(path_ + ": " + where + what);
   }
 
@@ -215,6 +229,9 @@ class Parser {
 
  private:
   std::string path_;
+  const std::vector<AppliedPatch>* patches_ = nullptr;
+  std::string preset_;
+  std::vector<std::string> preset_keys_;
 };
 
 // --- sections ----------------------------------------------------------------
@@ -402,13 +419,24 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
   }
 }
 
+// solver.* keys that only some policies use (the parser refuses them under another).
+const std::vector<std::string> kIterativeKeys{"tolerance", "max_iterations", "initial_guess"};
+const std::vector<std::string> kLaggedKeys{"refresh_every", "background",    "warp",        "single_precision",
+                                           "factor_copy",   "factor_precision", "rescue_after", "late_factor",
+                                           "patch",         "cut_ordering",  "background_priority"};
+
+bool listed(const std::vector<std::string>& keys, const std::string& k) {
+  return std::find(keys.begin(), keys.end(), k) != keys.end();
+}
+
 void parse_solver(const Parser& p, const json& v, Scene& s) {
   const std::string at = "solver";
   p.object(v, at);
-  p.allowed_keys(v, at, {"policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
+  p.allowed_keys(v, at, {"preset", "policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
                          "factorization", "ordering", "factor_precision", "initial_guess", "affinity"});
   SolverSettings& o = s.solver;
+  if (auto it = v.find("preset"); it != v.end()) s.preset = solver_preset_names()[p.choice(*it, at + ".preset", solver_preset_names())];
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
   if (auto it = v.find("refresh_every"); it != v.end())
@@ -464,13 +492,11 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     p.fail(at + ".factor_precision", ": \"single\" factors supernodes; solver.factorization \"simplicial\" has none "
                                      "(use \"supernodal\" or \"auto\")");
   const bool iterative = o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG;
-  for (const char* k : {"tolerance", "max_iterations", "initial_guess"})
+  for (const std::string& k : kIterativeKeys)
     if (v.contains(k) && !iterative)
       p.fail(Parser::key(at, k), ": only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");
-  for (const char* k :
-       {"refresh_every", "background", "warp", "single_precision", "factor_copy", "factor_precision", "rescue_after",
-        "late_factor", "patch", "cut_ordering", "background_priority"})
+  for (const std::string& k : kLaggedKeys)
     if (v.contains(k) && o.policy != SolverPolicy::Lagged)
       p.fail(Parser::key(at, k), ": only used by solver.policy \"lagged\"; solver.policy is \"" +
                                      std::string(policy_name(o.policy)) + "\"");
@@ -679,16 +705,44 @@ const char* policy_name(SolverPolicy p) {
   return "unknown";
 }
 
-Scene parse_scene(const std::string& json_text, const std::string& path) {
+bool solver_key_used_by(const std::string& key, SolverPolicy policy) {
+  if (listed(kLaggedKeys, key)) return policy == SolverPolicy::Lagged;
+  if (listed(kIterativeKeys, key)) return policy == SolverPolicy::Lagged || policy == SolverPolicy::WarpedCG;
+  return true;
+}
+
+Scene parse_scene(const std::string& json_text, const std::string& path, const std::vector<ScenePatch>& patches) {
   json root = parse_text(json_text, path);
-  Parser p(path);
   if (!root.is_object()) throw Error(path + ": the scene must be a JSON object, got " + describe(root));
+  const std::vector<AppliedPatch> applied = apply_scene_patches(root, patches);
+  Parser p(path, &applied);
   p.allowed_keys(root, "",
                  {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
                   "solver", "static", "run", "output", "cuts", "render"});
 
   Scene s;
   s.path = path;
+  // solver.preset fills the solver.* and integrator.* keys left unset.
+  std::vector<std::string> from_preset;
+  std::string preset;
+  if (auto it = root.find("solver"); it != root.end() && it->is_object() && it->contains("preset")) {
+    preset = solver_preset_names()[p.choice((*it)["preset"], "solver.preset", solver_preset_names())];
+    from_preset = expand_solver_preset(root, preset);
+    p.set_preset(preset, from_preset);
+  }
+  for (const char* section : {"solver", "integrator"}) {
+    auto sec = root.find(section);
+    if (sec == root.end() || !sec->is_object()) continue;
+    for (auto it = sec->begin(); it != sec->end(); ++it) {
+      const std::string k = std::string(section) + "." + it.key();
+      SettingOrigin o{SettingOrigin::Kind::Scene, ""};
+      if (std::find(from_preset.begin(), from_preset.end(), k) != from_preset.end())
+        o = {SettingOrigin::Kind::Preset, preset};
+      else if (const ScenePatch* pt = patch_for(applied, k))
+        o = {SettingOrigin::Kind::Patch, pt->given};
+      s.origin[k] = o;
+    }
+  }
   parse_mesh(p, p.required(root, "", "mesh", "an object with file and order"), s);
   parse_material(p, p.required(root, "", "material", "an object with young, poisson, density"),
                  s.material);
@@ -708,7 +762,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path) {
   return s;
 }
 
-Scene load_scene(const std::string& path) {
+Scene load_scene(const std::string& path, const std::vector<ScenePatch>& patches) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) throw Error(path + ": cannot open scene file (it is a directory)");
   std::ifstream in(path, std::ios::binary);
@@ -716,7 +770,69 @@ Scene load_scene(const std::string& path) {
   std::ostringstream text;
   text << in.rdbuf();
   if (in.bad()) throw Error(path + ": cannot read scene file");
-  return parse_scene(text.str(), path);
+  return parse_scene(text.str(), path, patches);
+}
+
+namespace {
+std::string number_text(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", x);
+  return buf;
+}
+std::string quoted(const char* x) { return std::string("\"") + x + "\""; }
+}  // namespace
+
+std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
+  const SolverSettings& o = s.solver;
+  std::vector<std::pair<std::string, std::string>> kv;
+  if (!s.preset.empty()) kv.push_back({"solver.preset", "\"" + s.preset + "\""});
+  kv.push_back({"solver.policy", quoted(policy_name(o.policy))});
+  const char* copies[] = {"none", "float", "half"};
+  const std::vector<std::pair<std::string, std::string>> all{
+      {"refresh_every", std::to_string(o.refresh_every)},
+      {"background", o.background ? "true" : "false"},
+      {"warp", o.warp ? "true" : "false"},
+      {"factor_copy", quoted(copies[static_cast<int>(o.factor_copy)])},
+      {"factor_precision", quoted(o.single_factorization ? "single" : "double")},
+      {"rescue_after", std::to_string(o.rescue_after)},
+      {"late_factor", quoted(o.skip_late_factor ? "skip" : "wait")},
+      {"patch", quoted(o.multiplicative_patch ? "multiplicative" : "additive")},
+      {"cut_ordering", quoted(o.carry_ordering ? "carried" : "search")},
+      {"background_priority", quoted(o.idle_background ? "idle" : "normal")},
+      {"tolerance", number_text(o.tolerance)},
+      {"max_iterations", std::to_string(o.max_iterations)},
+      {"initial_guess", quoted(o.previous_guess ? "previous" : "zero")},
+      {"threads", std::to_string(o.threads)},
+      {"substitution_threads", std::to_string(o.substitution_threads)},
+      {"affinity", quoted(o.split_affinity ? "split" : "none")},
+      {"factorization", quoted(o.factor == FactorMethod::Auto ? "auto" : o.factor == FactorMethod::Supernodal ? "supernodal" : "simplicial")},
+      {"ordering", quoted(o.ordering == OrderingMethod::Auto ? "auto" : o.ordering == OrderingMethod::Amd ? "amd" : "metis")}};
+  for (const auto& [k, v] : all)
+    if (solver_key_used_by(k, o.policy)) kv.push_back({"solver." + k, v});
+  kv.push_back({"integrator.dt", number_text(s.dt)});
+  kv.push_back({"integrator.newton_iterations", std::to_string(s.newton_iterations)});
+  kv.push_back({"integrator.max_newton_iterations", std::to_string(s.max_newton_iterations)});
+  kv.push_back({"integrator.rotation_tolerance", number_text(s.rotation_tolerance)});
+  kv.push_back({"integrator.tangent", quoted(s.consistent_tangent ? "consistent" : "frozen_rotation")});
+  kv.push_back({"integrator.tangent_reuse", number_text(s.tangent_reuse)});
+  kv.push_back({"integrator.newmark_gamma", number_text(s.newmark_gamma)});
+  kv.push_back({"integrator.newmark_beta", number_text(s.newmark_beta)});
+  std::vector<ResolvedSetting> out;
+  for (auto& [k, v] : kv) {
+    auto it = s.origin.find(k);
+    if (it == s.origin.end() && k == "solver.factor_copy") it = s.origin.find("solver.single_precision");  // the older key
+    out.push_back({k, v, it == s.origin.end() ? SettingOrigin{} : it->second});
+  }
+  return out;
+}
+
+std::vector<ScenePatch> exact_reference_patches(const Scene& run) {
+  const std::string why = "compare reference: ";
+  const std::string solver = "{\"preset\": \"reference\", \"threads\": " + std::to_string(run.solver.threads) + "}";
+  const std::string tangent = run.consistent_tangent ? "consistent" : "frozen_rotation";
+  return {{"solver", solver, why + "solver=" + solver},
+          {"integrator.tangent", tangent, why + "integrator.tangent=" + tangent},
+          {"integrator.tangent_reuse", "0", why + "integrator.tangent_reuse=0"}};
 }
 
 }  // namespace incise

@@ -3,6 +3,7 @@
 // field; errors name the file, the JSON path and what is allowed. See
 // docs/scene-format.md for the keys and defaults.
 #include <array>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -115,6 +116,25 @@ struct RenderSettings {
   Vec3 color_instrument{0.75, 0.77, 0.80};
 };
 
+// A command-line override of one scene key, applied to the scene's JSON
+// before it is parsed, so the parser checks it like a key of the file
+// (`incise bench scene.json --set solver.policy=lagged`).
+struct ScenePatch {
+  std::string key;    // dotted path: "solver.policy", "cuts.0.at_time" (also "cuts[0].at_time")
+  std::string value;  // parsed as JSON when it is valid JSON (1e-3, true, [0, 0, -1], "x"), else taken as a string
+  std::string given;  // as the user wrote it, for messages: "--set solver.policy=lagged" or "--policy lagged"
+};
+// Parses the text of one --set, "KEY=VALUE". Throws incise::Error ("--set foo:
+// expected KEY=VALUE ...") when there is no '=' or the key is empty.
+ScenePatch parse_scene_patch(const std::string& text);
+
+// Where a resolved solver.* / integrator.* value came from (Scene::origin).
+struct SettingOrigin {
+  enum class Kind { Default, Scene, Preset, Patch };
+  Kind kind = Kind::Default;
+  std::string detail;  // Preset: the preset's name; Patch: the patch as given ("--set solver.policy=lagged")
+};
+
 struct Scene {
   std::string path;       // the scene file as given
   std::string mesh_file;  // resolved relative to the scene file's folder
@@ -145,6 +165,13 @@ struct Scene {
   // were computed at; forces are always exact (docs/numerics.md).
   double tangent_reuse = 0.0;
   SolverSettings solver;                // solver.*
+  // solver.preset: "" (none), "realtime" or "reference" (docs/scene-format.md,
+  // "Presets"). A preset fills the solver.* and integrator.* keys the scene
+  // and the patches leave unset.
+  std::string preset;
+  // "solver.policy", "integrator.tangent", ... -> where the value came from
+  // (scene file, preset, or a patch); a key that is absent kept its default.
+  std::map<std::string, SettingOrigin> origin;
   double static_tolerance = 1e-8;       // static.tolerance: relative residual
   int static_max_iterations = 50;       // static.max_iterations
   int frames = 60;                      // run.frames default for `incise run`
@@ -153,9 +180,34 @@ struct Scene {
   RenderSettings render;
 };
 
-// Reads and validates a scene file. Throws incise::Error.
-Scene load_scene(const std::string& path);
+// Reads and validates a scene file, with `patches` applied in order to its
+// JSON before it is parsed (then solver.preset is expanded). Throws
+// incise::Error: an error in a patched key names the patch as given
+// ("--set solver.policy=lagged2: solver.policy must be one of ...").
+Scene load_scene(const std::string& path, const std::vector<ScenePatch>& patches = {});
 // Same, from text already read (path used for messages and relative paths).
-Scene parse_scene(const std::string& json_text, const std::string& path);
+Scene parse_scene(const std::string& json_text, const std::string& path, const std::vector<ScenePatch>& patches = {});
+
+// One resolved setting for print-outs: every solver.* and integrator.* key
+// the resolved solver.policy uses, in the parser's order.
+struct ResolvedSetting {
+  std::string key;    // "solver.refresh_every"
+  std::string value;  // as JSON: 3, "lagged", true
+  SettingOrigin origin;
+};
+std::vector<ResolvedSetting> resolved_settings(const Scene& s);
+
+// Whether solver.<key> means something under `policy`: the parser refuses a
+// policy-specific key under another policy (tolerance under exact, ...).
+bool solver_key_used_by(const std::string& key, SolverPolicy policy);
+
+// The patches that turn the scene a run resolved (`run`, loaded with
+// `patches`) into `incise compare`'s exact reference: appended to the run's
+// patches they replace the whole solver object by solver.preset "reference"
+// (policy exact, nothing lagged or iterative) keeping run.solver.threads,
+// keep the run's integrator.tangent (the same equations) and set
+// integrator.tangent_reuse 0 (every element assembled). No preset or
+// solver patch of the run reaches the reference.
+std::vector<ScenePatch> exact_reference_patches(const Scene& run);
 
 }  // namespace incise

@@ -1,5 +1,6 @@
 // The incise command line, run as a user runs it: files in, files and
 // messages out, exit codes.
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -230,8 +231,8 @@ TEST_F(Cli, BenchFactorCopyOption) {
 }
 
 // --factor-precision single reaches the solver: the summary and the factor
-// line say so, the JSON counts no fallback; with --factor-copy half it is
-// refused naming both options.
+// line say so, the JSON counts no fallback; with --factor-copy half the scene
+// parser refuses it, naming the flag and the key it needs.
 TEST_F(Cli, BenchFactorPrecisionOption) {
   cantilever_scene();
   const Result r = incise("bench " + path("scene.json") + " --frames 3 --policy lagged --factor-precision single --json " +
@@ -247,8 +248,8 @@ TEST_F(Cli, BenchFactorPrecisionOption) {
   const Result bad =
       incise("bench " + path("scene.json") + " --frames 1 --policy lagged --factor-precision single --factor-copy half");
   EXPECT_NE(bad.code, 0);
-  EXPECT_NE(bad.out.find("--factor-precision single"), std::string::npos) << bad.out;
-  EXPECT_NE(bad.out.find("--factor-copy float"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("--factor-precision single: solver.factor_precision"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("solver.factor_copy must be \"float\""), std::string::npos) << bad.out;
 }
 
 // --affinity split reaches the solver: the summary names the stepping
@@ -357,6 +358,145 @@ TEST_F(Cli, StaticWithACutProbesEachSide) {
   }
   // The slit opens at the top under gravity: the two faces move apart in x.
   EXPECT_GT(std::abs(ux[1] - ux[0]), 1e-5);
+}
+
+// The settings block of run/bench/compare ("settings ..." and its indented
+// lines); strip_markers: without the origin markers " [...]" and with every
+// run of white space (line breaks included) as one space.
+std::string settings_block(const std::string& out, bool strip_markers) {
+  const size_t at = out.find("\nsettings");
+  if (at == std::string::npos) return "";
+  std::istringstream is(out.substr(at + 1));
+  std::string line, block;
+  std::getline(is, line);  // the heading
+  while (std::getline(is, line) && line.rfind("  ", 0) == 0) block += line + "\n";
+  if (!strip_markers) return block;
+  std::string plain;
+  for (size_t i = 0; i < block.size(); ++i) {
+    if (block[i] == ' ' && i + 1 < block.size() && block[i + 1] == '[') {
+      i = block.find(']', i);
+      continue;
+    }
+    const bool space = std::isspace(static_cast<unsigned char>(block[i]));
+    if (!space) plain += block[i];
+    else if (!plain.empty() && plain.back() != ' ') plain += ' ';
+  }
+  return plain;
+}
+
+// The solver flags are aliases of --set: both give the same resolved settings.
+TEST_F(Cli, SolverFlagsGiveTheSameSettingsAsSet) {
+  cantilever_scene();
+  const Result flags = incise("bench " + path("scene.json") +
+                              " --frames 1 --policy lagged --refresh-every 2 --tolerance 1e-4 --max-iterations 30"
+                              " --background --warp --factor-copy half --tangent-reuse 0.01 --threads 1"
+                              " --rescue-after 5 --late-factor skip --patch additive --cut-ordering search"
+                              " --background-priority normal --affinity none --initial-guess zero"
+                              " --substitution-threads 2 --factorization supernodal --ordering amd");
+  const Result sets = incise("bench " + path("scene.json") +
+                             " --frames 1 --set solver.policy=lagged --set solver.refresh_every=2"
+                             " --set solver.tolerance=1e-4 --set solver.max_iterations=30 --set solver.background=true"
+                             " --set solver.warp=true --set solver.factor_copy=half --set integrator.tangent_reuse=0.01"
+                             " --set solver.threads=1 --set solver.rescue_after=5 --set solver.late_factor=skip"
+                             " --set solver.patch=additive --set solver.cut_ordering=search"
+                             " --set solver.background_priority=normal --set solver.affinity=none"
+                             " --set solver.initial_guess=zero --set solver.substitution_threads=2"
+                             " --set solver.factorization=supernodal --set solver.ordering=amd");
+  ASSERT_EQ(flags.code, 0) << flags.out;
+  ASSERT_EQ(sets.code, 0) << sets.out;
+  const std::string block = settings_block(flags.out, true);
+  EXPECT_NE(block.find("refresh_every 2, background true, warp true, factor_copy \"half\""), std::string::npos) << block;
+  EXPECT_NE(block.find("tangent_reuse 0.01"), std::string::npos) << block;
+  EXPECT_EQ(block, settings_block(sets.out, true));
+  EXPECT_NE(flags.out.find("refresh_every 2 [--refresh-every]"), std::string::npos) << flags.out;
+  EXPECT_NE(sets.out.find("refresh_every 2 [--set]"), std::string::npos) << sets.out;
+  // --single-precision is the older switch of solver.single_precision
+  const Result older = incise("bench " + path("scene.json") + " --frames 1 --policy lagged --single-precision false");
+  ASSERT_EQ(older.code, 0) << older.out;
+  EXPECT_NE(older.out.find("factor_copy \"none\" [--single-precision]"), std::string::npos) << older.out;
+}
+
+// bench and run print every resolved solver/integrator value with its origin.
+TEST_F(Cli, BenchAndRunPrintTheResolvedSettings) {
+  cantilever_scene(R"(, "solver": {"preset": "realtime"}, "integrator": {"dt": 0.02})");
+  const Result r = incise("bench " + path("scene.json") + " --frames 2 --set solver.refresh_every=3");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("settings (solver.preset \"realtime\")"), std::string::npos) << r.out;
+  const std::string block = settings_block(r.out, false);
+  for (const char* part : {"preset \"realtime\" [scene]", "policy \"lagged\" [preset]", "refresh_every 3 [--set]",
+                           "tolerance 0.001 [preset]", "dt 0.02 [scene]", "tangent \"consistent\" [preset]",
+                           "tangent_reuse 0.01 [preset]", "initial_guess \"previous\","})
+    EXPECT_NE(block.find(part), std::string::npos) << part << "\n" << block;
+  const Result run = incise("run " + path("scene.json") + " --frames 1 --set solver.preset=reference");
+  ASSERT_EQ(run.code, 0) << run.out;
+  EXPECT_NE(settings_block(run.out, false).find("policy \"exact\" [preset]"), std::string::npos) << run.out;
+}
+
+TEST_F(Cli, SetErrorsNameThePatch) {
+  cantilever_scene();
+  Result r = incise("run " + path("scene.json") + " --frames 1 --set solver.policy=lagged2");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("incise: error: --set solver.policy=lagged2: solver.policy must be one of \"exact\", \"lagged\""),
+            std::string::npos)
+      << r.out;
+  r = incise("bench " + path("scene.json") + " --frames 1 --set foo");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("--set foo: expected KEY=VALUE"), std::string::npos) << r.out;
+  r = incise("static " + path("scene.json") + " --set static.tolerence=1e-6");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("--set static.tolerence=1e-6: static.tolerence: unknown key; allowed: tolerance, max_iterations; "
+                       "did you mean \"tolerance\"?"),
+            std::string::npos)
+      << r.out;
+  r = incise("compare " + path("scene.json") + " --policy lagged --refresh-every 0 --frames 1");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("--refresh-every 0: solver.refresh_every must be an integer >= 1, got 0"), std::string::npos)
+      << r.out;
+}
+
+// compare's reference is exact whatever the scene's preset: under the
+// realtime preset (lagged, CG to 1e-3, tangent reuse) a run with --policy
+// exact and no tangent reuse agrees with it to roundoff, while the scene's
+// own lagged run does not.
+TEST_F(Cli, CompareReferenceIsExactUnderARealtimePreset) {
+  ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 8 2 2 --out " + path("beam.vtu")).code, 0);
+  write("scene.json", R"({"mesh": {"file": "beam.vtu", "order": 2},
+      "material": {"model": "corotated", "young": 1e5, "poisson": 0.3, "density": 100},
+      "gravity": [0, 0, -10], "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}],
+      "solver": {"preset": "realtime"}})");
+  const Result exact =
+      incise("compare " + path("scene.json") + " --policy exact --tangent-reuse 0 --frames 1,3 --json " + path("e.json"));
+  ASSERT_EQ(exact.code, 0) << exact.out;
+  // The reference's block (printed first): exact, reuse off, no lagged key.
+  const std::string ref = settings_block(exact.out, false);
+  EXPECT_NE(ref.find("policy \"exact\" [preset]"), std::string::npos) << ref;
+  EXPECT_NE(ref.find("tangent_reuse 0 [compare reference]"), std::string::npos) << ref;
+  EXPECT_EQ(ref.find("refresh_every"), std::string::npos) << ref;
+  std::ifstream ej(path("e.json"));
+  const auto je = nlohmann::json::parse(ej);
+  for (const auto& row : je["policies"][0]["errors"]) EXPECT_LT(row["rel_l2_error"].get<double>(), 1e-10) << row;
+  // No --policy: the scene's own (lagged from the preset) against the same reference.
+  const Result own = incise("compare " + path("scene.json") + " --frames 1,3 --json " + path("o.json"));
+  ASSERT_EQ(own.code, 0) << own.out;
+  EXPECT_NE(own.out.find("--- lagged"), std::string::npos) << own.out;
+  std::ifstream oj(path("o.json"));
+  const auto jo = nlohmann::json::parse(oj);
+  EXPECT_EQ(jo["policies"][0]["policy"], "lagged");
+  const double err = jo["policies"][0]["errors"][1]["rel_l2_error"].get<double>();
+  EXPECT_GT(err, 1e-12) << "lagged CG to 1e-3 is not the exact solve";
+  EXPECT_LT(err, 1e-2);
+}
+
+// One set of flags serves every compared policy: a lagged-only flag is left
+// out of the warped run (and says so) instead of failing it.
+TEST_F(Cli, CompareLeavesOutFlagsAPolicyDoesNotUse) {
+  cantilever_scene(R"(, "solver": {"policy": "lagged", "refresh_every": 2})");
+  const Result r = incise("compare " + path("scene.json") + " --policy lagged,warped --max-iterations 80 --frames 1");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("warped: without --max-iterations 80 (solver.max_iterations is not used by that policy)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("warped: without the scene's solver.refresh_every"), std::string::npos) << r.out;
 }
 
 }  // namespace

@@ -5,8 +5,12 @@
 # of assets/scenes/organ_incision.json (10k DOF). Each case runs
 #   incise compare  (exact reference, then the policy; error after 1, 30, FRAMES frames)
 #   incise bench    (frame, cut-frame and stage timings of the policy alone)
-# The policy: lagged CG, background factorization taken K frames after it
-# starts (K grows with the factor time), warp, CG tolerance TOL, the float
+# The policy: solver.preset "realtime" (docs/scene-format.md, "Presets"),
+# passed as --set solver.preset=realtime with the per-case K as
+# --set solver.refresh_every=K; an environment variable below adds a --set
+# only when it is given. The preset: lagged CG, background factorization taken
+# K frames after it starts (K grows with the factor time), warp, CG tolerance
+# TOL (1e-3), the float
 # factor copy (REALTIME_COPY=half for binary16: on the incision it let the
 # error against exact reach 8.5e-2 at frame 100, docs/numerics.md), factored
 # in single precision straight into that copy (REALTIME_FACTOR_PRECISION=double
@@ -29,21 +33,33 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 build="${1:-build}"
 frames="${2:-300}"
-tol="${3:-1e-3}"
+tol="${3:-}"                               # solver.tolerance (the preset: 1e-3)
 incise="$build/tools/incise"
 out="$build/realtime"
 mkdir -p "$out"
-extra="${REALTIME_OPTIONS:-}"  # e.g. "--single-precision false"
-tangent="${REALTIME_TANGENT:-consistent}"  # integrator.tangent of every case (frozen_rotation: the default)
+# Empty: the preset's value. Each one given becomes a --set below.
+extra="${REALTIME_OPTIONS:-}"  # e.g. "--set solver.factor_copy=none"
 bench_frames="${BENCH_FRAMES:-$frames}"   # frames timed by incise bench (after 5 warm-up frames)
-rescue="${REALTIME_RESCUE:-20}"            # solver.rescue_after (0: off)
-late="${REALTIME_LATE:-skip}"              # solver.late_factor: skip (no stalls) or wait (deterministic)
 pace="${PACE:-30}"                          # incise bench --pace (0: frames back to back)
-copy="${REALTIME_COPY:-float}"              # solver.factor_copy: float, half or none
-reuse="${REALTIME_TANGENT_REUSE:-0.01}"     # integrator.tangent_reuse of the policy runs (0: off; the exact reference never)
-subthreads="${REALTIME_SUBSTITUTION_THREADS:-2}"  # solver.substitution_threads
-precision="${REALTIME_FACTOR_PRECISION:-single}"  # solver.factor_precision (single needs the float copy)
-affinity="${REALTIME_AFFINITY:-split}"      # solver.affinity: split (stepping thread on a CPU of its own) or none
+tangent="${REALTIME_TANGENT:-}"             # integrator.tangent (the preset: consistent; frozen_rotation: the default)
+rescue="${REALTIME_RESCUE:-}"               # solver.rescue_after (the preset: 20; 0: off)
+late="${REALTIME_LATE:-}"                   # solver.late_factor (the preset: skip, no stalls; wait: deterministic)
+copy="${REALTIME_COPY:-}"                   # solver.factor_copy (the preset: float; half or none)
+reuse="${REALTIME_TANGENT_REUSE:-}"         # integrator.tangent_reuse of the policy runs (the preset: 0.01; 0: off; the exact reference never)
+subthreads="${REALTIME_SUBSTITUTION_THREADS:-}"  # solver.substitution_threads (the preset: 2)
+precision="${REALTIME_FACTOR_PRECISION:-}"  # solver.factor_precision (the preset: single; needs the float copy)
+affinity="${REALTIME_AFFINITY:-}"           # solver.affinity (the preset: split; none leaves it to the kernel)
+set_opts=""
+add() { if [ -n "$2" ]; then set_opts="$set_opts --set $1=$2"; fi; }
+add solver.tolerance "$tol"
+add integrator.tangent "$tangent"
+add solver.rescue_after "$rescue"
+add solver.late_factor "$late"
+add solver.factor_copy "$copy"
+add integrator.tangent_reuse "$reuse"
+add solver.substitution_threads "$subthreads"
+add solver.factor_precision "$precision"
+add solver.affinity "$affinity"
 # name mesh-or-scene K
 # K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
 # CHOLMOD's OpenMP teams were made serial; single precision, eighth session:
@@ -69,7 +85,7 @@ for c in "${cases[@]}"; do
 {"mesh": {"file": "$(realpath --relative-to="$out" "assets/meshes/$mesh.msh")", "order": 2},
  "material": {"model": "corotated", "young": 3e4, "poisson": 0.45, "density": 1000,
               "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
- "mass": "lumped", "gravity": [0, 0, -9.81], "integrator": {"tangent": "$tangent"},
+ "mass": "lumped", "gravity": [0, 0, -9.81],
  "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}],
  "prescribed": [{"box": [[-0.025, -0.01, 0.041], [-0.005, 0.01, 0.06]],
                  "displacement": {"x": 0.015, "y": 0, "z": -0.01}, "ramp": 1.0}]}
@@ -82,18 +98,18 @@ JSON
 {"mesh": {"file": "$mesh.vtu", "order": 2},
  "material": {"model": "corotated", "young": 1e5, "poisson": 0.45, "density": 1000,
               "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
- "mass": "lumped", "gravity": [0, 0, -9.81], "integrator": {"tangent": "$tangent"},
+ "mass": "lumped", "gravity": [0, 0, -9.81],
  "fixed": [{"box": [[-1, -1, -1], [0, 1, 1]]}],
  "prescribed": [{"plane": {"point": [0.2, 0, 0], "normal": [-1, 0, 0]},
                  "displacement": {"x": -0.12, "y": 0.1, "z": 0.08}, "ramp": 1.0}]}
 JSON
       ;;
     incision-*)
-      python3 - "assets/scenes/$mesh.json" "$scene" "$tangent" <<'PY'
+      python3 - "assets/scenes/$mesh.json" "$scene" <<'PY'
 import json, os, sys
-src, dst, tangent = sys.argv[1], sys.argv[2], sys.argv[3]
+src, dst = sys.argv[1], sys.argv[2]
 d = json.load(open(src))
-d.setdefault("integrator", {})["tangent"] = tangent
+d.pop("integrator", None)  # the preset's (a --set when REALTIME_TANGENT is given)
 d["mesh"]["file"] = os.path.relpath(os.path.join(os.path.dirname(src), d["mesh"]["file"]), os.path.dirname(dst))
 for k in ("output", "render", "run", "solver"):
     d.pop(k, None)
@@ -101,7 +117,7 @@ json.dump(d, open(dst, "w"), indent=1)
 PY
       ;;
   esac
-  opts="--policy lagged --background --warp --refresh-every $k --tolerance $tol --max-iterations 100 --threads 1 --rescue-after $rescue --late-factor $late --factor-copy $copy --substitution-threads $subthreads --tangent-reuse $reuse --factor-precision $precision --affinity $affinity $extra"
+  opts="--set solver.preset=realtime --set solver.refresh_every=$k$set_opts $extra"
   echo "compare $name ($frames frames; $opts) ..." >&2
   # shellcheck disable=SC2086
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
@@ -111,7 +127,7 @@ PY
     --trace "$out/$name.trace.csv" >"$out/$name.bench.log" 2>&1 ||
     echo "  failed: see $out/$name.bench.log" >&2
 done
-python3 - "$out" "$tol" "$tangent" "$copy copy, $precision-precision factor" "$subthreads" "$reuse" "${cases[@]}" <<'PY'
+python3 - "$out" "${tol:-1e-3}" "${tangent:-consistent}" "${copy:-float} copy, ${precision:-single}-precision factor" "${subthreads:-2}" "${reuse:-0.01}" "${cases[@]}" <<'PY'
 import json, sys
 out, tol, tangent, copy, subthreads, reuse = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5], sys.argv[6]
 print(f"| case | DOF | nnz(L) | exact median ms | policy (CG tol {tol}) | median ms | p99 ms | max ms | cut frames: count, median / p99 / max ms | CG its median (max) | Newton/frame | err @1 | err @30 | err @last |")
