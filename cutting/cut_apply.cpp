@@ -102,7 +102,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   for (int e = 0; e < p.next->nelem; ++e)
     if (!same_element_pieces(*p.next, sim.model, e)) p.changed.push_back(e);
   p.map = dofnode_map(sim.model, *p.next);
-  p.plan = make_assembly_plan(*p.next, std::max(1, p.next->solver.threads));
+  p.plan = make_assembly_plan(*p.next, std::max(1, sim.ws.runtime.threads));
   p.rebuild = true;
   p.model_ms = part.lap();
   return p;
@@ -201,7 +201,7 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   ahead->base_version = sim.model_version;
   CutAhead* a = ahead.get();
   const Simulation* s = &sim;
-  const bool helper_cpus = sim.model.solver.split_affinity;
+  const bool helper_cpus = sim.ws.runtime.split_affinity;
   if (!sim.cut_helper || sim.cut_helper->helper_cpus() != helper_cpus)
     sim.cut_helper = std::make_unique<HelperThread>(helper_cpus, HelperThread::Priority::Normal);  // (none running)
   std::shared_ptr<Model> retired = std::move(sim.retired_model);

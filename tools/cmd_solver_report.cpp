@@ -12,7 +12,7 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
   const Model& m = sim.model;
   const Workspace& st = sim.ws;
   r.policy = policy_name(m.solver.policy);
-  r.threads = m.solver.threads;
+  r.threads = sim.ws.runtime.threads;
   // the slot preconditioning at the end (lagged may have moved to `back`)
   const FactorStats& f = (st.work.front == 0 ? st.solver : st.work.back).stats();
   const FactorStats& f0 = st.solver.stats();

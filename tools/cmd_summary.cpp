@@ -33,15 +33,16 @@ void print_model_summary(const Simulation& sim) {
               f.supernodal ? "supernodal" : "simplicial", f.ordering.c_str(), m.nnz(), f.nnz_L, f.flops * 1e-6,
               sim.setup_ms);
   const SolverSettings& o = m.solver;
-  std::printf("  solver.policy %s, %d assembly thread(s)", policy_name(o.policy), o.threads);
-  if (o.substitution_threads > 1) std::printf(", substitutions on %d threads", o.substitution_threads);
+  const RuntimeSettings& rt = sim.ws.runtime;
+  std::printf("  solver.policy %s, %d assembly thread(s)", policy_name(o.policy), rt.threads);
+  if (rt.substitution_threads > 1) std::printf(", substitutions on %d threads", rt.substitution_threads);
   if (m.tangent_reuse > 0) std::printf(", element tangents kept while F moves < %g", m.tangent_reuse);
   if (o.policy == SolverPolicy::Lagged || o.policy == SolverPolicy::WarpedCG)
     std::printf(", CG tolerance %.3g, max %d iterations, starting from %s", o.tolerance, o.max_iterations,
                 o.previous_guess ? "the last frame's increment" : "zero");
   if (o.policy == SolverPolicy::Lagged)
     std::printf(", refresh every %d frame(s)%s%s%s", o.refresh_every,
-                o.background ? (o.idle_background && o.skip_late_factor ? " on a background thread at idle priority"
+                o.background ? (rt.idle_background && o.skip_late_factor ? " on a background thread at idle priority"
                                                                          : " on a background thread")
                              : "",
                 o.warp ? ", warped by the node rotations since" : "", o.single_factorization            ? ", factored in single precision"
@@ -54,9 +55,9 @@ void print_model_summary(const Simulation& sim) {
                 !o.background ? "" : o.carry_ordering ? ", carried ordering while cutting" : ", searched ordering while cutting");
   if (o.policy == SolverPolicy::Lagged && o.rescue_after > 0)
     std::printf(", rescue after %d CG iterations", o.rescue_after);
-  if (o.split_affinity && stepping_cpu() >= 0)
+  if (rt.split_affinity && stepping_cpu() >= 0)
     std::printf(", stepping thread on CPU %d, helpers on the others", stepping_cpu());
-  else if (o.split_affinity)
+  else if (rt.split_affinity)
     std::printf(", affinity split not applied (fewer than two CPUs)");
   std::printf("\n");
   std::printf("%s", format_resolved_settings(sim.scene).c_str());

@@ -60,7 +60,7 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
     j["frame"]["bandwidth_limit_ms"] = r.bandwidth_limit_ms;
     j["frame"]["bandwidth_multiple"] = r.frame_multiple;
   } else {
-    j["solver"] = {{"policy", policy_name(m.solver.policy)}, {"threads", m.solver.threads}};
+    j["solver"] = {{"policy", policy_name(m.solver.policy)}, {"threads", sim.ws.runtime.threads}};
   }
   j["refactorizations"] = sim.ws.refactorizations;
   j["setup_ms"] = sim.setup_ms;

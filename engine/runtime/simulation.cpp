@@ -13,6 +13,7 @@ std::unique_ptr<Simulation> load_simulation(const std::string& scene_path, const
   sim->scene = load_scene(scene_path, patches);
   sim->mesh = read_mesh(sim->scene.mesh_file);
   sim->model = build_model(sim->mesh, sim->scene);
+  sim->ws.runtime = sim->scene.runtime;
   init_state(sim->model, sim->state, sim->ws);
   sim->state.cut_progress.assign(sim->scene.cuts.size(), -1.0);
   sim->setup_ms = clock.ms();

@@ -436,6 +436,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
                          "factorization", "ordering", "factor_precision", "initial_guess", "affinity"});
   SolverSettings& o = s.solver;
+  RuntimeSettings& rt = s.runtime;
   if (auto it = v.find("preset"); it != v.end()) s.preset = solver_preset_names()[p.choice(*it, at + ".preset", solver_preset_names())];
   if (auto it = v.find("policy"); it != v.end())
     o.policy = static_cast<SolverPolicy>(p.choice(*it, at + ".policy", {"exact", "lagged", "warped", "warped_cg"}));
@@ -465,9 +466,9 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("cut_ordering"); it != v.end())
     o.carry_ordering = p.choice(*it, at + ".cut_ordering", {"search", "carried"}) == 1;
   if (auto it = v.find("background_priority"); it != v.end())
-    o.idle_background = p.choice(*it, at + ".background_priority", {"normal", "idle"}) == 1;
+    rt.idle_background = p.choice(*it, at + ".background_priority", {"normal", "idle"}) == 1;
   if (auto it = v.find("affinity"); it != v.end())
-    o.split_affinity = p.choice(*it, at + ".affinity", {"none", "split"}) == 1;
+    rt.split_affinity = p.choice(*it, at + ".affinity", {"none", "split"}) == 1;
   if (auto it = v.find("tolerance"); it != v.end()) {
     o.tolerance = p.positive(*it, at + ".tolerance");
     if (!(o.tolerance < 1.0)) p.fail(at + ".tolerance", " must be in (0, 1), got " + show(*it));
@@ -477,12 +478,12 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("initial_guess"); it != v.end())
     o.previous_guess = p.choice(*it, at + ".initial_guess", {"zero", "previous"}) == 1;
   if (auto it = v.find("threads"); it != v.end()) {
-    o.threads = p.at_least_one(*it, at + ".threads");
-    if (o.threads > 64) p.fail(at + ".threads", " must be an integer in [1, 64], got " + show(*it));
+    rt.threads = p.at_least_one(*it, at + ".threads");
+    if (rt.threads > 64) p.fail(at + ".threads", " must be an integer in [1, 64], got " + show(*it));
   }
   if (auto it = v.find("substitution_threads"); it != v.end()) {
-    o.substitution_threads = p.at_least_one(*it, at + ".substitution_threads");
-    if (o.substitution_threads > 2) p.fail(at + ".substitution_threads", " must be 1 or 2, got " + show(*it));
+    rt.substitution_threads = p.at_least_one(*it, at + ".substitution_threads");
+    if (rt.substitution_threads > 2) p.fail(at + ".substitution_threads", " must be 1 or 2, got " + show(*it));
   }
   if (auto it = v.find("factorization"); it != v.end())
     o.factor = static_cast<FactorMethod>(p.choice(*it, at + ".factorization", {"auto", "supernodal", "simplicial"}));
@@ -784,6 +785,7 @@ std::string quoted(const char* x) { return std::string("\"") + x + "\""; }
 
 std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
   const SolverSettings& o = s.solver;
+  const RuntimeSettings& rt = s.runtime;
   std::vector<std::pair<std::string, std::string>> kv;
   if (!s.preset.empty()) kv.push_back({"solver.preset", "\"" + s.preset + "\""});
   kv.push_back({"solver.policy", quoted(policy_name(o.policy))});
@@ -798,13 +800,13 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
       {"late_factor", quoted(o.skip_late_factor ? "skip" : "wait")},
       {"patch", quoted(o.multiplicative_patch ? "multiplicative" : "additive")},
       {"cut_ordering", quoted(o.carry_ordering ? "carried" : "search")},
-      {"background_priority", quoted(o.idle_background ? "idle" : "normal")},
+      {"background_priority", quoted(rt.idle_background ? "idle" : "normal")},
       {"tolerance", number_text(o.tolerance)},
       {"max_iterations", std::to_string(o.max_iterations)},
       {"initial_guess", quoted(o.previous_guess ? "previous" : "zero")},
-      {"threads", std::to_string(o.threads)},
-      {"substitution_threads", std::to_string(o.substitution_threads)},
-      {"affinity", quoted(o.split_affinity ? "split" : "none")},
+      {"threads", std::to_string(rt.threads)},
+      {"substitution_threads", std::to_string(rt.substitution_threads)},
+      {"affinity", quoted(rt.split_affinity ? "split" : "none")},
       {"factorization", quoted(o.factor == FactorMethod::Auto ? "auto" : o.factor == FactorMethod::Supernodal ? "supernodal" : "simplicial")},
       {"ordering", quoted(o.ordering == OrderingMethod::Auto ? "auto" : o.ordering == OrderingMethod::Amd ? "amd" : "metis")}};
   for (const auto& [k, v] : all)
@@ -828,7 +830,7 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
 
 std::vector<ScenePatch> exact_reference_patches(const Scene& run) {
   const std::string why = "compare reference: ";
-  const std::string solver = "{\"preset\": \"reference\", \"threads\": " + std::to_string(run.solver.threads) + "}";
+  const std::string solver = "{\"preset\": \"reference\", \"threads\": " + std::to_string(run.runtime.threads) + "}";
   const std::string tangent = run.consistent_tangent ? "consistent" : "frozen_rotation";
   return {{"solver", solver, why + "solver=" + solver},
           {"integrator.tangent", tangent, why + "integrator.tangent=" + tangent},

@@ -77,6 +77,16 @@ enum class OrderingMethod { Auto, Amd, Metis };            // CHOLMOD's default 
 // binary16 scaled per supernode (CholmodSolver::set_factor_copy).
 enum class FactorCopy { None, Float, Half };
 
+// How the solver runs on this machine, not what it computes: threads, CPUs
+// and priorities. Scene keys under solver.*, but kept out of the Model: the
+// Workspace holds them (engine/solve/workspace.h).
+struct RuntimeSettings {
+  int threads = 2;               // solver.threads: assembly workers incl. the calling thread (1..64)
+  int substitution_threads = 1;  // solver.substitution_threads: 1 or 2 threads per substitution (supernodal factor)
+  bool split_affinity = false;   // solver.affinity "split" (engine/runtime/thread_affinity.h) or "none"
+  bool idle_background = true;   // lagged, background: solver.background_priority "idle" (true) or "normal"
+};
+
 struct SolverSettings {
   SolverPolicy policy = SolverPolicy::Exact;  // solver.policy
   int refresh_every = 1;       // lagged: refactor every k frames (>= 1)
@@ -88,13 +98,9 @@ struct SolverSettings {
   bool skip_late_factor = false;  // lagged + background: solver.late_factor "skip" (true) or "wait"
   bool multiplicative_patch = true;  // lagged after cuts: solver.patch "multiplicative" (true) or "additive"
   bool carry_ordering = true;        // lagged after cuts: solver.cut_ordering "carried" (true) or "search"
-  bool idle_background = true;       // lagged, background: solver.background_priority "idle" (true) or "normal"
-  bool split_affinity = false;       // solver.affinity "split" (engine/runtime/thread_affinity.h) or "none"
   double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
   bool previous_guess = true;  // CG: solver.initial_guess "previous" (the last frame's increment, scaled) or "zero"
   int max_iterations = 50;     // CG iterations per solve (>= 1)
-  int threads = 2;             // assembly workers incl. the calling thread (>= 1)
-  int substitution_threads = 1;  // 1 or 2: threads of each substitution with a supernodal factor
   FactorMethod factor = FactorMethod::Auto;
   OrderingMethod ordering = OrderingMethod::Auto;
 };
@@ -164,7 +170,8 @@ struct Scene {
   // slots stays within this (largest entry of F - F_then) of the one they
   // were computed at; forces are always exact (docs/numerics.md).
   double tangent_reuse = 0.0;
-  SolverSettings solver;                // solver.*
+  SolverSettings solver;                // solver.* (what the solver computes)
+  RuntimeSettings runtime;              // solver.threads, substitution_threads, affinity, background_priority
   // solver.preset: "" (none), "realtime" or "reference" (docs/scene-format.md,
   // "Presets"). A preset fills the solver.* and integrator.* keys the scene
   // and the patches leave unset.

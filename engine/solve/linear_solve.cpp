@@ -222,9 +222,9 @@ void launch_job(const Model& m, Workspace& ws, int frame) {
   // -> 6.5-7.2 ms). Not with "wait": the step then blocks on the job, and an
   // idle-priority thread gets next to no CPU while every core is busy (an
   // unprivileged thread cannot raise it back for the wait).
-  const auto priority = m.solver.idle_background && m.solver.skip_late_factor ? HelperThread::Priority::Idle
+  const auto priority = ws.runtime.idle_background && m.solver.skip_late_factor ? HelperThread::Priority::Idle
                                                                                : HelperThread::Priority::Normal;
-  const bool helper_cpus = m.solver.split_affinity;
+  const bool helper_cpus = ws.runtime.split_affinity;
   if (!w.job_thread || w.job_thread->priority() != priority || w.job_thread->helper_cpus() != helper_cpus) {
     w.job_thread.reset();  // (no job runs: launch_job is called with none)
     w.job_thread = std::make_unique<HelperThread>(helper_cpus, priority);
@@ -495,11 +495,12 @@ namespace {
 // CPU (solver.threads, substitution_threads, affinity); the assembly plan.
 void prepare_workers(const Model& m, Workspace& ws, AssemblyPlan* plan) {
   auto& w = ws.work;
-  const int threads = std::max(1, m.solver.threads);
+  const RuntimeSettings& rt = ws.runtime;
+  const int threads = std::max(1, rt.threads);
   if (!w.pool || w.pool->size() != threads) w.pool = std::make_unique<ThreadPool>(threads);
-  if (m.solver.substitution_threads > 1 && !w.substitution_worker)
+  if (rt.substitution_threads > 1 && !w.substitution_worker)
     w.substitution_worker = std::make_unique<SubstitutionWorker>();
-  if (m.solver.substitution_threads <= 1 && w.substitution_worker) {
+  if (rt.substitution_threads <= 1 && w.substitution_worker) {
     ws.solver.set_substitution_worker(nullptr);  // before the worker goes (a bin given up on may still run)
     w.back.set_substitution_worker(nullptr);
     w.substitution_worker.reset();
@@ -508,7 +509,7 @@ void prepare_workers(const Model& m, Workspace& ws, AssemblyPlan* plan) {
   w.back.set_substitution_worker(w.substitution_worker.get());
   // After the workers above exist (they keep the whole CPU set; ones started
   // later unpin themselves: unpin_if_split).
-  if (m.solver.split_affinity) set_thread_role(ThreadRole::Stepping);
+  if (rt.split_affinity) set_thread_role(ThreadRole::Stepping);
   if (plan && plan->nthreads == threads) w.plan = std::move(*plan);
   else w.plan = make_assembly_plan(m, threads);
 }

@@ -36,7 +36,7 @@ namespace incise {
 // preconditioning through the map (an exact solve on a patch around the DOFs
 // they do not know) and the next background job (or synchronous refresh)
 // analyzes and factorizes the new pattern.
-// `plan`: make_assembly_plan(model, its solver.threads) made ahead (a cut's
+// `plan`: make_assembly_plan(model, ws.runtime.threads) made ahead (a cut's
 // helper thread), taken instead of making one here.
 void prepare_solver(const Model& model, Workspace& ws, int frame, const std::vector<int>* dofnode_map = nullptr,
                     AssemblyPlan* plan = nullptr);

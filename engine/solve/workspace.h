@@ -9,6 +9,7 @@
 
 #include "engine/fem/assemble_parallel.h"
 #include "engine/runtime/timing.h"
+#include "engine/scene/scene.h"
 #include "engine/solve/cholmod_solver.h"
 #include "engine/solve/solver_work.h"
 
@@ -28,6 +29,7 @@ struct Workspace {
   CholmodSolver solver;
   bool factor_current = false;  // the factor in `solver` is valid for the policy (linear: never changes)
   SolverWork work;              // policies, worker pool, assembly plan (engine/solve/linear_solve.h)
+  RuntimeSettings runtime;      // threads, CPUs, priorities (the scene's; set before init_state)
 
   // The Newton loop of the step in progress (engine/dynamics/step.cpp).
   int iteration = 0;             // linearised solves done this step

@@ -58,6 +58,7 @@ inline std::unique_ptr<Simulation> make_sim(const Mesh& mesh, const Scene& scene
   sim->mesh = mesh;
   sim->model = build_model(mesh, scene);
   sim->state.cut_progress.assign(scene.cuts.size(), -1.0);
+  sim->ws.runtime = scene.runtime;
   init_state(sim->model, sim->state, sim->ws);
   install_cutting_stage(*sim);
   return sim;

@@ -340,12 +340,12 @@ TEST_F(SceneTest, SolverSettingsParsed) {
   EXPECT_TRUE(s.solver.background);
   EXPECT_DOUBLE_EQ(s.solver.tolerance, 1e-7);
   EXPECT_EQ(s.solver.max_iterations, 30);
-  EXPECT_EQ(s.solver.threads, 1);
+  EXPECT_EQ(s.runtime.threads, 1);
   EXPECT_EQ(s.solver.factor, incise::FactorMethod::Simplicial);
   EXPECT_EQ(s.solver.ordering, incise::OrderingMethod::Metis);
   Scene w = parse_scene(minimal(R"("solver": {"policy": "warped_cg", "tolerance": 1e-3})"), scene_path_);
   EXPECT_EQ(w.solver.policy, incise::SolverPolicy::WarpedCG);
-  EXPECT_EQ(w.solver.threads, 2);
+  EXPECT_EQ(w.runtime.threads, 2);
 }
 
 TEST_F(SceneTest, SolverSettingsChecked) {
@@ -599,8 +599,8 @@ TEST_F(SceneTest, TangentReuseKey) {
 }
 
 TEST_F(SceneTest, SubstitutionThreadsKey) {
-  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.substitution_threads, 1);
-  EXPECT_EQ(parse_scene(minimal(R"("solver": {"substitution_threads": 2})"), scene_path_).solver.substitution_threads, 2);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).runtime.substitution_threads, 1);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"substitution_threads": 2})"), scene_path_).runtime.substitution_threads, 2);
   expect_error(minimal(R"("solver": {"substitution_threads": 3})"), "solver.substitution_threads must be 1 or 2, got 3");
   expect_error(minimal(R"("solver": {"substitution_threads": 0})"),
                "solver.substitution_threads must be an integer >= 1, got 0");
@@ -636,9 +636,9 @@ TEST_F(SceneTest, InitialGuessKey) {
 }
 
 TEST_F(SceneTest, AffinityKey) {
-  EXPECT_FALSE(parse_scene(minimal(""), scene_path_).solver.split_affinity);
-  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"affinity": "split"})"), scene_path_).solver.split_affinity);
-  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "affinity": "split"})"), scene_path_).solver.split_affinity);
+  EXPECT_FALSE(parse_scene(minimal(""), scene_path_).runtime.split_affinity);
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"affinity": "split"})"), scene_path_).runtime.split_affinity);
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "affinity": "split"})"), scene_path_).runtime.split_affinity);
   expect_error_contains(minimal(R"("solver": {"affinity": "pinned"})"), R"(solver.affinity must be one of "none", "split")");
 }
 
@@ -688,8 +688,7 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
     const char* allowed;
   };
   for (const Choice& c : {Choice{"patch", &incise::SolverSettings::multiplicative_patch, "additive", R"("additive", "multiplicative")"},
-                          Choice{"cut_ordering", &incise::SolverSettings::carry_ordering, "search", R"("search", "carried")"},
-                          Choice{"background_priority", &incise::SolverSettings::idle_background, "normal", R"("normal", "idle")"}}) {
+                          Choice{"cut_ordering", &incise::SolverSettings::carry_ordering, "search", R"("search", "carried")"}}) {
     const std::string key = c.key;
     EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.*c.field) << key;
     const std::string other = "\"" + key + "\": \"" + c.other + "\"";
@@ -700,4 +699,12 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
     expect_error(minimal(R"("solver": {)" + other + "}"),
                  "solver." + key + R"(: only used by solver.policy "lagged"; solver.policy is "exact")");
   }
+  // background_priority is a run-time setting: it lands in Scene::runtime, not in the Model's solver.
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).runtime.idle_background);
+  EXPECT_FALSE(parse_scene(minimal(R"("solver": {"policy": "lagged", "background_priority": "normal"})"), scene_path_)
+                   .runtime.idle_background);
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "background_priority": "neither"})"),
+                        R"(solver.background_priority must be one of "normal", "idle")");
+  expect_error(minimal(R"("solver": {"background_priority": "normal"})"),
+               R"(solver.background_priority: only used by solver.policy "lagged"; solver.policy is "exact")");
 }

@@ -194,14 +194,14 @@ TEST_F(ScenePatchTest, RealtimePresetSetsTheMeasuredConfiguration) {
   EXPECT_EQ(o.refresh_every, 2);
   EXPECT_DOUBLE_EQ(o.tolerance, 1e-3);
   EXPECT_EQ(o.max_iterations, 100);
-  EXPECT_EQ(o.threads, 1);
+  EXPECT_EQ(s.runtime.threads, 1);
   EXPECT_EQ(o.rescue_after, 20);
   EXPECT_TRUE(o.skip_late_factor);
   EXPECT_EQ(o.factor_copy, incise::FactorCopy::Float);
   EXPECT_TRUE(o.single_factorization);
-  EXPECT_EQ(o.substitution_threads, 2);
-  EXPECT_TRUE(o.split_affinity);
-  EXPECT_TRUE(o.idle_background);
+  EXPECT_EQ(s.runtime.substitution_threads, 2);
+  EXPECT_TRUE(s.runtime.split_affinity);
+  EXPECT_TRUE(s.runtime.idle_background);
   EXPECT_TRUE(s.consistent_tangent);
   EXPECT_DOUBLE_EQ(s.tangent_reuse, 1e-2);
   // the same through a patch, on a scene without a solver section
@@ -224,7 +224,7 @@ TEST_F(ScenePatchTest, ExplicitKeysWinOverThePreset) {
                                  "integrator": {"tangent": "frozen_rotation"})"),
                        sets({"solver.tolerance=1e-5", "integrator.tangent_reuse=0"}));
   EXPECT_EQ(s.solver.refresh_every, 4);
-  EXPECT_EQ(s.solver.threads, 2);
+  EXPECT_EQ(s.runtime.threads, 2);
   EXPECT_DOUBLE_EQ(s.solver.tolerance, 1e-5);
   EXPECT_FALSE(s.consistent_tangent);
   EXPECT_EQ(s.tangent_reuse, 0.0);
@@ -232,7 +232,7 @@ TEST_F(ScenePatchTest, ExplicitKeysWinOverThePreset) {
   // An explicit policy wins too; the preset's keys that policy does not use are left out.
   const Scene w = load(scene(R"("solver": {"preset": "realtime", "policy": "warped"})"), {});
   EXPECT_EQ(w.solver.policy, SolverPolicy::Warped);
-  EXPECT_EQ(w.solver.threads, 1);
+  EXPECT_EQ(w.runtime.threads, 1);
   EXPECT_EQ(w.origin.count("solver.refresh_every"), 0u);
   const Scene cg = load(scene(R"("solver": {"preset": "realtime"})"), sets({"solver.policy=warped_cg"}));
   EXPECT_DOUBLE_EQ(cg.solver.tolerance, 1e-3) << "an iterative policy keeps the preset's CG keys";
@@ -286,10 +286,10 @@ TEST_F(ScenePatchTest, ExactReferencePatchesGiveAnExactReference) {
     EXPECT_EQ(ref.preset, "reference");
     EXPECT_EQ(ref.tangent_reuse, 0.0);
     EXPECT_EQ(ref.consistent_tangent, run.consistent_tangent);
-    EXPECT_EQ(ref.solver.threads, run.solver.threads);
+    EXPECT_EQ(ref.runtime.threads, run.runtime.threads);
     EXPECT_EQ(ref.dt, run.dt);
-    EXPECT_EQ(ref.solver.substitution_threads, 1);
-    EXPECT_FALSE(ref.solver.split_affinity);
+    EXPECT_EQ(ref.runtime.substitution_threads, 1);
+    EXPECT_FALSE(ref.runtime.split_affinity);
   }
 }
 

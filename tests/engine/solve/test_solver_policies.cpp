@@ -212,9 +212,9 @@ TEST(SolverPolicies, BackgroundJobRunsAtIdlePriorityOnlyWhenTheStepNeverWaitsFor
       solver.refresh_every = 2;
       solver.tolerance = 1e-6;
       solver.skip_late_factor = skip;
-      solver.idle_background = idle;
       const Model m = build_model(mesh, swing_scene(solver));
       State st; Workspace ws;
+      ws.runtime.idle_background = idle;
       init_state(m, st, ws);
       for (int k = 0; k < 8; ++k) step(m, st, ws);
       ws.work.wait_job();
