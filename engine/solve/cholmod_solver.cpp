@@ -504,10 +504,17 @@ void CholmodSolver::factorize(const double* values) {
   factorized_ = false;
   copy_valid_ = false;
   if (c_.status == CHOLMOD_NOT_POSDEF || L_->minor < static_cast<size_t>(n_)) {
+    // L->minor is a column of the factor of P A P^T (the fill-reducing
+    // order); Perm[k] is the column of A at position k, i.e. the DOF.
+    const size_t k = L_->minor;
+    const int* perm = static_cast<const int*>(L_->Perm);
+    const long dof = k < static_cast<size_t>(n_) ? (perm ? perm[k] : static_cast<long>(k)) : -1;
     std::ostringstream os;
-    os << "CHOLMOD: the system matrix is not positive definite (pivot " << L_->minor << " of " << n_
-       << ", DOF node " << L_->minor / 3 << " component " << "xyz"[L_->minor % 3]
-       << "); the model may be unconstrained in a static solve, a material parameter may be invalid, or an "
+    os << "CHOLMOD: the system matrix is not positive definite";
+    if (dof >= 0)
+      os << " at DOF " << dof << " (node " << dof / 3 << " component " << "xyz"[dof % 3] << "; pivot " << k << " of "
+         << n_ << " in the fill-reducing order)";
+    os << "; the model may be unconstrained in a static solve, a material parameter may be invalid, or an "
           "element is degenerate";
     throw Error(os.str());
   }

@@ -149,6 +149,11 @@ class CholmodSolver {
   bool substitutes_on_two_threads() const { return worker_ && split_.valid() && L_ && L_->is_super; }
 
   bool analyzed() const { return L_ != nullptr; }
+  // For tests' roundoff bounds: CHOLMOD's factor (its values are the double
+  // factor unless single_factorization is on) and the float values (the
+  // copy or the single factorization; null without), both in L's layout.
+  const cholmod_factor* factor() const { return L_; }
+  const float* float_values() const { return copy_valid_ && !Lx_single_.empty() ? Lx_single_.data() : nullptr; }
   bool factorized() const { return factorized_; }
   int size() const { return n_; }
   const FactorStats& stats() const { return stats_; }

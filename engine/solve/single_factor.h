@@ -37,7 +37,8 @@ class SingleFactorization {
   void reset() { n_ = 0; }  // the symbolic factor it read is gone
   // Lx (L->xsize floats) <- the supernodal factor of P A P^T, A's values in
   // the pattern given to analyze. Returns -1, or the first permuted column
-  // whose pivot was not positive (Lx is then partial). Allocates nothing
+  // whose pivot was not positive (Lx is then partial; the DOF is
+  // L->Perm[column]). Allocates nothing
   // after the first call of an analysis.
   long factorize(const double* values, float* Lx);
   // The same algorithm in double (allocates its update buffer): a check of

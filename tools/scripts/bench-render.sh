@@ -2,7 +2,9 @@
 # Render-stage timings: the tet10 ~20k-DOF beam of bench-beams.sh stepped
 # with `incise bench --render` at 640x480 and 1280x720 (the EGL platform
 # chosen automatically; INCISE_EGL_PLATFORM forces one). Prints the median
-# and p95 render ms per frame. Usage: bench-render.sh [BUILD_DIR] [FRAMES]
+# and p95 render ms per frame; then, where it was built (libbenchmark-dev),
+# incise_render_bench: the render stage alone, uncut and with a hand-made cut.
+# Usage: bench-render.sh [BUILD_DIR] [FRAMES]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build="${1:-build}"
@@ -24,3 +26,6 @@ JSON
   "$incise" bench "$out/beam_${w}x${h}.json" --frames "$frames" --warmup 2 --render \
     --json "$out/beam_${w}x${h}.result.json" | grep -E "^(render|frame) |EGL|dof|DOF" || true
 done
+if [ -x "$build/tools/incise_render_bench" ]; then
+  "$build/tools/incise_render_bench"
+fi

@@ -63,22 +63,65 @@ TEST(Cholmod, SolvesLikeADenseCholeskyAndReusesTheAnalysis) {
   EXPECT_GT(s.stats().flops, 0.0);
 }
 
-TEST(Cholmod, IndefiniteMatrixIsAnErrorNamingThePivot) {
-  Eigen::MatrixXd A(3, 3);
-  A << 4, 0, 0, 0, 1, 2, 0, 2, 1;  // eigenvalues 4, 3, -1
-  std::vector<int> p, i;
-  std::vector<double> x;
-  upper_csc(A, p, i, x);
-  CholmodSolver s;
-  s.analyze(3, p, i);
-  try {
-    s.factorize(x.data());
-    FAIL() << "expected an error";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("not positive definite"), std::string::npos) << e.what();
+// A tet10 beam's dynamic system matrix, SPD except at one DOF (its diagonal
+// negated): every leading principal submatrix of P A P^T that excludes that
+// DOF is a principal submatrix of the SPD matrix, so the first pivot that
+// fails is exactly the one of that DOF, wherever the ordering puts it. The
+// error must name the DOF (the column of A), not the position in the
+// fill-reducing order (L->minor), so the DOF is chosen where the ordering
+// moved it to another node.
+TEST(Cholmod, IndefiniteMatrixIsAnErrorNamingTheDof) {
+  const Model m = test::tissue_beam(6, 2);
+  const int n = m.ndof();
+  const std::vector<double> good = test::system_matrix(m, 3600.0);
+  struct Setting {
+    const char* name;
+    FactorMethod method;
+    OrderingMethod ordering;
+    bool reversed;  // a given ordering: the reverse of the DOF numbering
+  };
+  const Setting settings[] = {{"supernodal AMD", FactorMethod::Supernodal, OrderingMethod::Amd, false},
+                              {"supernodal METIS", FactorMethod::Supernodal, OrderingMethod::Metis, false},
+                              {"supernodal reversed", FactorMethod::Supernodal, OrderingMethod::Auto, true},
+                              {"simplicial AMD", FactorMethod::Simplicial, OrderingMethod::Amd, false},
+                              {"simplicial reversed", FactorMethod::Simplicial, OrderingMethod::Auto, true}};
+  for (const Setting& st : settings) {
+    SCOPED_TRACE(st.name);
+    std::vector<int> reversed(n);
+    for (int k = 0; k < n; ++k) reversed[k] = n - 1 - k;
+    CholmodSolver s;
+    s.configure(st.method, st.ordering);
+    s.analyze(n, m.Ap, m.Ai, st.reversed ? &reversed : nullptr);
+    ASSERT_EQ(s.stats().supernodal, st.method == FactorMethod::Supernodal);
+    const std::vector<int> perm = s.permutation();
+    ASSERT_EQ(static_cast<int>(perm.size()), n);
+    // The free DOF, past the middle of the numbering, that the ordering
+    // eliminates at a position belonging to another node.
+    std::vector<int> position(n);
+    for (int k = 0; k < n; ++k) position[perm[k]] = k;
+    int bad = -1;
+    for (int d = n / 2; d < n && bad < 0; ++d)
+      if (!m.constrained[d] && position[d] / 3 != d / 3) bad = d;
+    ASSERT_GE(bad, 0) << "the ordering moves no DOF to another node";
+    std::vector<double> A = good;
+    A[m.diag[bad]] = -A[m.diag[bad]];
+    const std::string expected = "at DOF " + std::to_string(bad) + " (node " + std::to_string(bad / 3) +
+                                 " component " + "xyz"[bad % 3] + "; pivot " + std::to_string(position[bad]) + " of " +
+                                 std::to_string(n) + " in the fill-reducing order)";
+    try {
+      s.factorize(A.data());
+      ADD_FAILURE() << "an indefinite matrix was factored";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("not positive definite"), std::string::npos) << what;
+      EXPECT_NE(what.find(expected), std::string::npos) << what << "\nexpected: " << expected;
+    }
+    EXPECT_FALSE(s.factorized());
+    std::vector<double> x(n);
+    EXPECT_THROW(s.solve(good.data(), x.data()), Error);
+    s.factorize(good.data());  // the same analysis factors the SPD matrix
+    EXPECT_TRUE(s.factorized());
   }
-  EXPECT_FALSE(s.factorized());
-  EXPECT_THROW(s.solve(x.data(), x.data()), Error);
 }
 
 int threads_of_this_process() {

@@ -10,6 +10,7 @@
 #include "engine/solve/cholmod_solver.h"
 #include "engine/mesh/mesh_tools.h"
 #include "engine/solve/split_substitution.h"
+#include "tests/engine/solve/factor_bounds.h"
 #include "tests/engine/test_util.h"
 
 namespace incise {
@@ -55,42 +56,87 @@ TEST(SplitSubstitution, SplitCoversEverySupernodeOnceAndIsBalanced) {
   for (size_t i = 1; i < sp.top_cols.size(); ++i) EXPECT_LT(sp.top_cols[i - 1], sp.top_cols[i]);
 }
 
-// The two-thread result against the one-thread one for each stored precision.
+// The difference a split substitution may have from the one-thread one:
+// only the top rows' sums are reordered (y_top + bin 0's updates + bin 1's,
+// in double whatever the stored precision). Either order is a backward
+// stable substitution, (L + dL) y = b with |dL| <= gamma_n(2^-53) |L|
+// (Higham, "Accuracy and Stability of Numerical Algorithms", Thm 8.5), so
+// the two results differ by at most twice the forward error bound
+// gamma_n u cond(A) (Sec. 7.1), with cond_2(A) <= ||A||_inf ||A^-1||_2
+// computed from the matrix (factor_bounds.h). On the 7k dynamic beam:
+// cond_2 ~4e4 (||A||_inf ||A^-1||_2 ~ 8.8e4), bound 1.4e-7; measured
+// differences 4e-17 .. 8e-17 (the worst-case gamma_n is n times the typical
+// rounding and the error rarely lies along the smallest eigenvector), so
+// the bound is loose by ~1e9 but still far below a real bug: a supernode
+// read with a stale row of the other bin (the bins' independence broken)
+// is off by O(1).
+double reorder_bound(const Model& m, const std::vector<double>& A) {
+  const int n = m.ndof();
+  CholmodSolver f;  // one thread, double
+  f.analyze(n, m.Ap, m.Ai);
+  f.factorize(A.data());
+  const double kappa = test::norm_inf(m, A) * test::inverse_norm(n, [&](const double* r, double* z) { f.solve(r, z); });
+  return 2.0 * test::gamma_bound(n, test::kUnitDouble) * kappa;
+}
+
+// The two-thread result against the one-thread one for each stored precision,
+// with the worker running (bins on two threads; a bin can still be taken over
+// when the machine is loaded) and with a worker that never starts (every bin
+// taken over: forward and backward, each solve). Each path is deterministic:
+// in place equals out of place bit for bit and repeated solves agree bit for
+// bit; the two paths differ from the one-thread solve by reordered roundoff.
 TEST(SplitSubstitution, TwoThreadSolveEqualsOneThreadSolve) {
   const Model m = beam(14, 4);
   const int n = m.ndof();
   const std::vector<double> A = system_matrix(m);
-  SubstitutionWorker worker;
+  const double bound = reorder_bound(m, A);
+  SubstitutionWorker running, stalled(/*launch=*/false);
   for (FactorCopy copy : {FactorCopy::None, FactorCopy::Float, FactorCopy::Half}) {
     SCOPED_TRACE(static_cast<int>(copy));
-    CholmodSolver one, two;
-    for (CholmodSolver* f : {&one, &two}) {
+    CholmodSolver one, two, over;
+    for (CholmodSolver* f : {&one, &two, &over}) {
       f->set_factor_copy(copy);
       f->analyze(n, m.Ap, m.Ai);
       f->factorize(A.data());
     }
-    two.set_substitution_worker(&worker);
+    two.set_substitution_worker(&running);
+    over.set_substitution_worker(&stalled);
     ASSERT_TRUE(two.substitutes_on_two_threads());
+    ASSERT_TRUE(over.substitutes_on_two_threads());
     EXPECT_FALSE(one.substitutes_on_two_threads());
     for (unsigned seed = 1; seed <= 3; ++seed) {
       const std::vector<double> b = random_vector(n, seed);
-      std::vector<double> x1(n), x2(n), xa = b;
+      std::vector<double> x1(n), x2(n), xa = b, xo(n), xoa = b;
       one.solve_copy(b.data(), x1.data());
-      const int takeovers = two.stats().takeovers;
+      // Worker running: the same bits in place unless the two solves took
+      // different paths (a bin taken over in one of them); roundoff apart always.
+      const int t0 = two.stats().takeovers;
       two.solve_copy(b.data(), x2.data());
+      const int t1 = two.stats().takeovers;
       two.solve_copy(xa.data(), xa.data());  // in place
-      // Only the top rows' sums are reordered: roundoff of the stored precision's solve.
-      EXPECT_LT(test::rel_diff(x2, x1), 1e-13);
-      if (two.stats().takeovers == takeovers)  // (a bin taken over on a loaded machine sums in another order)
-        EXPECT_EQ(xa, x2) << "DBG takeovers " << two.stats().takeovers << " split " << two.stats().split_substitutions << " rel " << test::rel_diff(xa, x2);
-      else
-        EXPECT_LT(test::rel_diff(xa, x2), 1e-13);
+      const int t2 = two.stats().takeovers;
+      EXPECT_LE(test::rel_diff(x2, x1), bound);
+      EXPECT_LE(test::rel_diff(xa, x1), bound);
+      if (t1 == t0 && t2 == t1) {
+        EXPECT_EQ(xa, x2);
+      }
+      // Every bin taken over (deterministic): two takeovers per solve, the
+      // same bits in place, roundoff from the one-thread solve.
+      const int o0 = over.stats().takeovers;
+      over.solve_copy(b.data(), xo.data());
+      EXPECT_EQ(over.stats().takeovers, o0 + 2);
+      over.solve_copy(xoa.data(), xoa.data());
+      EXPECT_EQ(over.stats().takeovers, o0 + 4);
+      EXPECT_EQ(xoa, xo);
+      EXPECT_LE(test::rel_diff(xo, x1), bound);
     }
-    std::vector<double> xd1(n), xd2(n);  // the double substitution too
+    std::vector<double> xd1(n), xd2(n), xdo(n);  // the double substitution too
     const std::vector<double> b = random_vector(n, 9);
     one.solve(b.data(), xd1.data());
     two.solve(b.data(), xd2.data());
-    EXPECT_LT(test::rel_diff(xd2, xd1), 1e-13);
+    over.solve(b.data(), xdo.data());
+    EXPECT_LE(test::rel_diff(xd2, xd1), bound);
+    EXPECT_LE(test::rel_diff(xdo, xd1), bound);
   }
 }
 
@@ -108,6 +154,7 @@ TEST(SplitSubstitution, RepeatedSolvesAreIdenticalAndSimplicialStaysSerial) {
   ASSERT_TRUE(f.substitutes_on_two_threads());
   const std::vector<double> b = random_vector(n, 4);
   std::vector<double> first(n), x(n);
+  const double bound = reorder_bound(m, A);
   f.solve(b.data(), first.data());
   for (int k = 0; k < 200; ++k) {
     f.solve(b.data(), x.data());
@@ -116,7 +163,7 @@ TEST(SplitSubstitution, RepeatedSolvesAreIdenticalAndSimplicialStaysSerial) {
     if (f.stats().takeovers == 0)
       ASSERT_EQ(x, first) << "solve " << k;
     else
-      ASSERT_LT(test::rel_diff(x, first), 1e-13) << "solve " << k;
+      ASSERT_LE(test::rel_diff(x, first), bound) << "solve " << k;
   }
   CholmodSolver simplicial;
   simplicial.configure(FactorMethod::Simplicial, OrderingMethod::Auto);
@@ -215,12 +262,12 @@ TEST(SplitSubstitution, SolveTakesOverTheBinsOfAWorkerThatNeverStarts) {
   std::vector<double> x1(n), x2(n);
   one.solve_copy(b.data(), x1.data());
   two.solve_copy(b.data(), x2.data());
-  EXPECT_LT(test::rel_diff(x2, x1), 1e-13);
+  EXPECT_LE(test::rel_diff(x2, x1), reorder_bound(m, A));
   EXPECT_EQ(two.stats().split_substitutions, 1);
   EXPECT_EQ(two.stats().takeovers, 2);  // forward and backward
   worker.launch();
   two.solve_copy(b.data(), x2.data());
-  EXPECT_LT(test::rel_diff(x2, x1), 1e-13);
+  EXPECT_LE(test::rel_diff(x2, x1), reorder_bound(m, A));
   EXPECT_EQ(two.stats().split_substitutions, 2);
 }
 
@@ -254,7 +301,7 @@ TEST(SplitSubstitution, BusyWorkerKeepsSolvesOnOneThread) {
   worker.wait();
   two.factorize(A.data());
   two.solve(b.data(), x2.data());
-  EXPECT_LT(test::rel_diff(x2, x1), 1e-13);
+  EXPECT_LE(test::rel_diff(x2, x1), reorder_bound(m, A));
   EXPECT_EQ(two.stats().split_substitutions, 1);
 }
 
