@@ -51,7 +51,7 @@ constexpr double kWorkerStallMs = 0.1;
 // with threading (Debian's libopenblas0-pthread or -openmp, whose buffer
 // allocator is thread-safe), false for the serial build (measured: two
 // supernodal factorizations on two threads gave wrong factors in 78-94 of
-// 460 rounds, tests/engine/test_cholmod.cpp) and for any BLAS that does not
+// 460 rounds, tests/engine/solve/test_cholmod_solver.cpp) and for any BLAS that does not
 // say (no openblas_get_parallel). The first CholmodSolver also sets a
 // threaded OpenBLAS to one thread per call: the engine's own threads already
 // fill the cores, and the background factorization must not take the

@@ -319,7 +319,7 @@ TEST(SingleFactorization, IndefiniteMatrixFallsBackToCholmodAndThrows) {
     if (!m.constrained[d]) bad_dof = d;
   ASSERT_GE(bad_dof, 0);
   A[m.diag[bad_dof]] = -A[m.diag[bad_dof]];
-  // The only non-positive pivot is that DOF's (test_cholmod.cpp,
+  // The only non-positive pivot is that DOF's (test_cholmod_solver.cpp,
   // IndefiniteMatrixIsAnErrorNamingTheDof): the error names it, not its
   // position in the fill-reducing order.
   const std::vector<int> perm = f.permutation();
