@@ -107,4 +107,10 @@ double rotation_angle_to(const Eigen::Matrix3d& F, const Eigen::Matrix3d& R) {
   return std::acos(std::clamp(c, -1.0, 1.0));
 }
 
+std::vector<double> identity_rotations(int nrot) {
+  std::vector<double> R(9 * static_cast<size_t>(nrot), 0.0);
+  for (int r = 0; r < nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  return R;
+}
+
 }  // namespace incise

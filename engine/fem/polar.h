@@ -2,12 +2,14 @@
 // Rotation part of a deformation gradient, inversion-safe.
 //
 // R = argmax_{R in SO(3)} tr(R^T F): for det F > 0 this is the polar factor of
-// F = R S (book eq. 3.62); for det F <= 0 it is U diag(1, 1, -1) V^T with the
-// smallest singular value's sign flipped, so det R = +1 always and an inverted
-// element is pushed back out (Irving et al. 2004; Teran's lectures on
-// inversion-robust models). Solved by the fixed-point rotation iteration of
+// F = R S ([book] eq. (3.62)); for det F <= 0 it is U diag(1, 1, -1) V^T with
+// the smallest singular value's sign flipped, so det R = +1 always and an
+// inverted element is pushed back out (Irving et al. 2004; [lectures] Lecture
+// 3 on inversion-robust models). Solved by the fixed-point rotation iteration of
 // Mueller et al. 2016 warm-started from last frame's R; falls back to an SVD if
 // it has not converged in a few dozen iterations.
+#include <vector>
+
 #include <Eigen/Core>
 
 namespace incise {
@@ -22,5 +24,7 @@ int extract_rotation(const Eigen::Matrix3d& F, Eigen::Matrix3d& R);
 // F) the full extraction is done instead. For thresholds (the adaptive Newton
 // check), at a third of the cost of extract_rotation.
 double rotation_angle_to(const Eigen::Matrix3d& F, const Eigen::Matrix3d& R);
+
+std::vector<double> identity_rotations(int nrot);  // (nrot, 9) column-major identities
 
 }  // namespace incise
