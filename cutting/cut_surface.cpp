@@ -72,6 +72,7 @@ int CutSurface::nearest_facet(const double x[3]) const {
   return best;
 }
 
+// [preprint] eq. (72), against the nearest facet's plane.
 CutSurface::Value CutSurface::value(const double x[3]) const {
   if (facets_.empty()) return {1.0, 1};
   const Facet& f = facets_[nearest_facet(x)];

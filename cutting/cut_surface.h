@@ -3,8 +3,8 @@
 // polygon, a triangle mesh, and the surface swept by a blade edge (a segment
 // moving between two poses), which grows with time.
 //
-// The level set of a cut at a point is the signed distance to the plane of
-// the nearest facet; its sign is decided exactly against that facet's plane
+// The level set of a cut at a point is the signed distance ([preprint] eq.
+// (72)) to the plane of the nearest facet; its sign is decided exactly against that facet's plane
 // (cutting/exact_sign.h), so "node on the surface" is a yes/no question that
 // does not depend on the model's scale or a tolerance.
 #include <array>

@@ -1,5 +1,6 @@
 #pragma once
-// Sub-element decomposition of a tetrahedron cut by planes. The cut planes are
+// Sub-element decomposition of a tetrahedron cut by planes ([preprint] sec.
+// 5.2: sub-elements per side, each integrated, eq. (52)). The cut planes are
 // given by level-set values at the four corners, interpolated linearly in the
 // element's local coordinates, so the decomposition is done in the reference
 // tetrahedron and holds for curved tet10 elements too. Each part on one side

@@ -59,298 +59,389 @@ double overlap_area(const std::vector<std::pair<std::array<double, 3>, int>>& co
   return 0.5 * std::abs(area);
 }
 
-}  // namespace
+// The mesh, the cuts, and the cuts' level sets at the mesh's corner nodes.
+struct LevelSets {
+  const Mesh& mesh;
+  const std::vector<const CutSurface*>& cuts;
+  int npe, nt, nn, ncut;
+  std::vector<double> phi;       // (ncut, nn) level set at the corner nodes, 0 at the others
+  std::vector<signed char> sgn;  // (ncut, nn) its exact sign
+  int node(int e, int a) const { return mesh.tet[static_cast<size_t>(e) * npe + a]; }
+  double at(int c, int i) const { return phi[static_cast<size_t>(c) * nn + i]; }
+};
 
-CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts, CutReport* report) {
-  const Mesh& mesh = base.mesh;
-  const int npe = mesh.npe(), nt = mesh.ntet(), nn = mesh.nnode(), ncut = static_cast<int>(cuts.size());
-  auto node = [&](int e, int a) { return mesh.tet[static_cast<size_t>(e) * npe + a]; };
-  CutReport rep;
-
-  // Level sets at the corner nodes (exact signs, phi == 0 iff on the surface).
-  std::vector<char> is_corner(nn, 0);
-  for (int e = 0; e < nt; ++e)
-    for (int k = 0; k < 4; ++k) is_corner[node(e, k)] = 1;
-  std::vector<double> phi(static_cast<size_t>(ncut) * nn, 0.0);
-  std::vector<signed char> sgn(static_cast<size_t>(ncut) * nn, 0);
-  for (int c = 0; c < ncut; ++c)
-    for (int i = 0; i < nn; ++i)
+// The level sets (signed distance, [preprint] eq. (72)) at the corner nodes,
+// with exact signs: phi == 0 iff the node is on the surface.
+LevelSets corner_level_sets(const Mesh& mesh, const std::vector<const CutSurface*>& cuts) {
+  LevelSets ls{mesh, cuts, mesh.npe(), mesh.ntet(), mesh.nnode(), static_cast<int>(cuts.size()), {}, {}};
+  std::vector<char> is_corner(ls.nn, 0);
+  for (int e = 0; e < ls.nt; ++e)
+    for (int k = 0; k < 4; ++k) is_corner[ls.node(e, k)] = 1;
+  ls.phi.assign(static_cast<size_t>(ls.ncut) * ls.nn, 0.0);
+  ls.sgn.assign(static_cast<size_t>(ls.ncut) * ls.nn, 0);
+  for (int c = 0; c < ls.ncut; ++c)
+    for (int i = 0; i < ls.nn; ++i)
       if (is_corner[i]) {
         const auto v = cuts[c]->value(&mesh.X[3 * i]);
-        phi[static_cast<size_t>(c) * nn + i] = v.phi;
-        sgn[static_cast<size_t>(c) * nn + i] = static_cast<signed char>(v.sign);
+        ls.phi[static_cast<size_t>(c) * ls.nn + i] = v.phi;
+        ls.sgn[static_cast<size_t>(c) * ls.nn + i] = static_cast<signed char>(v.sign);
       }
-  auto h_of = [&](int e) {
-    double h = 0;
-    for (int a = 0; a < 4; ++a)
-      for (int b = a + 1; b < 4; ++b) {
-        double d2 = 0;
-        for (int d = 0; d < 3; ++d) d2 += std::pow(mesh.X[3 * node(e, a) + d] - mesh.X[3 * node(e, b) + d], 2);
-        h = std::max(h, std::sqrt(d2));
-      }
-    return h;
-  };
+  return ls;
+}
 
-  // Classification: per element, the cuts that split it (fully crossed), then
-  // cuts that end on one of those inside the element (a T junction), which
-  // split only the side of that cut where they are on the surface.
-  struct ElemCut {
-    int cut;
-    int only = -1;      // index into the element's list of the cut it ends on
-    int only_side = 0;  // side of that cut it splits
-  };
-  std::vector<std::vector<ElemCut>> cuts_of(nt);
-  for (int e = 0; e < nt; ++e) {
-    const double tol = 1e-9 * h_of(e);
-    struct Crossing {
-      double y[3];
-      double l[4];  // barycentric position in the element
-      bool covered;
-    };
-    std::vector<std::pair<int, std::vector<Crossing>>> partial;
-    for (int c = 0; c < ncut; ++c) {
-      int npos = 0, nneg = 0;
-      for (int k = 0; k < 4; ++k) {
-        const int s = sgn[static_cast<size_t>(c) * nn + node(e, k)];
-        npos += s > 0;
-        nneg += s < 0;
-      }
-      if (npos == 0 || nneg == 0) continue;
-      std::vector<Crossing> xs;
-      bool all = true;
-      for (int a = 0; a < 4; ++a) {
-        const int ia = node(e, a);
-        const double fa = phi[static_cast<size_t>(c) * nn + ia];
-        if (fa == 0.0) {
-          Crossing x{{mesh.X[3 * ia], mesh.X[3 * ia + 1], mesh.X[3 * ia + 2]}, {0, 0, 0, 0}, false};
-          x.l[a] = 1.0;
-          x.covered = cuts[c]->covers(x.y, tol);
-          all = all && x.covered;
-          xs.push_back(x);
-        }
-        for (int b = a + 1; b < 4; ++b) {
-          const int ib = node(e, b);
-          const double fb = phi[static_cast<size_t>(c) * nn + ib];
-          if (!((fa > 0 && fb < 0) || (fa < 0 && fb > 0))) continue;
-          const double t = fa / (fa - fb);
-          Crossing x{{0, 0, 0}, {0, 0, 0, 0}, false};
-          for (int d = 0; d < 3; ++d) x.y[d] = mesh.X[3 * ia + d] + t * (mesh.X[3 * ib + d] - mesh.X[3 * ia + d]);
-          x.l[a] = 1.0 - t;
-          x.l[b] = t;
-          x.covered = cuts[c]->covers(x.y, tol);
-          all = all && x.covered;
-          xs.push_back(x);
-        }
-      }
-      if (all) cuts_of[e].push_back({c});
-      else partial.push_back({c, xs});
+// Longest corner-to-corner edge of element e.
+double element_size(const LevelSets& ls, int e) {
+  const std::vector<double>& X = ls.mesh.X;
+  double h = 0;
+  for (int a = 0; a < 4; ++a)
+    for (int b = a + 1; b < 4; ++b) {
+      double d2 = 0;
+      for (int d = 0; d < 3; ++d) d2 += std::pow(X[3 * ls.node(e, a) + d] - X[3 * ls.node(e, b) + d], 2);
+      h = std::max(h, std::sqrt(d2));
     }
-    for (const auto& [c, xs] : partial) {
-      bool placed = false;
-      const int nfull = static_cast<int>(cuts_of[e].size());
-      for (int j = 0; j < nfull && !placed; ++j) {
-        if (cuts_of[e][j].only >= 0) continue;
-        const int cj = cuts_of[e][j].cut;
-        double scale = 0;
-        for (int k = 0; k < 4; ++k) scale = std::max(scale, std::abs(phi[static_cast<size_t>(cj) * nn + node(e, k)]));
-        for (int side : {1, -1}) {
-          // covered crossings strictly on `side` of cut cj, uncovered ones not
-          bool ok = true, any = false;
-          for (const Crossing& x : xs) {
-            double f = 0;
-            for (int k = 0; k < 4; ++k) f += x.l[k] * phi[static_cast<size_t>(cj) * nn + node(e, k)];
-            const double sf = side * f;
-            if (x.covered) {
-              any = any || sf > 1e-12 * scale;
-              ok = ok && sf >= -1e-12 * scale;
-            } else {
-              ok = ok && sf <= 1e-12 * scale;
-            }
-          }
-          if (ok && any) {
-            cuts_of[e].push_back({c, j, side});
-            placed = true;
-            break;
-          }
-        }
-      }
-      if (!placed) ++rep.front_elements;
+  return h;
+}
+
+// A cut of an element: the cut, and for a cut that ends on an earlier one
+// inside the element (a T junction) the side of that one it splits.
+struct ElemCut {
+  int cut;
+  int only = -1;      // index into the element's list of the cut it ends on
+  int only_side = 0;  // side of that cut it splits
+};
+
+// A zero of a cut's level set on a corner or an edge of an element.
+struct Crossing {
+  double y[3];
+  double l[4];  // barycentric position in the element
+  bool covered;
+};
+
+// Whether cut c has corners of element e strictly on both sides ([preprint]
+// eq. (73), with exact signs).
+bool crosses(const LevelSets& ls, int e, int c) {
+  int npos = 0, nneg = 0;
+  for (int k = 0; k < 4; ++k) {
+    const int s = ls.sgn[static_cast<size_t>(c) * ls.nn + ls.node(e, k)];
+    npos += s > 0;
+    nneg += s < 0;
+  }
+  return npos > 0 && nneg > 0;
+}
+
+// Appends to xs the corners of element e on cut c and the zeros of its
+// level set on the edges (linear along them), each marked covered when it
+// lies on the surface's extent (within tol). Returns whether all are covered.
+bool find_crossings(const LevelSets& ls, int e, int c, double tol, std::vector<Crossing>& xs) {
+  const std::vector<double>& X = ls.mesh.X;
+  bool all = true;
+  for (int a = 0; a < 4; ++a) {
+    const int ia = ls.node(e, a);
+    const double fa = ls.at(c, ia);
+    if (fa == 0.0) {
+      Crossing x{{X[3 * ia], X[3 * ia + 1], X[3 * ia + 2]}, {0, 0, 0, 0}, false};
+      x.l[a] = 1.0;
+      x.covered = ls.cuts[c]->covers(x.y, tol);
+      all = all && x.covered;
+      xs.push_back(x);
+    }
+    for (int b = a + 1; b < 4; ++b) {
+      const int ib = ls.node(e, b);
+      const double fb = ls.at(c, ib);
+      if (!((fa > 0 && fb < 0) || (fa < 0 && fb > 0))) continue;
+      const double t = fa / (fa - fb);
+      Crossing x{{0, 0, 0}, {0, 0, 0, 0}, false};
+      for (int d = 0; d < 3; ++d) x.y[d] = X[3 * ia + d] + t * (X[3 * ib + d] - X[3 * ia + d]);
+      x.l[a] = 1.0 - t;
+      x.l[b] = t;
+      x.covered = ls.cuts[c]->covers(x.y, tol);
+      all = all && x.covered;
+      xs.push_back(x);
     }
   }
+  return all;
+}
 
-  // Faces: interior pairs, and faces lying exactly on a covered surface.
-  struct FacePair { int e, ke, f, kf; };
-  std::vector<FacePair> pairs(base.tet_face_pair.size() / 4);  // the mesh's, found once (Model::tet_face_pair)
+// Whether a partial cut with crossings xs ends on full cut cj inside element
+// e, on `side` of it: its covered crossings strictly on that side, its
+// uncovered ones not (scale: cj's largest corner |phi|, for the tolerance).
+bool ends_on_side(const LevelSets& ls, int e, int cj, int side, double scale, const std::vector<Crossing>& xs) {
+  bool ok = true, any = false;
+  for (const Crossing& x : xs) {
+    double f = 0;
+    for (int k = 0; k < 4; ++k) f += x.l[k] * ls.at(cj, ls.node(e, k));
+    const double sf = side * f;
+    if (x.covered) {
+      any = any || sf > 1e-12 * scale;
+      ok = ok && sf >= -1e-12 * scale;
+    } else {
+      ok = ok && sf <= 1e-12 * scale;
+    }
+  }
+  return ok && any;
+}
+
+// Adds to element e's cuts `ec` each partial cut that ends on one of its full
+// cuts (a T junction); the others leave e a cut front element.
+void place_partial_cuts(const LevelSets& ls, int e, const std::vector<std::pair<int, std::vector<Crossing>>>& partial,
+                        std::vector<ElemCut>& ec, CutReport& rep) {
+  for (const auto& [c, xs] : partial) {
+    bool placed = false;
+    const int nfull = static_cast<int>(ec.size());
+    for (int j = 0; j < nfull && !placed; ++j) {
+      if (ec[j].only >= 0) continue;
+      const int cj = ec[j].cut;
+      double scale = 0;
+      for (int k = 0; k < 4; ++k) scale = std::max(scale, std::abs(ls.at(cj, ls.node(e, k))));
+      for (int side : {1, -1})
+        if (ends_on_side(ls, e, cj, side, scale, xs)) {
+          ec.push_back({c, j, side});
+          placed = true;
+          break;
+        }
+    }
+    if (!placed) ++rep.front_elements;
+  }
+}
+
+// Classification: per element, the cuts that split it (fully crossed), then
+// cuts that end on one of those inside the element (a T junction), which
+// split only the side of that cut where they are on the surface.
+std::vector<std::vector<ElemCut>> classify_elements(const LevelSets& ls, CutReport& rep) {
+  std::vector<std::vector<ElemCut>> cuts_of(ls.nt);
+  for (int e = 0; e < ls.nt; ++e) {
+    const double tol = 1e-9 * element_size(ls, e);
+    std::vector<std::pair<int, std::vector<Crossing>>> partial;
+    for (int c = 0; c < ls.ncut; ++c) {
+      if (!crosses(ls, e, c)) continue;
+      std::vector<Crossing> xs;
+      if (find_crossings(ls, e, c, tol, xs)) cuts_of[e].push_back({c});
+      else partial.push_back({c, xs});
+    }
+    place_partial_cuts(ls, e, partial, cuts_of[e], rep);
+  }
+  return cuts_of;
+}
+
+struct FacePair {
+  int e, ke, f, kf;  // face ke of element e is face kf of element f
+};
+
+// The mesh's interior faces, found once (Model::tet_face_pair).
+std::vector<FacePair> face_pairs(const Model& base) {
+  std::vector<FacePair> pairs(base.tet_face_pair.size() / 4);
   for (size_t p = 0; p < pairs.size(); ++p)
     pairs[p] = {base.tet_face_pair[4 * p], base.tet_face_pair[4 * p + 1], base.tet_face_pair[4 * p + 2],
                 base.tet_face_pair[4 * p + 3]};
-  CutLayout L;
-  L.elem_face_cut.assign(4 * static_cast<size_t>(nt), 0);
+  return pairs;
+}
+
+// Corner nodes of face k of element e.
+std::array<int, 3> face_corners(const LevelSets& ls, int e, int k) {
+  return {ls.node(e, kTetFace[k][0]), ls.node(e, kTetFace[k][1]), ls.node(e, kTetFace[k][2])};
+}
+
+// Whether the face with corners tri lies exactly on cut c, within its extent.
+bool face_on_cut(const LevelSets& ls, const std::array<int, 3>& tri, int c, double tol) {
+  bool in_plane = true;
+  for (int i : tri) in_plane = in_plane && ls.sgn[static_cast<size_t>(c) * ls.nn + i] == 0;
+  if (!in_plane) return false;
+  double cen[3] = {0, 0, 0};
+  bool covered = true;
+  for (int i : tri) {
+    covered = covered && ls.cuts[c]->covers(&ls.mesh.X[3 * i], tol);
+    for (int d = 0; d < 3; ++d) cen[d] += ls.mesh.X[3 * i + d] / 3.0;
+  }
+  return covered && ls.cuts[c]->covers(cen, tol);
+}
+
+// Interior faces lying exactly on a covered surface: they separate their two
+// elements (marked in L.elem_face_cut). Returns (npairs) 1 where separated.
+std::vector<char> separate_faces(const LevelSets& ls, const std::vector<FacePair>& pairs, CutLayout& L,
+                                 CutReport& rep) {
+  L.elem_face_cut.assign(4 * static_cast<size_t>(ls.nt), 0);
   std::vector<char> separated(pairs.size(), 0);
   for (size_t p = 0; p < pairs.size(); ++p) {
     const auto& fp = pairs[p];
-    const int tri[3] = {node(fp.e, kTetFace[fp.ke][0]), node(fp.e, kTetFace[fp.ke][1]),
-                        node(fp.e, kTetFace[fp.ke][2])};
-    const double tol = 1e-9 * h_of(fp.e);
-    for (int c = 0; c < ncut && !separated[p]; ++c) {
-      bool in_plane = true;
-      for (int i : tri) in_plane = in_plane && sgn[static_cast<size_t>(c) * nn + i] == 0;
-      if (!in_plane) continue;
-      double cen[3] = {0, 0, 0};
-      bool covered = true;
-      for (int i : tri) {
-        covered = covered && cuts[c]->covers(&mesh.X[3 * i], tol);
-        for (int d = 0; d < 3; ++d) cen[d] += mesh.X[3 * i + d] / 3.0;
-      }
-      if (covered && cuts[c]->covers(cen, tol)) separated[p] = 1;
-    }
+    const std::array<int, 3> tri = face_corners(ls, fp.e, fp.ke);
+    const double tol = 1e-9 * element_size(ls, fp.e);
+    for (int c = 0; c < ls.ncut && !separated[p]; ++c)
+      if (face_on_cut(ls, tri, c, tol)) separated[p] = 1;
     if (separated[p]) {
       L.elem_face_cut[4 * fp.e + fp.ke] = L.elem_face_cut[4 * fp.f + fp.kf] = 1;
       ++rep.separated_faces;
     }
   }
+  return separated;
+}
 
-  // Pieces.
+struct PieceSet {
   std::vector<Piece> pieces;
-  std::vector<int> elem_piece_ptr(1, 0);
-  std::vector<SubTets> subs(nt);
-  for (int e = 0; e < nt; ++e) {
-    if (cuts_of[e].empty()) {
-      pieces.push_back({e, {}, {}, 1.0});
-    } else {
-      const int nc = static_cast<int>(cuts_of[e].size());
-      std::vector<double> ph(4 * static_cast<size_t>(nc));
-      std::vector<int> only(2 * static_cast<size_t>(nc));
-      for (int j = 0; j < nc; ++j) {
-        for (int k = 0; k < 4; ++k) ph[4 * j + k] = phi[static_cast<size_t>(cuts_of[e][j].cut) * nn + node(e, k)];
-        only[2 * j] = cuts_of[e][j].only;
-        only[2 * j + 1] = cuts_of[e][j].only_side;
-      }
-      subs[e] = subdivide_tet(ph, nc, only);
-      std::map<std::vector<signed char>, std::vector<int>> groups;
-      for (int t = 0; t < subs[e].size(); ++t)
-        groups[std::vector<signed char>(subs[e].side.begin() + t * nc, subs[e].side.begin() + (t + 1) * nc)].push_back(t);
-      ++rep.cut_elements;
-      for (const auto& [sv, ts] : groups) {
-        double frac = 0;
-        for (int t : ts) frac += 6.0 * subs[e].volume[t];
-        if (!(frac > 0)) continue;
-        Piece P{e, {}, ts, frac};
-        for (int j = 0; j < nc; ++j)
-          if (sv[j] != 0) P.sides.push_back({cuts_of[e][j].cut, sv[j]});
-        pieces.push_back(P);
-        ++rep.pieces;
-        rep.min_fraction = std::min(rep.min_fraction, frac);
-      }
-    }
-    elem_piece_ptr.push_back(static_cast<int>(pieces.size()));
-  }
-  const int np = static_cast<int>(pieces.size());
+  std::vector<int> elem_piece_ptr{0};  // (nelem + 1) into pieces
+  std::vector<SubTets> subs;           // (nelem) sub-tetrahedra of each split element
+};
 
-  // Piece connectivity across shared faces.
-  std::vector<std::vector<int>> adj(np);
+// Splits element e by its cuts ec into sub-tetrahedra (sub-element
+// integration, [preprint] eq. (52) and sec. 5.2) and groups them into pieces
+// by their side of each cut; pieces of zero volume are dropped.
+void split_element(const LevelSets& ls, int e, const std::vector<ElemCut>& ec, PieceSet& ps, CutReport& rep) {
+  const int nc = static_cast<int>(ec.size());
+  std::vector<double> ph(4 * static_cast<size_t>(nc));
+  std::vector<int> only(2 * static_cast<size_t>(nc));
+  for (int j = 0; j < nc; ++j) {
+    for (int k = 0; k < 4; ++k) ph[4 * j + k] = ls.at(ec[j].cut, ls.node(e, k));
+    only[2 * j] = ec[j].only;
+    only[2 * j + 1] = ec[j].only_side;
+  }
+  SubTets& sub = ps.subs[e];
+  sub = subdivide_tet(ph, nc, only);
+  std::map<std::vector<signed char>, std::vector<int>> groups;
+  for (int t = 0; t < sub.size(); ++t)
+    groups[std::vector<signed char>(sub.side.begin() + t * nc, sub.side.begin() + (t + 1) * nc)].push_back(t);
+  ++rep.cut_elements;
+  for (const auto& [sv, ts] : groups) {
+    double frac = 0;
+    for (int t : ts) frac += 6.0 * sub.volume[t];
+    if (!(frac > 0)) continue;
+    Piece P{e, {}, ts, frac};
+    for (int j = 0; j < nc; ++j)
+      if (sv[j] != 0) P.sides.push_back({ec[j].cut, sv[j]});
+    ps.pieces.push_back(P);
+    ++rep.pieces;
+    rep.min_fraction = std::min(rep.min_fraction, frac);
+  }
+}
+
+// The pieces of every element: an uncut element is one whole piece.
+PieceSet make_pieces(const LevelSets& ls, const std::vector<std::vector<ElemCut>>& cuts_of, CutReport& rep) {
+  PieceSet ps;
+  ps.subs.resize(ls.nt);
+  for (int e = 0; e < ls.nt; ++e) {
+    if (cuts_of[e].empty()) ps.pieces.push_back({e, {}, {}, 1.0});
+    else split_element(ls, e, cuts_of[e], ps, rep);
+    ps.elem_piece_ptr.push_back(static_cast<int>(ps.pieces.size()));
+  }
+  return ps;
+}
+
+// Whether pieces P and Q of the two elements sharing the face with corners
+// tri overlap on it with positive area (a sliver 1e-12 h thin still connects
+// to its neighbours); never when they lie on opposite sides of a cut.
+bool pieces_touch(const LevelSets& ls, const Piece& P, const Piece& Q, const std::array<int, 3>& tri) {
+  std::vector<std::pair<std::array<double, 3>, int>> cons;
+  bool clash = false;
+  for (const auto* S : {&P.sides, &Q.sides})
+    for (const auto& [c, s] : *S) {
+      for (const auto& [c2, s2] : P.sides)
+        if (c2 == c && s2 != s) clash = true;
+      for (const auto& [c2, s2] : Q.sides)
+        if (c2 == c && s2 != s) clash = true;
+      std::array<double, 3> f3;
+      for (int i = 0; i < 3; ++i) f3[i] = ls.at(c, tri[i]);
+      cons.push_back({f3, s});
+    }
+  return !clash && overlap_area(cons) > 0.0;
+}
+
+// Piece connectivity across shared faces that are not separated: (npiece)
+// lists of neighbouring pieces.
+std::vector<std::vector<int>> connect_pieces(const LevelSets& ls, const std::vector<FacePair>& pairs,
+                                             const std::vector<char>& separated,
+                                             const std::vector<std::vector<ElemCut>>& cuts_of, const PieceSet& ps) {
+  std::vector<std::vector<int>> adj(ps.pieces.size());
   for (size_t p = 0; p < pairs.size(); ++p) {
     if (separated[p]) continue;
     const auto& fp = pairs[p];
     const bool simple = cuts_of[fp.e].empty() && cuts_of[fp.f].empty();
-    const int tri[3] = {node(fp.e, kTetFace[fp.ke][0]), node(fp.e, kTetFace[fp.ke][1]),
-                        node(fp.e, kTetFace[fp.ke][2])};
-    for (int P = elem_piece_ptr[fp.e]; P < elem_piece_ptr[fp.e + 1]; ++P)
-      for (int Q = elem_piece_ptr[fp.f]; Q < elem_piece_ptr[fp.f + 1]; ++Q) {
-        bool connected = simple;
-        if (!simple) {
-          std::vector<std::pair<std::array<double, 3>, int>> cons;
-          bool clash = false;
-          for (const auto* S : {&pieces[P].sides, &pieces[Q].sides})
-            for (const auto& [c, s] : *S) {
-              for (const auto& [c2, s2] : pieces[P].sides)
-                if (c2 == c && s2 != s) clash = true;
-              for (const auto& [c2, s2] : pieces[Q].sides)
-                if (c2 == c && s2 != s) clash = true;
-              std::array<double, 3> f3;
-              for (int i = 0; i < 3; ++i) f3[i] = phi[static_cast<size_t>(c) * nn + tri[i]];
-              cons.push_back({f3, s});
-            }
-          // any positive overlap: a sliver 1e-12 h thin still connects to its neighbours
-          connected = !clash && overlap_area(cons) > 0.0;
-        }
-        if (connected) {
+    const std::array<int, 3> tri = face_corners(ls, fp.e, fp.ke);
+    for (int P = ps.elem_piece_ptr[fp.e]; P < ps.elem_piece_ptr[fp.e + 1]; ++P)
+      for (int Q = ps.elem_piece_ptr[fp.f]; Q < ps.elem_piece_ptr[fp.f + 1]; ++Q)
+        if (simple || pieces_touch(ls, ps.pieces[P], ps.pieces[Q], tri)) {
           adj[P].push_back(Q);
           adj[Q].push_back(P);
         }
-      }
   }
+  return adj;
+}
 
-  {
-    UnionFind all(np);
-    for (int P = 0; P < np; ++P)
-      for (int Q : adj[P]) all.join(P, Q);
-    rep.bodies = 0;
-    for (int P = 0; P < np; ++P) rep.bodies += all.find(P) == P;
-  }
+// Connected components of the piece graph: the separate bodies of tissue.
+int count_bodies(const std::vector<std::vector<int>>& adj) {
+  const int np = static_cast<int>(adj.size());
+  UnionFind all(np);
+  for (int P = 0; P < np; ++P)
+    for (int Q : adj[P]) all.join(P, Q);
+  int bodies = 0;
+  for (int P = 0; P < np; ++P) bodies += all.find(P) == P;
+  return bodies;
+}
 
-  // Regions of each node's support; only nodes touching split elements or
-  // separated faces can have more than one.
-  std::vector<char> candidate(nn, 0);
-  for (int e = 0; e < nt; ++e)
+// Nodes that can have more than one region: the nodes of split elements and
+// of elements with a separated face. (nn) flags.
+std::vector<char> region_candidates(const LevelSets& ls, const std::vector<std::vector<ElemCut>>& cuts_of,
+                                    const std::vector<FacePair>& pairs, const std::vector<char>& separated) {
+  std::vector<char> candidate(ls.nn, 0);
+  for (int e = 0; e < ls.nt; ++e)
     if (!cuts_of[e].empty())
-      for (int a = 0; a < npe; ++a) candidate[node(e, a)] = 1;
+      for (int a = 0; a < ls.npe; ++a) candidate[ls.node(e, a)] = 1;
   for (size_t p = 0; p < pairs.size(); ++p)
     if (separated[p])
-      for (int a = 0; a < npe; ++a) candidate[node(pairs[p].e, a)] = 1;
-  L.piece_enr.assign(static_cast<size_t>(np) * npe, -1);
-  std::vector<int> enr_node;
-  for (int i = 0; i < nn; ++i) {
-    if (!candidate[i]) continue;
-    std::vector<int> sp;  // pieces of the support
-    for (int k = base.node_elem_ptr[i]; k < base.node_elem_ptr[i + 1]; ++k)
-      for (int P = elem_piece_ptr[base.node_elem[k]]; P < elem_piece_ptr[base.node_elem[k] + 1]; ++P) sp.push_back(P);
-    std::map<int, int> local;
-    for (size_t k = 0; k < sp.size(); ++k) local[sp[k]] = static_cast<int>(k);
-    UnionFind uf(static_cast<int>(sp.size()));
-    for (size_t k = 0; k < sp.size(); ++k)
-      for (int Q : adj[sp[k]])
-        if (auto it = local.find(Q); it != local.end()) uf.join(static_cast<int>(k), it->second);
-    std::map<int, double> volume;  // root -> volume
-    std::map<int, int> first;      // root -> smallest piece id (deterministic ties)
-    for (size_t k = 0; k < sp.size(); ++k) {
-      const int r = uf.find(static_cast<int>(k));
-      volume[r] += pieces[sp[k]].fraction * base.elem_volume[pieces[sp[k]].elem];
-      if (!first.count(r)) first[r] = sp[k];
-    }
-    if (volume.size() < 2) continue;
-    int home = -1;
-    for (const auto& [r, v] : volume)
-      if (home < 0 || v > volume[home] || (v == volume[home] && first[r] < first[home])) home = r;
-    std::map<int, int> enr;  // root -> enriched DOF node
-    for (const auto& [r, v] : volume)
-      if (r != home) {
-        enr[r] = nn + static_cast<int>(enr_node.size());
-        enr_node.push_back(i);
-      }
-    for (size_t k = 0; k < sp.size(); ++k) {
-      const int r = uf.find(static_cast<int>(k));
-      if (r == home) continue;
-      const Piece& P = pieces[sp[k]];
-      for (int a = 0; a < npe; ++a)
-        if (node(P.elem, a) == i) L.piece_enr[static_cast<size_t>(sp[k]) * npe + a] = enr[r];
-    }
-  }
+      for (int a = 0; a < ls.npe; ++a) candidate[ls.node(pairs[p].e, a)] = 1;
+  return candidate;
+}
 
-  // Output arrays.
-  L.n_enriched = static_cast<int>(enr_node.size());
-  L.enr_node = enr_node;
-  L.elem_piece_ptr = elem_piece_ptr;
+// The regions of node i's support (connected components of its pieces). The
+// largest keeps the standard DOF; each other region gets an enriched DOF
+// node, numbered after the mesh nodes ([preprint] eq. (74)) and written to
+// L.piece_enr for the region's pieces.
+void enrich_node(const Model& base, const LevelSets& ls, int i, const PieceSet& ps,
+                 const std::vector<std::vector<int>>& adj, CutLayout& L, std::vector<int>& enr_node) {
+  std::vector<int> sp;  // pieces of the support
+  for (int k = base.node_elem_ptr[i]; k < base.node_elem_ptr[i + 1]; ++k)
+    for (int P = ps.elem_piece_ptr[base.node_elem[k]]; P < ps.elem_piece_ptr[base.node_elem[k] + 1]; ++P) sp.push_back(P);
+  std::map<int, int> local;
+  for (size_t k = 0; k < sp.size(); ++k) local[sp[k]] = static_cast<int>(k);
+  UnionFind uf(static_cast<int>(sp.size()));
+  for (size_t k = 0; k < sp.size(); ++k)
+    for (int Q : adj[sp[k]])
+      if (auto it = local.find(Q); it != local.end()) uf.join(static_cast<int>(k), it->second);
+  std::map<int, double> volume;  // root -> volume
+  std::map<int, int> first;      // root -> smallest piece id (deterministic ties)
+  for (size_t k = 0; k < sp.size(); ++k) {
+    const int r = uf.find(static_cast<int>(k));
+    volume[r] += ps.pieces[sp[k]].fraction * base.elem_volume[ps.pieces[sp[k]].elem];
+    if (!first.count(r)) first[r] = sp[k];
+  }
+  if (volume.size() < 2) return;
+  int home = -1;
+  for (const auto& [r, v] : volume)
+    if (home < 0 || v > volume[home] || (v == volume[home] && first[r] < first[home])) home = r;
+  std::map<int, int> enr;  // root -> enriched DOF node
+  for (const auto& [r, v] : volume)
+    if (r != home) {
+      enr[r] = ls.nn + static_cast<int>(enr_node.size());
+      enr_node.push_back(i);
+    }
+  for (size_t k = 0; k < sp.size(); ++k) {
+    const int r = uf.find(static_cast<int>(k));
+    if (r == home) continue;
+    const Piece& P = ps.pieces[sp[k]];
+    for (int a = 0; a < ls.npe; ++a)
+      if (ls.node(P.elem, a) == i) L.piece_enr[static_cast<size_t>(sp[k]) * ls.npe + a] = enr[r];
+  }
+}
+
+// The pieces' sub-tetrahedra, faces and fractions into the layout's flat arrays.
+void write_pieces(const PieceSet& ps, int nt, CutLayout& L) {
   L.elem_split.assign(nt, 0);
   L.piece_subtet_ptr.assign(1, 0);
   static const double kRef[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
-  for (const Piece& P : pieces) {
+  for (const Piece& P : ps.pieces) {
     if (P.subtets.empty()) {
       L.subtet_rst.insert(L.subtet_rst.end(), kRef, kRef + 12);
       L.subtet_face.insert(L.subtet_face.end(), {0, 1, 2, 3});
     } else {
       L.elem_split[P.elem] = 1;
-      const SubTets& S = subs[P.elem];
+      const SubTets& S = ps.subs[P.elem];
       for (int t : P.subtets) {
         L.subtet_rst.insert(L.subtet_rst.end(), S.rst.begin() + 12 * t, S.rst.begin() + 12 * (t + 1));
         L.subtet_face.insert(L.subtet_face.end(), S.face.begin() + 4 * t, S.face.begin() + 4 * (t + 1));
@@ -359,6 +450,30 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
     L.piece_subtet_ptr.push_back(static_cast<int>(L.subtet_face.size() / 4));
     L.piece_fraction.push_back(P.fraction);
   }
+}
+
+}  // namespace
+
+CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts, CutReport* report) {
+  CutReport rep;
+  CutLayout L;
+  const LevelSets ls = corner_level_sets(base.mesh, cuts);
+  const std::vector<std::vector<ElemCut>> cuts_of = classify_elements(ls, rep);
+  const std::vector<FacePair> pairs = face_pairs(base);
+  const std::vector<char> separated = separate_faces(ls, pairs, L, rep);
+  const PieceSet ps = make_pieces(ls, cuts_of, rep);
+  const std::vector<std::vector<int>> adj = connect_pieces(ls, pairs, separated, cuts_of, ps);
+  rep.bodies = count_bodies(adj);
+  // Regions of each node's support; only candidates can have more than one.
+  const std::vector<char> candidate = region_candidates(ls, cuts_of, pairs, separated);
+  L.piece_enr.assign(ps.pieces.size() * ls.npe, -1);
+  std::vector<int> enr_node;
+  for (int i = 0; i < ls.nn; ++i)
+    if (candidate[i]) enrich_node(base, ls, i, ps, adj, L, enr_node);
+  L.n_enriched = static_cast<int>(enr_node.size());
+  L.enr_node = std::move(enr_node);
+  L.elem_piece_ptr = ps.elem_piece_ptr;
+  write_pieces(ps, ls.nt, L);
   rep.enriched_nodes = L.n_enriched;
   if (report) *report = rep;
   return L;

@@ -4,7 +4,7 @@
 // nodes they need. The result feeds build_model (engine/model/cut_layout.h).
 //
 // Classification of an element against one cut, from the exact signs of the
-// level set at its corners:
+// level set at its corners ([preprint] eq. (73)):
 //   - corners strictly on both sides and every zero crossing on the surface's
 //     extent: CUT (split into pieces);
 //   - corners strictly on both sides but the surface ends inside: the cut
@@ -17,9 +17,11 @@
 // Regions: pieces connect across shared faces where they overlap with positive
 // area; the connected components of the pieces in a node's support are its
 // regions. The home region (largest volume) keeps the standard DOF; every
-// other region gets an enriched DOF node. Choosing the largest region, not
-// the one holding the node, keeps a cut 1e-12 h from a node from making the
-// standard and enriched functions nearly equal (an ill-conditioned pair).
+// other region gets an enriched DOF node (shifted enrichment, [preprint] eqs.
+// (42), (44); appended after the mesh nodes, eq. (74)). Choosing the largest
+// region, not the one holding the node, keeps a cut 1e-12 h from a node from
+// making the standard and enriched functions nearly equal (an ill-conditioned
+// pair).
 #include <string>
 #include <vector>
 

@@ -248,46 +248,32 @@ inline void scatter_blocks(const Model& m, int e, int nblk, const double* Kl, do
   }
 }
 
-// With `cache` (tangent_reuse, valid): the element's blocks are recomputed only
-// when some slot's F moved more than cache->theta from the F they were made
-// at, and K then gains the difference; *updated says whether they were.
+// Fetches the element's lines of K ahead of the scatter into it. The scatter
+// misses the caches (K is 3-6 MB at 10-20k DOF, and the frame's solves stream
+// 12-28 MB of factor between two assemblies; perf put 28% of element_terms on
+// the load of K[sc[k]]): fetched now, the lines arrive while the element's
+// rotations and blocks are computed. Entries (0,0), (1,1), (2,2) of a 3x3
+// block lie in its three columns, whose three rows are contiguous. organ-20k
+// drag, one thread, three alternating pairs: fastest assembly 24.6-26.5 ->
+// 23.6-24.2 ms.
+inline void prefetch_element_K(const Model& m, int e, double* K) {
+  const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+  const int nsc = m.elem_scatter_ptr[e + 1] - m.elem_scatter_ptr[e];
+  for (int k = 0; k < nsc; k += 9)
+    for (int c = 0; c < 9; c += 4)
+      if (sc[k + c] >= 0) __builtin_prefetch(K + sc[k + c], 1, 3);
+}
+
+// The rotations of element e's slots (identity for the linear model), each
+// from its slot's F = sum_a xe_a g_a^T, which Fs (slots, 9) keeps for the
+// points that share it (qp_slot_F). keep (in/out) stays true while every
+// |F - cache F| <= theta (a NaN: false); `probe` compares into would_keep
+// instead and stores F in the cache. Returns the SVD fallbacks.
 template <int NN>
-int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double* u, double* Rall, double* f, double* K,
-                  double* scratch, TangentCache* cache = nullptr, bool* updated = nullptr,
-                  bool* keepable = nullptr) {
-  const int b0 = m.elem_dof_ptr[e];
-  const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
-  const int* nodes = &m.elem_dof_node[b0];
-  double* xe = scratch;      // (n, 3) current positions
-  double* h = xe + 3 * n;    // (n, 3) rotated gradients
-  double* Kl = h + 3 * n;    // blocks a <= b, 9 each, row-major
-  double* t = Kl + 9 * n * (n + 1) / 2;  // (n, 3, 3) rotation-mode vectors (rotation_stiffness.h)
-  double* Fs = t + 9 * n;                // (slots, 9) each slot's F, for the points that share it (qp_slot_F)
-  const int nblk = n * (n + 1) / 2;
-  for (int a = 0; a < n; ++a)
-    for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
-  if (K && !(cache && cache->valid && !cache->bypass)) {
-    // The scatter into K below misses the caches (K is 3-6 MB at 10-20k
-    // DOF, and the frame's solves stream 12-28 MB of factor between two
-    // assemblies; perf put 28% of this kernel on the load of K[sc[k]]):
-    // fetch the element's lines of K now, while its rotations and blocks are
-    // computed. Entries (0,0), (1,1), (2,2) of a 3x3 block lie in its three
-    // columns, whose three rows are contiguous. organ-20k drag, one thread,
-    // three alternating pairs: fastest assembly 24.6-26.5 -> 23.6-24.2 ms.
-    const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
-    const int nsc = m.elem_scatter_ptr[e + 1] - m.elem_scatter_ptr[e];
-    for (int k = 0; k < nsc; k += 9)
-      for (int c = 0; c < 9; c += 4)
-        if (sc[k + c] >= 0) __builtin_prefetch(K + sc[k + c], 1, 3);
-  }
+inline int element_rotations(const Model& m, const AssemblyPlan& plan, int e, int n, const double* xe, double* Rall,
+                             double* Fs, TangentCache* cache, bool probe, bool& keep, bool& would_keep) {
   int fallbacks = 0;
   const bool linear = m.material.model == MaterialModel::Linear;
-  // probe (TangentCache::bypass): blocks recomputed and added to K directly,
-  // F kept per slot only to tell whether the element would have been kept.
-  const bool probe = K && cache && cache->bypass;
-  const bool cached = K && cache && cache->valid && !probe;
-  bool keep = cached;  // every |F - F_then| entry of the element's slots <= theta (a NaN: not kept)
-  bool would_keep = probe;
   for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
     const int r = plan.elem_rot[k];
     Eigen::Map<Mat3> Rm(Rall + 9 * r);
@@ -310,124 +296,191 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
       std::copy(F, F + 9, Fr);
     }
   }
+  return fallbacks;
+}
+
+// Kl (nblk blocks) = 0 plus the rotation term of each shared slot with
+// slot_weight > 0 (h, t: scratch); with a cache, stores each slot's F, the F
+// the new blocks are made at.
+template <int NN>
+inline void slot_rotation_terms(const Model& m, const AssemblyPlan& plan, int e, int n, const double* xe,
+                                const double* Rall, TangentCache* cache, double* Kl, double* h, double* t) {
+  std::fill(Kl, Kl + 9 * (n * (n + 1) / 2), 0.0);
+  if (m.material.model == MaterialModel::Linear) return;
+  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+    const int r = plan.elem_rot[k];
+    const bool store_F = cache != nullptr;
+    if (!store_F && !(plan.slot_weight[r] > 0.0)) continue;
+    double F[9];
+    grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+    if (store_F) std::copy(F, F + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
+    if (plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points)
+      add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
+                                  plan.slot_weight[r], Kl, h, t);
+  }
+}
+
+// A split element: its pieces' rest stiffness rotated (Model::rot_K0) gives
+// the forces into f and, with Kl, the blocks (y, t: scratch).
+inline void condensed_element_terms(const Model& m, const AssemblyPlan& plan, int e, int n, const int* nodes,
+                                    const double* xe, const double* Rall, double* f, double* Kl, double* y, double* t) {
+  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+    const int r = plan.elem_rot[k];
+    const double* K0 = &m.rot_K0[m.rot_K0_ptr[r]];
+    const int* partner = m.slot_partner(r);
+    condensed_slot_force(m.mesh.npe(), K0, partner, Rall + 9 * r, xe, m.X.data(), nodes, y, t, f);
+    if (Kl) condensed_slot_stiffness(n, m.mesh.npe(), K0, partner, Rall + 9 * r, Kl);
+  }
+}
+
+// f_a += P g_a for the element's n DOF nodes (P the point's weighted stress).
+template <int NN>
+inline void add_point_force(int n_dyn, const int* nodes, const double* P, const double* g, double* f) {
+  const int n = NN > 0 ? NN : n_dyn;
+  for (int a = 0; a < n; ++a) {
+    const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
+    double* fa = f + 3 * nodes[a];
+    fa[0] += P[0] * g0 + P[3] * g1 + P[6] * g2;
+    fa[1] += P[1] * g0 + P[4] * g1 + P[7] * g2;
+    fa[2] += P[2] * g0 + P[5] * g1 + P[8] * g2;
+  }
+}
+
+// Rotated gradients h_a = R g_a, (n, 3).
+template <int NN>
+inline void rotate_gradients(int n_dyn, const double* R, const double* g, double* h) {
+  const int n = NN > 0 ? NN : n_dyn;
+  for (int a = 0; a < n; ++a) {
+    const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
+    h[3 * a] = R[0] * g0 + R[3] * g1 + R[6] * g2;
+    h[3 * a + 1] = R[1] * g0 + R[4] * g1 + R[7] * g2;
+    h[3 * a + 2] = R[2] * g0 + R[5] * g1 + R[8] * g2;
+  }
+}
+
+// A point's blocks K_ab = w (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I)
+// added to Kl (wl = w lambda, wm = w mu). With Y (not null), the rotation
+// term (rotation_stiffness.h) fused in: sum_k coef_k (u_k x h_a)(u_k x h_b)^T
+// = [h_a]x Y [h_b]x^T with Y = sum_k coef_k u_k u_k^T (3x3), so with
+// G = [h_a]x Y block row i gains h_b x (row i of G): 18 products per block
+// instead of three rank-1 updates of a dense element matrix.
+template <int NN>
+inline void add_point_blocks(int n_dyn, const double* g, const double* h, double wl, double wm, const double* Y,
+                             double* Kl) {
+  const int n = NN > 0 ? NN : n_dyn;
+  double* blk = Kl;
+  for (int a = 0; a < n; ++a) {
+    const double ha0 = h[3 * a], ha1 = h[3 * a + 1], ha2 = h[3 * a + 2];
+    const double la0 = wl * ha0, la1 = wl * ha1, la2 = wl * ha2;
+    const double ma0 = wm * ha0, ma1 = wm * ha1, ma2 = wm * ha2;
+    const double ga0 = wm * g[3 * a], ga1 = wm * g[3 * a + 1], ga2 = wm * g[3 * a + 2];
+    if (!Y) {
+      for (int b = a; b < n; ++b, blk += 9) {
+        const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
+        const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
+        blk[0] += la0 * hb0 + hb0 * ma0 + gg;
+        blk[1] += la0 * hb1 + hb0 * ma1;
+        blk[2] += la0 * hb2 + hb0 * ma2;
+        blk[3] += la1 * hb0 + hb1 * ma0;
+        blk[4] += la1 * hb1 + hb1 * ma1 + gg;
+        blk[5] += la1 * hb2 + hb1 * ma2;
+        blk[6] += la2 * hb0 + hb2 * ma0;
+        blk[7] += la2 * hb1 + hb2 * ma1;
+        blk[8] += la2 * hb2 + hb2 * ma2 + gg;
+      }
+      continue;
+    }
+    // G = [h_a]x Y, row-major (Y symmetric, column-major = row-major).
+    double G[9];
+    for (int l = 0; l < 3; ++l) {
+      G[l] = ha1 * Y[3 * l + 2] - ha2 * Y[3 * l + 1];
+      G[3 + l] = ha2 * Y[3 * l] - ha0 * Y[3 * l + 2];
+      G[6 + l] = ha0 * Y[3 * l + 1] - ha1 * Y[3 * l];
+    }
+    for (int b = a; b < n; ++b, blk += 9) {
+      const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
+      const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
+      blk[0] += la0 * hb0 + hb0 * ma0 + gg + (hb1 * G[2] - hb2 * G[1]);
+      blk[1] += la0 * hb1 + hb0 * ma1 + (hb2 * G[0] - hb0 * G[2]);
+      blk[2] += la0 * hb2 + hb0 * ma2 + (hb0 * G[1] - hb1 * G[0]);
+      blk[3] += la1 * hb0 + hb1 * ma0 + (hb1 * G[5] - hb2 * G[4]);
+      blk[4] += la1 * hb1 + hb1 * ma1 + gg + (hb2 * G[3] - hb0 * G[5]);
+      blk[5] += la1 * hb2 + hb1 * ma2 + (hb0 * G[4] - hb1 * G[3]);
+      blk[6] += la2 * hb0 + hb2 * ma0 + (hb1 * G[8] - hb2 * G[7]);
+      blk[7] += la2 * hb1 + hb2 * ma1 + (hb2 * G[6] - hb0 * G[8]);
+      blk[8] += la2 * hb2 + hb2 * ma2 + gg + (hb0 * G[7] - hb1 * G[6]);
+    }
+  }
+}
+
+// Cubature point q of element e: its force into f and, with Kl, its blocks
+// (h, t: scratch). Its F is its slot's kept in Fs where qp_slot_F says so.
+template <int NN>
+inline void point_terms(const Model& m, const AssemblyPlan& plan, int e, int q, int n, const int* nodes,
+                        const double* xe, const double* Rall, const double* Fs, double* f, double* Kl, double* h,
+                        double* t) {
+  const bool linear = m.material.model == MaterialModel::Linear;
+  const double mu = m.mu, lambda = m.lambda;
+  const double w = m.qp_weight[q];
+  const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
+  const double* R = Rall + 9 * m.qp_rot[q];
+  double Fq[9], P[9];
+  const double* F = Fq;
+  if (plan.qp_slot_F[q] && !linear) F = Fs + 9 * (m.qp_rot[q] - plan.elem_rot[plan.elem_rot_ptr[e]]);
+  else grad_sum<NN>(n, xe, g, Fq);
+  rotated_stress(R, F, w, mu, lambda, /*strain=*/true, P);
+  add_point_force<NN>(n, nodes, P, g, f);
+  if (!Kl) return;  // a kept element: forces only
+  rotate_gradients<NN>(n, R, g, h);
+  double Y[9];
+  const bool rot = NN > 0 && plan.qp_own_rot[q] && rotation_stiffness_matrix(R, F, mu, lambda, w, Y);
+  add_point_blocks<NN>(n, g, h, w * lambda, w * mu, rot ? Y : nullptr, Kl);
+  if constexpr (NN == 0) {
+    double uk[9], coef[3];
+    if (plan.qp_own_rot[q] && rotation_stiffness_modes(R, F, mu, lambda, w, uk, coef))
+      add_rotation_stiffness(n, h, uk, coef, Kl, t);
+  }
+}
+
+// With `cache` (tangent_reuse, valid): the element's blocks are recomputed only
+// when some slot's F moved more than cache->theta from the F they were made
+// at, and K then gains the difference; *updated says whether they were.
+template <int NN>
+int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double* u, double* Rall, double* f, double* K,
+                  double* scratch, TangentCache* cache = nullptr, bool* updated = nullptr,
+                  bool* keepable = nullptr) {
+  const int b0 = m.elem_dof_ptr[e];
+  const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
+  const int* nodes = &m.elem_dof_node[b0];
+  double* xe = scratch;      // (n, 3) current positions
+  double* h = xe + 3 * n;    // (n, 3) rotated gradients
+  double* Kl = h + 3 * n;    // blocks a <= b, 9 each, row-major
+  double* t = Kl + 9 * n * (n + 1) / 2;  // (n, 3, 3) rotation-mode vectors (rotation_stiffness.h)
+  double* Fs = t + 9 * n;                // (slots, 9) each slot's F, for the points that share it (qp_slot_F)
+  const int nblk = n * (n + 1) / 2;
+  for (int a = 0; a < n; ++a)
+    for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
+  if (K && !(cache && cache->valid && !cache->bypass)) prefetch_element_K(m, e, K);
+  // probe (TangentCache::bypass): blocks recomputed and added to K directly,
+  // F kept per slot only to tell whether the element would have been kept.
+  const bool probe = K && cache && cache->bypass;
+  const bool cached = K && cache && cache->valid && !probe;
+  bool keep = cached;  // every |F - F_then| entry of the element's slots <= theta (a NaN: not kept)
+  bool would_keep = probe;
+  const int fallbacks = element_rotations<NN>(m, plan, e, n, xe, Rall, Fs, cache, probe, keep, would_keep);
   if (keepable) *keepable = would_keep;
   if (probe) cache = nullptr;  // from here on a full assembly's element
   // The element's tangent is (re)computed without a valid cache, or when a
   // slot moved past theta (or has no kept F: NaN after a cut's rebuild).
   if (keep) K = nullptr;
   if (updated) *updated = K != nullptr;
-  if (K) {
-    std::fill(Kl, Kl + 9 * nblk, 0.0);
-    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1] && !linear; ++k) {
-      const int r = plan.elem_rot[k];
-      const bool store_F = cache != nullptr;  // the gradients the new blocks are made at
-      if (!store_F && !(plan.slot_weight[r] > 0.0)) continue;
-      double F[9];
-      grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
-      if (store_F) std::copy(F, F + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
-      if (plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points below)
-        add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
-                                    plan.slot_weight[r], Kl, h, t);
-    }
-  }
-  if (plan.elem_condensed[e]) {  // a split element: rotate its pieces' rest stiffness
-    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
-      const int r = plan.elem_rot[k];
-      const double* K0 = &m.rot_K0[m.rot_K0_ptr[r]];
-      const int* partner = m.slot_partner(r);
-      condensed_slot_force(m.mesh.npe(), K0, partner, Rall + 9 * r, xe, m.X.data(), nodes, h, t, f);
-      if (K) condensed_slot_stiffness(n, m.mesh.npe(), K0, partner, Rall + 9 * r, Kl);
-    }
-    if (K) {
-      scatter_blocks(m, e, nblk, Kl, K, cache, cached);
-    }
-    return fallbacks;
-  }
-  const double mu = m.mu, lambda = m.lambda;
-  for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
-    const double w = m.qp_weight[q];
-    const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
-    const double* R = Rall + 9 * m.qp_rot[q];
-    double Fq[9], P[9];
-    const double* F = Fq;
-    if (plan.qp_slot_F[q] && !linear) F = Fs + 9 * (m.qp_rot[q] - plan.elem_rot[plan.elem_rot_ptr[e]]);
-    else grad_sum<NN>(n, xe, g, Fq);
-    rotated_stress(R, F, w, mu, lambda, /*strain=*/true, P);
-    for (int a = 0; a < n; ++a) {
-      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
-      double* fa = f + 3 * nodes[a];
-      fa[0] += P[0] * g0 + P[3] * g1 + P[6] * g2;
-      fa[1] += P[1] * g0 + P[4] * g1 + P[7] * g2;
-      fa[2] += P[2] * g0 + P[5] * g1 + P[8] * g2;
-    }
-    if (!K) continue;  // a kept element: forces only
-    for (int a = 0; a < n; ++a) {  // rotated gradients h_a = R g_a
-      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
-      h[3 * a] = R[0] * g0 + R[3] * g1 + R[6] * g2;
-      h[3 * a + 1] = R[1] * g0 + R[4] * g1 + R[7] * g2;
-      h[3 * a + 2] = R[2] * g0 + R[5] * g1 + R[8] * g2;
-    }
-    // Rotation term (rotation_stiffness.h), fused into the blocks for the
-    // fixed-size elements: sum_k coef_k (u_k x h_a)(u_k x h_b)^T
-    // = [h_a]x Y [h_b]x^T with Y = sum_k coef_k u_k u_k^T (3x3), so with
-    // G = [h_a]x Y block row i gains h_b x (row i of G): 18 products per block
-    // instead of three rank-1 updates of a dense element matrix.
-    double Y[9];
-    const bool rot = NN > 0 && plan.qp_own_rot[q] && rotation_stiffness_matrix(R, F, mu, lambda, w, Y);
-    // K_ab = w (lambda h_a h_b^T + mu h_b h_a^T + mu (g_a . g_b) I)
-    const double wl = w * lambda, wm = w * mu;
-    double* blk = Kl;
-    for (int a = 0; a < n; ++a) {
-      const double ha0 = h[3 * a], ha1 = h[3 * a + 1], ha2 = h[3 * a + 2];
-      const double la0 = wl * ha0, la1 = wl * ha1, la2 = wl * ha2;
-      const double ma0 = wm * ha0, ma1 = wm * ha1, ma2 = wm * ha2;
-      const double ga0 = wm * g[3 * a], ga1 = wm * g[3 * a + 1], ga2 = wm * g[3 * a + 2];
-      if (!rot) {
-        for (int b = a; b < n; ++b, blk += 9) {
-          const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
-          const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
-          blk[0] += la0 * hb0 + hb0 * ma0 + gg;
-          blk[1] += la0 * hb1 + hb0 * ma1;
-          blk[2] += la0 * hb2 + hb0 * ma2;
-          blk[3] += la1 * hb0 + hb1 * ma0;
-          blk[4] += la1 * hb1 + hb1 * ma1 + gg;
-          blk[5] += la1 * hb2 + hb1 * ma2;
-          blk[6] += la2 * hb0 + hb2 * ma0;
-          blk[7] += la2 * hb1 + hb2 * ma1;
-          blk[8] += la2 * hb2 + hb2 * ma2 + gg;
-        }
-        continue;
-      }
-      // G = [h_a]x Y, row-major (Y symmetric, column-major = row-major).
-      double G[9];
-      for (int l = 0; l < 3; ++l) {
-        G[l] = ha1 * Y[3 * l + 2] - ha2 * Y[3 * l + 1];
-        G[3 + l] = ha2 * Y[3 * l] - ha0 * Y[3 * l + 2];
-        G[6 + l] = ha0 * Y[3 * l + 1] - ha1 * Y[3 * l];
-      }
-      for (int b = a; b < n; ++b, blk += 9) {
-        const double hb0 = h[3 * b], hb1 = h[3 * b + 1], hb2 = h[3 * b + 2];
-        const double gg = ga0 * g[3 * b] + ga1 * g[3 * b + 1] + ga2 * g[3 * b + 2];
-        blk[0] += la0 * hb0 + hb0 * ma0 + gg + (hb1 * G[2] - hb2 * G[1]);
-        blk[1] += la0 * hb1 + hb0 * ma1 + (hb2 * G[0] - hb0 * G[2]);
-        blk[2] += la0 * hb2 + hb0 * ma2 + (hb0 * G[1] - hb1 * G[0]);
-        blk[3] += la1 * hb0 + hb1 * ma0 + (hb1 * G[5] - hb2 * G[4]);
-        blk[4] += la1 * hb1 + hb1 * ma1 + gg + (hb2 * G[3] - hb0 * G[5]);
-        blk[5] += la1 * hb2 + hb1 * ma2 + (hb0 * G[4] - hb1 * G[3]);
-        blk[6] += la2 * hb0 + hb2 * ma0 + (hb1 * G[8] - hb2 * G[7]);
-        blk[7] += la2 * hb1 + hb2 * ma1 + (hb2 * G[6] - hb0 * G[8]);
-        blk[8] += la2 * hb2 + hb2 * ma2 + gg + (hb0 * G[7] - hb1 * G[6]);
-      }
-    }
-    if constexpr (NN == 0) {
-      double uk[9], coef[3];
-      if (plan.qp_own_rot[q] && rotation_stiffness_modes(R, F, mu, lambda, w, uk, coef))
-        add_rotation_stiffness(n, h, uk, coef, Kl, t);
-    }
-  }
-  if (K) {
-    scatter_blocks(m, e, nblk, Kl, K, cache, cached);
-  }
+  double* Kout = K ? Kl : nullptr;  // the element's blocks, when they are made
+  if (K) slot_rotation_terms<NN>(m, plan, e, n, xe, Rall, cache, Kl, h, t);
+  if (plan.elem_condensed[e]) condensed_element_terms(m, plan, e, n, nodes, xe, Rall, f, Kout, h, t);
+  else
+    for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q)
+      point_terms<NN>(m, plan, e, q, n, nodes, xe, Rall, Fs, f, Kout, h, t);
+  if (K) scatter_blocks(m, e, nblk, Kl, K, cache, cached);
   return fallbacks;
 }
 

@@ -2,10 +2,10 @@
 // Rotation part of a deformation gradient, inversion-safe.
 //
 // R = argmax_{R in SO(3)} tr(R^T F): for det F > 0 this is the polar factor of
-// F = R S (book eq. 3.62); for det F <= 0 it is U diag(1, 1, -1) V^T with the
-// smallest singular value's sign flipped, so det R = +1 always and an inverted
-// element is pushed back out (Irving et al. 2004; Teran's lectures on
-// inversion-robust models). Solved by the fixed-point rotation iteration of
+// F = R S ([book] eq. (3.62)); for det F <= 0 it is U diag(1, 1, -1) V^T with
+// the smallest singular value's sign flipped, so det R = +1 always and an
+// inverted element is pushed back out (Irving et al. 2004; [lectures] Lecture
+// 3 on inversion-robust models). Solved by the fixed-point rotation iteration of
 // Mueller et al. 2016 warm-started from last frame's R; falls back to an SVD if
 // it has not converged in a few dozen iterations.
 #include <vector>

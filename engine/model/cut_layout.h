@@ -4,8 +4,8 @@
 // surfaces; it sees pieces of elements, their sub-tetrahedra, and which
 // enriched DOF node each piece adds to each element node.
 //
-// Enrichment (preprint 4.2, shifted Heaviside generalised to several cuts):
-// in piece P of element e the displacement is
+// Enrichment ([preprint] eqs. (42), (44): shifted Heaviside, generalised to
+// several cuts): in piece P of element e the displacement is
 //   u(x) = sum_a N_a(x) (u_a + q_{enr(P,a)}),
 // i.e. node a's standard DOF u_a plus, when P lies in another region of a's
 // support than a's home region, that region's enriched DOF q. This is

@@ -72,7 +72,7 @@ struct Model {
   // their frozen-R tangent R^ K0 R^T (R^ = diag(R, ...)), so assembly rotates
   // this matrix instead of integrating the piece's many sub-element points.
   // A piece displaces its mesh node a by d_a = u_a + q_a (q_a: the piece's
-  // enriched DOF node at a, if any; preprint eq. 64), so K0 is kept over the
+  // enriched DOF node at a, if any; [preprint] eq. (66)), so K0 is kept over the
   // npe mesh nodes in d and spread onto the element's u and q at assembly:
   // a quarter of the blocks of the same matrix over all the DOF nodes.
   std::vector<int> rot_K0_ptr;     // (nrot + 1) into rot_K0; an empty range: the slot's points are integrated
@@ -110,7 +110,7 @@ struct Model {
                                    // policies and every model built without a base; a cut rebuild of
                                    // another corotated model leaves it empty (rest_stiffness() makes it)
 
-  // Constraints (book Algorithm 1: projection keeps the pattern and SPD)
+  // Constraints ([book] Algorithm 1: projection keeps the pattern and SPD)
   std::vector<int> fixed_dofs;     // sorted, unique; constrained to 0
   struct PrescribedDof {
     int dof;
@@ -131,11 +131,11 @@ struct Model {
   }
 };
 
-// Newmark's update (book eq. 3.58 for beta = 1/4, gamma = 1/2, in general
+// Newmark's update ([book] eq. (3.58) for beta = 1/4, gamma = 1/2, in general
 // form) in terms of the step's increment Delta = u1 - u:
 //   a1 = a_d Delta + a_v v + a_a a,   v1 = v_d Delta + v_v v + v_a a,
 // and the dynamic matrix A = cM M + cK K with Rayleigh damping D = a M + b K
-// (eq. 3.59 in general form): cM = 1/(beta dt^2) + a gamma/(beta dt),
+// ([book] eq. (3.59) in general form): cM = 1/(beta dt^2) + a gamma/(beta dt),
 // cK = 1 + b gamma/(beta dt).
 struct NewmarkCoefficients {
   double a_d, a_v, a_a, v_d, v_v, v_a, cM, cK;
@@ -155,6 +155,8 @@ Model build_model(const Mesh& mesh, const Scene& scene, const CutLayout* cuts = 
 // mesh; no cuts = one whole piece): enrichment up to renumbering, split flag
 // and sub-tetrahedra. build_model copies such elements' integration data.
 bool same_element_pieces(const Model& m, const Model& base, int e);
+
+std::vector<int> element_slot_ptr(const Model& m);  // (nelem + 1) first rotation slot of each element
 
 // The rest stiffness K0 (R = I) in the model's pattern, (nnz).
 std::vector<double> rest_stiffness(const Model& model);

@@ -9,6 +9,7 @@
 
 #include "engine/fem/assemble.h"
 #include "engine/fem/element.h"
+#include "engine/fem/polar.h"
 #include "engine/util/error.h"
 #include "engine/mesh/mesh_tools.h"
 #include "engine/model/model.h"
@@ -102,7 +103,9 @@ bool same_pieces(const Model& m, const Model& base, int e) {
   return true;
 }
 
-// First rotation slot of each element, (nelem + 1): slots are numbered element by element.
+}  // namespace
+
+// Slots are numbered element by element: a count per element, summed.
 std::vector<int> element_slot_ptr(const Model& m) {
   std::vector<int> ptr(m.nelem + 1, 0);
   for (int r = 0; r < m.nrot; ++r) ++ptr[m.rot_elem[r] + 1];
@@ -110,12 +113,175 @@ std::vector<int> element_slot_ptr(const Model& m) {
   return ptr;
 }
 
+namespace {
+
+// Work arrays of build_elements, sized once for all elements.
+struct ElementWork {
+  std::vector<double> Xe;     // (npe, 3) the element's node positions
+  std::vector<double> grad;   // (npe, 3) shape function gradients at a point
+  std::vector<double> gmask;  // (n, 3) gradients spread over the element's n DOF nodes
+  std::vector<int> local;     // (n) DOF nodes of the element
+};
+
+// Reserves m's per-element arrays for about base's sizes: no regrowth copies
+// of these (MB-sized) arrays.
+void reserve_like_base(Model& m, const Model& base, std::vector<int>& slot_src) {
+  const auto room = [](auto& v, size_t n) { v.reserve(n + n / 8 + 64); };
+  room(m.elem_dof_node, base.elem_dof_node.size());
+  room(m.qp_weight, base.qp_weight.size());
+  room(m.qp_grad, base.qp_grad.size());
+  room(m.qp_grad_ptr, base.qp_grad_ptr.size());
+  room(m.qp_rot, base.qp_rot.size());
+  room(m.rot_elem, base.rot_elem.size());
+  room(slot_src, base.rot_elem.size());
+  room(m.rot_grad, base.rot_grad.size());
+  room(m.rot_grad_ptr, base.rot_grad_ptr.size());
+}
+
+// The element's DOF nodes into `local` and m.elem_dof_node: its nodes, then
+// the enriched DOF nodes its pieces use ([preprint] eq. (45): appended).
+void add_element_dof_nodes(Model& m, const int* nodes, const std::vector<PieceView>& pieces, std::vector<int>& local) {
+  const int npe = m.mesh.npe();
+  local.assign(nodes, nodes + npe);
+  for (const PieceView& P : pieces)
+    for (int a = 0; P.enr && a < npe; ++a)
+      if (P.enr[a] >= 0 && std::find(local.begin() + npe, local.end(), P.enr[a]) == local.end())
+        local.push_back(P.enr[a]);
+  m.elem_dof_node.insert(m.elem_dof_node.end(), local.begin(), local.end());
+  m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
+}
+
+// Element e's rotation slots, points and volume copied from B, whose pieces
+// of e are the same (base_slot: B's element_slot_ptr).
+void copy_element_from_base(Model& m, const Model& B, int e, const std::vector<int>& base_slot,
+                            std::vector<int>& slot_src) {
+  const int shift = static_cast<int>(m.rot_elem.size()) - base_slot[e];  // new slot id - base slot id
+  for (int r = base_slot[e]; r < base_slot[e + 1]; ++r) {
+    m.rot_elem.push_back(e);
+    slot_src.push_back(r);
+    m.rot_grad.insert(m.rot_grad.end(), B.rot_grad.begin() + B.rot_grad_ptr[r], B.rot_grad.begin() + B.rot_grad_ptr[r + 1]);
+    m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+  }
+  for (int q = B.elem_qp_ptr[e]; q < B.elem_qp_ptr[e + 1]; ++q) {
+    m.qp_weight.push_back(B.qp_weight[q]);
+    m.qp_grad.insert(m.qp_grad.end(), B.qp_grad.begin() + B.qp_grad_ptr[q], B.qp_grad.begin() + B.qp_grad_ptr[q + 1]);
+    m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
+    m.qp_rot.push_back(B.qp_rot[q] + shift);
+  }
+  m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
+  m.elem_volume[e] = B.elem_volume[e];
+}
+
+// Gradients g (npe, 3) spread over the element's DOF nodes `local` for piece
+// P: node a's, and its enriched DOF node's where P has one ([preprint] eq.
+// (42) with Psi = 1 in the piece's region, 0 elsewhere).
+void spread_gradients(int npe, const std::vector<int>& local, const PieceView& P, const double* g,
+                      std::vector<double>& gmask) {
+  gmask.assign(3 * local.size(), 0.0);
+  for (int a = 0; a < npe; ++a)
+    for (int d = 0; d < 3; ++d) gmask[3 * a + d] = g[3 * a + d];
+  for (int a = 0; P.enr && a < npe; ++a)
+    if (P.enr[a] >= 0) {
+      const int j = static_cast<int>(std::find(local.begin() + npe, local.end(), P.enr[a]) - local.begin());
+      for (int d = 0; d < 3; ++d) gmask[3 * j + d] = g[3 * a + d];
+    }
+}
+
+// Piece P's cubature points over its sub-tetrahedra (sub-element integration,
+// [preprint] eq. (52)): weights, gradients, the element's volume, and the
+// rotation slot of each point: its own (point_rot) or `slot`.
+void add_piece_points(Model& m, const Cubature& cub, int e, const PieceView& P, bool point_rot, int slot,
+                      ElementWork& w, std::vector<int>& slot_src) {
+  const int npe = m.mesh.npe();
+  for (int sidx = 0; sidx < P.nsub; ++sidx) {
+    const double* sub = P.rst ? P.rst + 12 * sidx : kRefTet;
+    const double jac = 6.0 * subtet_ref_volume(sub);  // reference tet -> sub-tet
+    for (int q = 0; q < cub.npoint(); ++q) {
+      double r[3];
+      map_to_element(sub, &cub.rst[3 * q], r);
+      const double detJ = shape_global_gradients(npe, w.Xe.data(), r, w.grad.data());
+      if (!(detJ > 0.0)) {
+        std::ostringstream os;
+        os << m.mesh.source << ": element " << e << " has a non-positive Jacobian (" << detJ
+           << ") at a cubature point: inverted or badly curved";
+        throw Error(os.str());
+      }
+      spread_gradients(npe, w.local, P, w.grad.data(), w.gmask);
+      m.qp_weight.push_back(cub.weight[q] * jac * detJ);
+      m.elem_volume[e] += cub.weight[q] * jac * detJ;
+      m.qp_grad.insert(m.qp_grad.end(), w.gmask.begin(), w.gmask.end());
+      m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
+      if (point_rot) {
+        m.rot_elem.push_back(e);
+        slot_src.push_back(-1);
+        m.rot_grad.insert(m.rot_grad.end(), w.gmask.begin(), w.gmask.end());
+        m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+      }
+      m.qp_rot.push_back(point_rot ? static_cast<int>(m.rot_elem.size()) - 1 : slot);
+    }
+  }
+}
+
+// The gradients of a piece's slot: for a piece of a split element the volume
+// average of its points' gradients (points q_first on), else the
+// corner-linear gradients gc spread over the DOF nodes.
+void add_piece_rotation_gradients(Model& m, int q_first, bool split, const PieceView& P, const double* gc,
+                                  ElementWork& w) {
+  if (split) {
+    const int n = static_cast<int>(w.local.size());
+    std::vector<double> avg(3 * n, 0.0);
+    double vol = 0.0;
+    for (int q = q_first; q < static_cast<int>(m.qp_weight.size()); ++q) {
+      for (int k = 0; k < 3 * n; ++k) avg[k] += m.qp_weight[q] * m.qp_grad[m.qp_grad_ptr[q] + k];
+      vol += m.qp_weight[q];
+    }
+    for (double& v : avg) v /= vol;
+    m.rot_grad.insert(m.rot_grad.end(), avg.begin(), avg.end());
+  } else {
+    spread_gradients(m.mesh.npe(), w.local, P, gc, w.gmask);  // mid-edge entries of gc are 0
+    m.rot_grad.insert(m.rot_grad.end(), w.gmask.begin(), w.gmask.end());
+  }
+  m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+}
+
+// Integrates element e (node ids `nodes`, DOF nodes in w.local): its pieces'
+// points and rotation slots. Rotation source: whole elements per cubature
+// point (tet10 per_point) or the corner-linear gradient (tet4, tet10SR);
+// pieces of a split element one rotation per piece from its volume-averaged
+// gradient (one rotation per side, [preprint] eqs. (64)-(71)). A whole element
+// that only carries enrichment keeps its per-point rotations, so a cut along
+// element faces is exactly the node-duplicated mesh (tests/cutting).
+void integrate_element(Model& m, const Cubature& cub, bool per_point, int e, const int* nodes,
+                       const std::vector<PieceView>& pieces, ElementWork& w, std::vector<int>& slot_src) {
+  const int npe = m.mesh.npe();
+  for (int a = 0; a < npe; ++a)
+    for (int d = 0; d < 3; ++d) w.Xe[3 * a + d] = m.mesh.X[3 * nodes[a] + d];
+  const bool split = m.has_cuts() && m.cuts.elem_split[e];
+  const bool point_rot = per_point && !split;
+  double gc[30] = {0};  // corner-linear gradients
+  if (!per_point && !split) {
+    double Xc[12];
+    std::copy(w.Xe.begin(), w.Xe.begin() + 12, Xc);
+    const double mid[3] = {0.25, 0.25, 0.25};
+    shape_global_gradients(4, Xc, mid, gc);
+  }
+  for (const PieceView& P : pieces) {
+    const int q_first = static_cast<int>(m.qp_weight.size());
+    if (!point_rot) m.rot_elem.push_back(e), slot_src.push_back(-1);  // the piece's slot; gradients below
+    const int slot = static_cast<int>(m.rot_elem.size()) - 1;
+    add_piece_points(m, cub, e, P, point_rot, slot, w, slot_src);
+    if (!point_rot) add_piece_rotation_gradients(m, q_first, split, P, gc, w);
+  }
+  m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
+}
+
 // Per element: DOF nodes (its nodes, then the enriched DOF nodes its pieces
 // use), quadrature points over every piece's sub-tetrahedra with the
-// gradients of each DOF node's shape function in that piece (preprint eq. 64:
-// an enriched DOF node carries N_a in the pieces of its region, 0 elsewhere),
-// and rotation slots: per cubature point (tet10 per_point), else one per
-// piece (tet4, tet10SR; the preprint's one rotation per side, eq. 64-71).
+// gradients of each DOF node's shape function in that piece (an enriched DOF
+// node carries N_a in the pieces of its region, 0 elsewhere: [preprint] eqs.
+// (42), (44)), and rotation slots: per cubature point (tet10 per_point), else
+// one per piece (tet4, tet10SR; one rotation per side, [preprint] eqs.
+// (64)-(71)).
 //
 // With `base` (same mesh and scene), an element whose pieces are unchanged
 // copies its DOF nodes, points and slots from base; slot_src (nrot) then gives
@@ -131,136 +297,26 @@ void build_elements(Model& m, const Scene& scene, const Model* base, std::vector
   m.qp_grad_ptr.assign(1, 0);
   m.rot_grad_ptr.assign(1, 0);
   m.elem_volume.assign(m.nelem, 0.0);
-  std::vector<double> Xe(3 * npe), grad(3 * npe), gmask;
-  std::vector<int> local;  // DOF node list of the element
+  ElementWork w;
+  w.Xe.resize(3 * npe);
+  w.grad.resize(3 * npe);
   slot_src.clear();
   const std::vector<int> base_slot = base ? element_slot_ptr(*base) : std::vector<int>{};
-  if (base) {  // about base's sizes: no regrowth copies of these (MB-sized) arrays
-    const auto room = [](auto& v, size_t n) { v.reserve(n + n / 8 + 64); };
-    room(m.elem_dof_node, base->elem_dof_node.size());
-    room(m.qp_weight, base->qp_weight.size());
-    room(m.qp_grad, base->qp_grad.size());
-    room(m.qp_grad_ptr, base->qp_grad_ptr.size());
-    room(m.qp_rot, base->qp_rot.size());
-    room(m.rot_elem, base->rot_elem.size());
-    room(slot_src, base->rot_elem.size());
-    room(m.rot_grad, base->rot_grad.size());
-    room(m.rot_grad_ptr, base->rot_grad_ptr.size());
-  }
+  if (base) reserve_like_base(m, *base, slot_src);
   for (int e = 0; e < m.nelem; ++e) {
     const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
-    for (int a = 0; a < npe; ++a)
-      for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
     const std::vector<PieceView> pieces = pieces_of(m, e);
-    local.assign(nodes, nodes + npe);
-    for (const PieceView& P : pieces)
-      for (int a = 0; P.enr && a < npe; ++a)
-        if (P.enr[a] >= 0 && std::find(local.begin() + npe, local.end(), P.enr[a]) == local.end())
-          local.push_back(P.enr[a]);
-    const int n = static_cast<int>(local.size());
-    m.elem_dof_node.insert(m.elem_dof_node.end(), local.begin(), local.end());
-    m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
-    if (base && same_pieces(m, *base, e)) {
-      const Model& B = *base;
-      const int shift = static_cast<int>(m.rot_elem.size()) - base_slot[e];  // new slot id - base slot id
-      for (int r = base_slot[e]; r < base_slot[e + 1]; ++r) {
-        m.rot_elem.push_back(e);
-        slot_src.push_back(r);
-        m.rot_grad.insert(m.rot_grad.end(), B.rot_grad.begin() + B.rot_grad_ptr[r], B.rot_grad.begin() + B.rot_grad_ptr[r + 1]);
-        m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
-      }
-      for (int q = B.elem_qp_ptr[e]; q < B.elem_qp_ptr[e + 1]; ++q) {
-        m.qp_weight.push_back(B.qp_weight[q]);
-        m.qp_grad.insert(m.qp_grad.end(), B.qp_grad.begin() + B.qp_grad_ptr[q], B.qp_grad.begin() + B.qp_grad_ptr[q + 1]);
-        m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
-        m.qp_rot.push_back(B.qp_rot[q] + shift);
-      }
-      m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
-      m.elem_volume[e] = B.elem_volume[e];
-      continue;
-    }
-    // Gradients g (npe, 3) spread over the element's DOF nodes for one piece.
-    auto spread = [&](const PieceView& P, const double* g) {
-      gmask.assign(3 * n, 0.0);
-      for (int a = 0; a < npe; ++a)
-        for (int d = 0; d < 3; ++d) gmask[3 * a + d] = g[3 * a + d];
-      for (int a = 0; P.enr && a < npe; ++a)
-        if (P.enr[a] >= 0) {
-          const int j = static_cast<int>(std::find(local.begin() + npe, local.end(), P.enr[a]) - local.begin());
-          for (int d = 0; d < 3; ++d) gmask[3 * j + d] = g[3 * a + d];
-        }
-    };
-    // Rotation source. Whole elements: per cubature point (tet10 per_point) or
-    // the corner-linear gradient (tet4, tet10SR). Pieces of a split element:
-    // one rotation per piece from its volume-averaged gradient (preprint eq.
-    // 64-71: one rotation per side). A whole element that only carries
-    // enrichment keeps its per-point rotations, so a cut along element faces
-    // is exactly the node-duplicated mesh (tests/cutting).
-    const bool split = m.has_cuts() && m.cuts.elem_split[e];
-    const bool point_rot = per_point && !split;
-    double gc[30] = {0};  // corner-linear gradients
-    if (!per_point && !split) {
-      double Xc[12];
-      std::copy(Xe.begin(), Xe.begin() + 12, Xc);
-      const double mid[3] = {0.25, 0.25, 0.25};
-      shape_global_gradients(4, Xc, mid, gc);
-    }
-    for (const PieceView& P : pieces) {
-      const int q_first = static_cast<int>(m.qp_weight.size());
-      if (!point_rot) m.rot_elem.push_back(e), slot_src.push_back(-1);  // the piece's slot; gradients below
-      const int slot = static_cast<int>(m.rot_elem.size()) - 1;
-      for (int sidx = 0; sidx < P.nsub; ++sidx) {
-        const double* sub = P.rst ? P.rst + 12 * sidx : kRefTet;
-        const double jac = 6.0 * subtet_ref_volume(sub);  // reference tet -> sub-tet
-        for (int q = 0; q < cub.npoint(); ++q) {
-          double r[3];
-          map_to_element(sub, &cub.rst[3 * q], r);
-          const double detJ = shape_global_gradients(npe, Xe.data(), r, grad.data());
-          if (!(detJ > 0.0)) {
-            std::ostringstream os;
-            os << mesh.source << ": element " << e << " has a non-positive Jacobian (" << detJ
-               << ") at a cubature point: inverted or badly curved";
-            throw Error(os.str());
-          }
-          spread(P, grad.data());
-          m.qp_weight.push_back(cub.weight[q] * jac * detJ);
-          m.elem_volume[e] += cub.weight[q] * jac * detJ;
-          m.qp_grad.insert(m.qp_grad.end(), gmask.begin(), gmask.end());
-          m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
-          if (point_rot) {
-            m.rot_elem.push_back(e);
-            slot_src.push_back(-1);
-            m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
-            m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
-          }
-          m.qp_rot.push_back(point_rot ? static_cast<int>(m.rot_elem.size()) - 1 : slot);
-        }
-      }
-      if (point_rot) continue;
-      if (split) {  // volume average of the piece's point gradients
-        std::vector<double> avg(3 * n, 0.0);
-        double vol = 0.0;
-        for (int q = q_first; q < static_cast<int>(m.qp_weight.size()); ++q) {
-          for (int k = 0; k < 3 * n; ++k) avg[k] += m.qp_weight[q] * m.qp_grad[m.qp_grad_ptr[q] + k];
-          vol += m.qp_weight[q];
-        }
-        for (double& v : avg) v /= vol;
-        m.rot_grad.insert(m.rot_grad.end(), avg.begin(), avg.end());
-      } else {
-        spread(P, gc);  // mid-edge entries of gc are 0
-        m.rot_grad.insert(m.rot_grad.end(), gmask.begin(), gmask.end());
-      }
-      m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
-    }
-    m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
+    add_element_dof_nodes(m, nodes, pieces, w.local);
+    if (base && same_pieces(m, *base, e)) copy_element_from_base(m, *base, e, base_slot, slot_src);
+    else integrate_element(m, cub, per_point, e, nodes, pieces, w, slot_src);
   }
   m.nrot = static_cast<int>(m.rot_elem.size());
 }
 
 // Rest stiffness of each piece of a split element (Model::rot_K0): K0 =
 // sum_q w (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I) over the
-// piece's points (the corotated point stiffness with R = I, book eq. 4.22
-// form). Split elements hold 12-50 sub-element points per piece and twice the
+// piece's points (the corotated point stiffness with R = I: [book] eq. (A.38),
+// eq. (A.51) at R = I). Split elements hold 12-50 sub-element points per piece and twice the
 // DOF nodes of a whole one; rotating K0 per frame costs a tenth of integrating them.
 // A slot with slot_src >= 0 copies base's matrix of that slot.
 void build_slot_stiffness(Model& m, const Model* base, const std::vector<int>& slot_src) {
@@ -559,25 +615,182 @@ void build_pattern(Model& m) {
   }
 }
 
+// Work arrays of build_mass, sized once for all elements.
+struct MassWork {
+  const Mesh& mesh;
+  double rho;
+  Cubature cub;  // rho N_a N_b det J: degree 2p in the shape functions plus 3 for a curved tet10 map
+  std::vector<double> Xe, N, grad;  // (npe, 3), (npe), (npe, 3)
+  std::vector<double> Me, Mp;       // (npe, npe) the element's and a piece's rho int N_a N_b
+  std::vector<double> hrz;          // (npe) the element's HRZ lumped masses
+  MassWork(const Mesh& mesh_, double rho_) : mesh(mesh_), rho(rho_), cub(cubature_duffy(mesh_.npe() == 4 ? 2 : 7)) {
+    const int npe = mesh.npe();
+    Xe.resize(3 * npe), N.resize(npe), grad.resize(3 * npe), Me.resize(npe * npe), Mp.resize(npe * npe);
+    hrz.resize(npe);
+  }
+};
+
+// M (npe, npe) += rho wq N N^T at one point. -O2 vectorizes a loop only when
+// it needs no run-time check: N and M are distinct (restrict) and npe is
+// even (Mesh::npe() is 4 or 10, seen where this is inlined).
+inline void add_point_mass(int npe, double rho, double wq, const double* __restrict N, double* __restrict M) {
+  for (int a = 0; a < npe; ++a)
+    for (int b = 0; b < npe; ++b) M[a * npe + b] += rho * wq * N[a] * N[b];
+}
+
+// out (npe, npe) = rho int N_a N_b over nsub sub-tets `subs` (null: the whole
+// element) of the element at w.Xe: sub-element integration, [preprint] eq. (52).
+void integrate_mass(const double* subs, int nsub, MassWork& w, std::vector<double>& out) {
+  const int npe = w.mesh.npe();
+  const Cubature& cub = w.cub;
+  std::fill(out.begin(), out.end(), 0.0);
+  for (int k = 0; k < nsub; ++k) {
+    const double* sub = subs ? subs + 12 * k : kRefTet;
+    const double jac = 6.0 * subtet_ref_volume(sub);
+    for (int q = 0; q < cub.npoint(); ++q) {
+      double r[3];
+      map_to_element(sub, &cub.rst[3 * q], r);
+      const double wq = cub.weight[q] * jac * shape_global_gradients(npe, w.Xe.data(), r, w.grad.data());
+      shape_values(npe, r, w.N.data());
+      add_point_mass(npe, w.rho, wq, w.N.data(), out.data());
+    }
+  }
+}
+
+// Element e's whole mass matrix into w.Me (the model's cache m.elem_mass when
+// `reuse`, else integrated and cached) and its HRZ diagonal into w.hrz:
+// rho V Me_aa / tr Me.
+void element_mass(Model& m, int e, bool reuse, MassWork& w) {
+  const int npe = w.mesh.npe();
+  double* Mcache = &m.elem_mass[static_cast<size_t>(e) * npe * npe];
+  if (!reuse) {
+    integrate_mass(nullptr, 1, w, w.Me);
+    std::copy(w.Me.begin(), w.Me.end(), Mcache);
+  } else {
+    std::copy(Mcache, Mcache + npe * npe, w.Me.begin());
+  }
+  double vol = 0.0;  // rho V = sum of the entries (partition of unity)
+  for (double v : w.Me) vol += v;
+  vol /= w.rho;
+  double trace = 0.0;
+  for (int a = 0; a < npe; ++a) trace += w.Me[a * npe + a];
+  for (int a = 0; a < npe; ++a) w.hrz[a] = w.rho * vol * w.Me[a * npe + a] / trace;
+}
+
+// Adds value to the (i, j) entries (i, j: local DOF nodes of an element with n
+// of them and scatter sc) of every component of m.mass_csc.
+inline void add_mass_entry(Model& m, const int* sc, int n, int i, int j, double value) {
+  if (i > j) std::swap(i, j);
+  const int blk = i * n - i * (i - 1) / 2 + (j - i);  // index of block (i, j), i <= j
+  for (int c = 0; c < 3; ++c) m.mass_csc[sc[9 * blk + 4 * c]] += value;
+}
+
+// Piece P's mass in element e. The lumped masses (frac * HRZ) go to
+// mass_lumped in both modes (reported, and used by lumped-mass policies); the
+// sparse matrix gets the lumped u-q couplings or the consistent piece matrix
+// over d_a = u_a + q, mapped to (u, q).
+void add_piece_mass(Model& m, int e, const PieceView& P, bool lumped, bool sparse, MassWork& w) {
+  const int npe = w.mesh.npe();
+  const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * npe];
+  const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
+  const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+  const bool whole = P.rst == nullptr;
+  double frac = 1.0;
+  if (!whole) {
+    frac = 0.0;
+    for (int k = 0; k < P.nsub; ++k) frac += 6.0 * subtet_ref_volume(P.rst + 12 * k);
+  }
+  if (m.mass_kind == MassKind::Consistent) {
+    if (whole) w.Mp = w.Me;
+    else integrate_mass(P.rst, P.nsub, w, w.Mp);
+  }
+  // local DOF indices of d_a: u_a (index a) and, if enriched, q (index j)
+  int lq[10];
+  for (int a = 0; a < npe; ++a) {
+    lq[a] = -1;
+    if (P.enr && P.enr[a] >= 0)
+      for (int j = npe; j < n; ++j)
+        if (m.elem_dof_node[b0 + j] == P.enr[a]) lq[a] = j;
+  }
+  for (int a = 0; a < npe; ++a) {
+    const double ma = frac * w.hrz[a];
+    if (!lumped)
+      for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += ma;
+    if (lq[a] >= 0)
+      for (int d = 0; d < 3; ++d) m.mass_lumped[3 * P.enr[a] + d] += ma;
+    if (lumped) {
+      if (sparse && lq[a] >= 0) {
+        add_mass_entry(m, sc, n, a, lq[a], ma);
+        add_mass_entry(m, sc, n, lq[a], lq[a], ma);
+      }
+      continue;
+    }
+    for (int b = a; b < npe; ++b) {
+      const double v = w.Mp[a * npe + b];
+      const int ia[2] = {a, lq[a]}, ib[2] = {b, lq[b]};
+      for (int x : ia)
+        for (int y : ib) {
+          if (x < 0 || y < 0) continue;
+          // (a, b) and (b, a) both map here when a != b; the block is
+          // symmetric, so add once per unordered pair of local indices.
+          if (a == b && x > y) continue;
+          add_mass_entry(m, sc, n, x, y, v);
+        }
+    }
+  }
+}
+
+// Lumped with enrichment: the standard block is diagonal (add_mass_entry(a,
+// a) never happens), so the off-diagonal nonzeros are the u-q couplings in
+// the enriched columns, and the diagonal is mass_lumped (the same sums in the
+// same order). Products with M then cost O(ndof) instead of a pass over the
+// whole pattern.
+void collect_mass_couplings(Model& m, bool lumped_sparse) {
+  m.mass_coupling.clear();
+  m.mass_coupling_col.clear();
+  if (!lumped_sparse) return;
+  for (int c = 3 * m.nnode; c < m.ndof(); ++c)
+    for (int k = m.Ap[c]; k < m.diag[c]; ++k)
+      if (m.mass_csc[k] != 0.0) {
+        m.mass_coupling.push_back(k);
+        m.mass_coupling_col.push_back(c);
+      }
+}
+
+// Gravity load f = M g with g on the standard DOFs only: the field u = g t^2/2,
+// q = 0 is exact free fall for every piece.
+void build_gravity(Model& m, const Scene& scene) {
+  m.f_gravity.assign(m.ndof(), 0.0);
+  if (m.mass_kind == MassKind::Lumped) {
+    // Lumped with enrichment, M couples only u_a and q of the same node and
+    // component with M_uq = M_qq = m_q (add_piece_mass), so M g (g on the u's)
+    // is m_q g on q and the u's own diagonal (every piece's share) times g:
+    // mass_lumped times g on every DOF, the DOF's component of g.
+    for (int d = 0; d < m.ndof(); ++d) m.f_gravity[d] = m.mass_lumped[d] * scene.gravity[d % 3];
+  } else {  // consistent: the sparse product
+    std::vector<double> g(m.ndof(), 0.0);
+    for (int d = 0; d < 3 * m.nnode; ++d) g[d] = scene.gravity[d % 3];
+    sym_matvec(m, m.mass_csc.data(), g.data(), m.f_gravity.data());
+  }
+}
+
 // Mass per piece in the "piece DOF" space d_a = u_a + q_enr(a) (the
-// displacement of node a as the piece sees it), then mapped to (u, q):
-// consistent M_ab = int_P rho N_a N_b, or lumped: the element's HRZ diagonal
-// (positive for tet10, where row sums give -1/20 rho V at corners) times the
-// piece's volume fraction. Lumping per piece and mapping keeps the coupling
-// M(u_a, q) = M(q, q) = m_a^P: the diagonal is the preprint's X-FEM lumping
-// (eq. 81-82 with Psi = chi_region), the coupling makes a separated piece fall
-// freely at exactly g. Without enrichment the lumped mass is diagonal.
+// displacement of node a as the piece sees it, [preprint] eq. (66)), then
+// mapped to (u, q): consistent M_ab = int_P rho N_a N_b ([preprint] eqs.
+// (77)-(80)), or lumped: the element's HRZ diagonal (positive for tet10, where
+// row sums give -1/20 rho V at corners) times the piece's volume fraction.
+// Lumping per piece and mapping keeps the coupling M(u_a, q) = M(q, q) =
+// m_a^P: the diagonal is the X-FEM lumping of [preprint] eqs. (81)-(82) with
+// Psi = chi_region, the coupling makes a separated piece fall freely at
+// exactly g. Without enrichment the lumped mass is diagonal.
 void build_mass(Model& m, const Scene& scene, const Model* base) {
   const Mesh& mesh = m.mesh;
   const int npe = mesh.npe();
-  const double rho = scene.material.density;
-  // rho N_a N_b det J: degree 2p in the shape functions plus 3 for a curved tet10 map.
-  const Cubature cub = cubature_duffy(npe == 4 ? 2 : 7);
+  MassWork w(mesh, scene.material.density);
   const bool enriched = m.ndofnode > m.nnode;
   const bool sparse = m.mass_kind == MassKind::Consistent || enriched;
   m.mass_lumped.assign(m.ndof(), 0.0);
   if (sparse) m.mass_csc.assign(m.nnz(), 0.0);
-  std::vector<double> Xe(3 * npe), N(npe), grad(3 * npe), Me(npe * npe), Mp(npe * npe), hrz(npe);
   const bool reuse = base && base->elem_mass.size() == static_cast<size_t>(m.nelem) * npe * npe;
   if (reuse) m.elem_mass = base->elem_mass;
   else m.elem_mass.assign(static_cast<size_t>(m.nelem) * npe * npe, 0.0);
@@ -595,130 +808,21 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
     const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
     if (incremental && m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e] == npe) continue;  // no enrichment
     for (int a = 0; a < npe; ++a)
-      for (int d = 0; d < 3; ++d) Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
-    // rho int N_a N_b over a set of sub-tets (null: the whole element)
-    auto integrate = [&](const double* subs, int nsub, std::vector<double>& out) {
-      std::fill(out.begin(), out.end(), 0.0);
-      double vol = 0.0;
-      for (int k = 0; k < nsub; ++k) {
-        const double* sub = subs ? subs + 12 * k : kRefTet;
-        const double jac = 6.0 * subtet_ref_volume(sub);
-        for (int q = 0; q < cub.npoint(); ++q) {
-          double r[3];
-          map_to_element(sub, &cub.rst[3 * q], r);
-          const double w = cub.weight[q] * jac * shape_global_gradients(npe, Xe.data(), r, grad.data());
-          shape_values(npe, r, N.data());
-          vol += w;
-          for (int a = 0; a < npe; ++a)
-            for (int b = 0; b < npe; ++b) out[a * npe + b] += rho * w * N[a] * N[b];
-        }
-      }
-      return vol;
-    };
-    double* Mcache = &m.elem_mass[static_cast<size_t>(e) * npe * npe];
-    if (!reuse) {
-      integrate(nullptr, 1, Me);
-      std::copy(Me.begin(), Me.end(), Mcache);
-    } else {
-      std::copy(Mcache, Mcache + npe * npe, Me.begin());
-    }
-    double vol = 0.0;  // rho V = sum of the entries (partition of unity)
-    for (double v : Me) vol += v;
-    vol /= rho;
-    double trace = 0.0;
-    for (int a = 0; a < npe; ++a) trace += Me[a * npe + a];
-    for (int a = 0; a < npe; ++a) hrz[a] = rho * vol * Me[a * npe + a] / trace;
-    const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
-    const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
-    // Adds value to the (i, j) entries (i, j: local DOF nodes) of every component.
-    auto add = [&](int i, int j, double value) {
-      if (i > j) std::swap(i, j);
-      const int blk = i * n - i * (i - 1) / 2 + (j - i);  // index of block (i, j), i <= j
-      for (int c = 0; c < 3; ++c) m.mass_csc[sc[9 * blk + 4 * c]] += value;
-    };
-    if (lumped && !incremental)  // the mesh nodes' own DOFs: the whole element's HRZ mass
+      for (int d = 0; d < 3; ++d) w.Xe[3 * a + d] = mesh.X[3 * nodes[a] + d];
+    element_mass(m, e, reuse, w);
+    if (lumped && !incremental) {  // the mesh nodes' own DOFs: the whole element's HRZ mass
+      const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
       for (int a = 0; a < npe; ++a) {
-        for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += hrz[a];
-        if (sparse) add(a, a, hrz[a]);
-      }
-    for (const PieceView& P : pieces_of(m, e)) {
-      const bool whole = P.rst == nullptr;
-      double frac = 1.0;
-      if (!whole) {
-        frac = 0.0;
-        for (int k = 0; k < P.nsub; ++k) frac += 6.0 * subtet_ref_volume(P.rst + 12 * k);
-      }
-      if (m.mass_kind == MassKind::Consistent) {
-        if (whole) Mp = Me;
-        else integrate(P.rst, P.nsub, Mp);
-      }
-      // local DOF indices of d_a: u_a (index a) and, if enriched, q (index j)
-      int lq[10];
-      for (int a = 0; a < npe; ++a) {
-        lq[a] = -1;
-        if (P.enr && P.enr[a] >= 0)
-          for (int j = npe; j < n; ++j)
-            if (m.elem_dof_node[b0 + j] == P.enr[a]) lq[a] = j;
-      }
-      for (int a = 0; a < npe; ++a) {
-        // The lumped masses are kept in both modes (reported, and used by lumped-mass policies).
-        const double ma = frac * hrz[a];
-        if (!lumped)
-          for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += ma;
-        if (lq[a] >= 0)
-          for (int d = 0; d < 3; ++d) m.mass_lumped[3 * P.enr[a] + d] += ma;
-        if (lumped) {
-          if (!sparse) continue;
-          if (lq[a] >= 0) {
-            add(a, lq[a], ma);
-            add(lq[a], lq[a], ma);
-          }
-          continue;
-        }
-        for (int b = a; b < npe; ++b) {
-          const double v = Mp[a * npe + b];
-          const int ia[2] = {a, lq[a]}, ib[2] = {b, lq[b]};
-          for (int x : ia)
-            for (int y : ib) {
-              if (x < 0 || y < 0) continue;
-              // (a, b) and (b, a) both map here when a != b; the block is
-              // symmetric, so add once per unordered pair of local indices.
-              if (a == b && x > y) continue;
-              add(x, y, v);
-            }
-        }
+        for (int d = 0; d < 3; ++d) m.mass_lumped[3 * nodes[a] + d] += w.hrz[a];
+        if (sparse) add_mass_entry(m, &m.elem_scatter[m.elem_scatter_ptr[e]], n, a, a, w.hrz[a]);
       }
     }
+    for (const PieceView& P : pieces_of(m, e)) add_piece_mass(m, e, P, lumped, sparse, w);
   }
   if (incremental && sparse)
     for (int d = 0; d < nstd; ++d) m.mass_csc[m.diag[d]] = m.mass_lumped[d];
-  // Lumped: the standard block is diagonal (add(a, a) only above), so the
-  // off-diagonal nonzeros are the u-q couplings in the enriched columns, and
-  // the diagonal is mass_lumped (the same sums in the same order). Products
-  // with M then cost O(ndof) instead of a pass over the whole pattern.
-  m.mass_coupling.clear();
-  m.mass_coupling_col.clear();
-  if (lumped && sparse)
-    for (int c = nstd; c < m.ndof(); ++c)
-      for (int k = m.Ap[c]; k < m.diag[c]; ++k)
-        if (m.mass_csc[k] != 0.0) {
-          m.mass_coupling.push_back(k);
-          m.mass_coupling_col.push_back(c);
-        }
-  // Gravity load f = M g with g on the standard DOFs only: the field u = g t^2/2,
-  // q = 0 is exact free fall for every piece.
-  m.f_gravity.assign(m.ndof(), 0.0);
-  if (m.mass_kind == MassKind::Lumped) {
-    // Lumped with enrichment, M couples only u_a and q of the same node and
-    // component with M_uq = M_qq = m_q (above), so M g (g on the u's) is
-    // m_q g on q and the u's own diagonal (every piece's share) times g:
-    // mass_lumped times g on every DOF, the DOF's component of g.
-    for (int d = 0; d < m.ndof(); ++d) m.f_gravity[d] = m.mass_lumped[d] * scene.gravity[d % 3];
-  } else {  // consistent: the sparse product
-    std::vector<double> g(m.ndof(), 0.0);
-    for (int d = 0; d < 3 * m.nnode; ++d) g[d] = scene.gravity[d % 3];
-    sym_matvec(m, m.mass_csc.data(), g.data(), m.f_gravity.data());
-  }
+  collect_mass_couplings(m, lumped && sparse);
+  build_gravity(m, scene);
 }
 
 void build_constraints(Model& m, const Scene& scene, const Model* base) {
@@ -864,7 +968,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   if (cuts && cuts->npiece() > 0) {
     m.cuts = *cuts;
     m.ndofnode += cuts->n_enriched;
-    m.X.resize(3 * static_cast<size_t>(m.ndofnode), 0.0);  // enriched DOF nodes: X = 0 (preprint eq. 64)
+    m.X.resize(3 * static_cast<size_t>(m.ndofnode), 0.0);  // enriched DOF nodes: X = 0 (no rest position, [preprint] eq. (66))
   }
   // base's per-element data is reusable when it was built for the same mesh and rotation mode.
   const Model* same = base && base->nelem == m.mesh.ntet() && base->nnode == m.nnode &&
@@ -907,8 +1011,8 @@ NewmarkCoefficients newmark_coefficients(const Model& m) {
 }
 
 std::vector<double> rest_stiffness(const Model& m) {
-  std::vector<double> K0(m.nnz(), 0.0), u(m.ndof(), 0.0), f(m.ndof()), R(9 * static_cast<size_t>(m.nrot), 0.0);
-  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  std::vector<double> K0(m.nnz(), 0.0), u(m.ndof(), 0.0), f(m.ndof());
+  const std::vector<double> R = identity_rotations(m.nrot);
   assemble_internal(m, u.data(), R.data(), f.data(), K0.data());
   return K0;
 }

@@ -65,8 +65,7 @@ struct Setup {
       u[3 * n + 1] = 3.0 * x * z;
       u[3 * n + 2] = 4.0 * x * x - 3.0 * x * y;
     }
-    R.assign(9 * m.nrot, 0.0);
-    for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+    R = identity_rotations(m.nrot);
     f.assign(m.ndof(), 0.0);
     K.assign(m.nnz(), 0.0);
   }
@@ -275,14 +274,13 @@ void BM_Organ(benchmark::State& state, bool renumber, bool cold = false, double 
   s.material.rotation = RotationMode::PerPoint;
   s.consistent_tangent = true;
   Model m = build_model(mesh, s);
-  std::vector<double> u(m.ndof(), 0.0), R(9 * m.nrot, 0.0), f(m.ndof()), K(m.nnz());
+  std::vector<double> u(m.ndof(), 0.0), R = identity_rotations(m.nrot), f(m.ndof()), K(m.nnz());
   for (int n = 0; n < m.nnode; ++n) {  // a bent state, rotations far from I
     const double x = m.X[3 * n], y = m.X[3 * n + 1], z = m.X[3 * n + 2];
     u[3 * n] = -2.0 * x * z;
     u[3 * n + 1] = 3.0 * x * z;
     u[3 * n + 2] = 4.0 * x * x - 3.0 * x * y;
   }
-  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
   ThreadPool pool(1);
   AssemblyPlan plan = make_assembly_plan(m, 1);
   TangentCache cache;
@@ -344,14 +342,13 @@ void BM_CutAssembly(benchmark::State& state, bool with_K) {
   const double dt = sim->model.dt;
   for (double t = dt; t <= 1.0 + 1e-12; t += dt) update_cuts(*sim, t, t);
   const Model& m = sim->model;
-  std::vector<double> u(m.ndof(), 0.0), R(9 * static_cast<size_t>(m.nrot), 0.0), f(m.ndof()), K(m.nnz());
+  std::vector<double> u(m.ndof(), 0.0), R = identity_rotations(m.nrot), f(m.ndof()), K(m.nnz());
   for (int n = 0; n < m.ndofnode; ++n) {  // a bent state, rotations far from I; enriched DOFs move too
     const double x = m.X[3 * n], y = m.X[3 * n + 1], z = m.X[3 * n + 2];
     u[3 * n] = -2.0 * x * z + (n >= m.nnode ? 1e-3 : 0.0);
     u[3 * n + 1] = 3.0 * x * z;
     u[3 * n + 2] = 4.0 * x * x - 3.0 * x * y;
   }
-  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
   ThreadPool pool(1);
   AssemblyPlan plan = make_assembly_plan(m, 1);
   assemble_corotated(m, plan, pool, u.data(), R.data(), f.data(), with_K ? K.data() : nullptr);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/fem/assemble.h"
+#include "engine/fem/polar.h"
 #include "engine/mesh/mesh_tools.h"
 #include "tests/engine/test_util.h"
 
@@ -92,8 +93,7 @@ TEST(Corotation, LinearModelShowsGhostForcesUnderRotation) {
   for (MaterialModel mm : {MaterialModel::Linear, MaterialModel::Corotated}) {
     const Model m = build_model(mesh, test::basic_scene(2, mm));
     auto force = [&](const Eigen::Matrix3d& Fmap) {
-      std::vector<double> u(m.ndof()), f(m.ndof()), R(9 * m.nrot, 0.0);
-      for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+      std::vector<double> u(m.ndof()), f(m.ndof()), R = identity_rotations(m.nrot);
       for (int n = 0; n < m.nnode; ++n) {
         const Eigen::Vector3d X(m.X[3 * n], m.X[3 * n + 1], m.X[3 * n + 2]), x = Fmap * X;
         for (int d = 0; d < 3; ++d) u[3 * n + d] = x[d] - X[d];

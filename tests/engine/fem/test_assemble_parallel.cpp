@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/fem/assemble_parallel.h"
+#include "engine/fem/polar.h"
 #include "engine/mesh/mesh_tools.h"
 #include "engine/dynamics/step.h"
 #include "tests/engine/test_util.h"
@@ -129,8 +130,7 @@ TEST(TangentReuse, BypassedWhileEveryElementMovesAndBackWhenStill) {
   ThreadPool pool(1);
   TangentCache cache;
   cache.theta = 1e-6;
-  std::vector<double> u(m.ndof()), R(9 * static_cast<size_t>(m.nrot), 0.0), Rfull, f(m.ndof()), ffull(m.ndof());
-  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  std::vector<double> u(m.ndof()), R = identity_rotations(m.nrot), Rfull, f(m.ndof()), ffull(m.ndof());
   std::vector<double> K(m.nnz()), Kfull(m.nnz());
   auto bend = [&](double amount) {  // every element's F changes with `amount`
     for (int n = 0; n < m.nnode; ++n) {

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/fem/assemble.h"
+#include "engine/fem/polar.h"
 #include "engine/mesh/mesh_tools.h"
 #include "engine/fem/rotation_stiffness.h"
 #include "tests/engine/test_util.h"
@@ -30,16 +31,14 @@ std::vector<double> deformed(const Model& m, const Eigen::Vector3d& stretch, dou
 }
 
 std::vector<double> force(const Model& m, const std::vector<double>& u) {
-  std::vector<double> R(9 * m.nrot, 0.0), f(m.ndof());
-  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  std::vector<double> R = identity_rotations(m.nrot), f(m.ndof());
   update_rotations(m, u.data(), R.data());
   assemble_internal(m, u.data(), R.data(), f.data(), nullptr);
   return f;
 }
 
 Eigen::MatrixXd tangent(const Model& m, const std::vector<double>& u) {
-  std::vector<double> R(9 * m.nrot, 0.0), f(m.ndof()), K(m.nnz());
-  for (int r = 0; r < m.nrot; ++r) R[9 * r] = R[9 * r + 4] = R[9 * r + 8] = 1.0;
+  std::vector<double> R = identity_rotations(m.nrot), f(m.ndof()), K(m.nnz());
   update_rotations(m, u.data(), R.data());
   assemble_internal(m, u.data(), R.data(), f.data(), K.data());
   return test::dense(m, K);
