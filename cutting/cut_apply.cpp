@@ -31,20 +31,12 @@ void old_piece_values(const Model& m, const Kinematics& s, int e, int P, int a, 
     for (int c = 0; c < 3; ++c) out[3 * k + c] = (*f[k])[3 * i + c] + (q >= 0 ? (*f[k])[3 * q + c] : 0.0);
 }
 
-// First rotation slot of each element (nelem + 1): slots are numbered element by element.
-std::vector<int> slot_ptr(const Model& m) {
-  std::vector<int> ptr(m.nelem + 1, 0);
-  for (int r = 0; r < m.nrot; ++r) ++ptr[m.rot_elem[r] + 1];
-  for (int e = 0; e < m.nelem; ++e) ptr[e + 1] += ptr[e];
-  return ptr;
-}
-
 // Warm starts for the new model's rotation slots: an element with as many
 // slots as before keeps its old rotations (uncut elements, and cut ones whose
 // pieces did not change), the others start from the identity. Saves the polar
 // iterations of a cold start in the rebuild's force evaluation and the next step.
 std::vector<double> carried_rotations(const Model& from, const std::vector<double>& R_from, const Model& to) {
-  const std::vector<int> old_ptr = slot_ptr(from), new_ptr = slot_ptr(to);
+  const std::vector<int> old_ptr = element_slot_ptr(from), new_ptr = element_slot_ptr(to);
   std::vector<double> R = identity_rotations(to.nrot);
   // Slot k of e is ptr[e] + k (model_build.cpp numbers them element by element).
   for (int e = 0; e < to.nelem && e < from.nelem; ++e) {

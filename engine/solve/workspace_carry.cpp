@@ -10,14 +10,6 @@ namespace incise {
 
 namespace {
 
-// First rotation slot of each element (nelem + 1): slots are numbered element by element.
-std::vector<int> slot_ptr(const Model& m) {
-  std::vector<int> ptr(m.nelem + 1, 0);
-  for (int r = 0; r < m.nrot; ++r) ++ptr[m.rot_elem[r] + 1];
-  for (int e = 0; e < m.nelem; ++e) ptr[e + 1] += ptr[e];
-  return ptr;
-}
-
 // integrator.tangent_reuse across a rebuild: an element whose pieces did not
 // change keeps its tangent blocks (same DOF nodes in the same order, same
 // slots) and the gradients they were made at, and K of the new pattern is
@@ -58,9 +50,9 @@ struct KeptElements {
   const Model& from;
   const Model& to;
   std::vector<char> fresh;         // (to.nelem) the cut changed it
-  std::vector<int> old_ptr, new_ptr;  // slot_ptr of each model
+  std::vector<int> old_ptr, new_ptr;  // element_slot_ptr of each model
   KeptElements(const Model& f, const Model& t, const std::vector<int>& changed)
-      : from(f), to(t), fresh(t.nelem, 0), old_ptr(slot_ptr(f)), new_ptr(slot_ptr(t)) {
+      : from(f), to(t), fresh(t.nelem, 0), old_ptr(element_slot_ptr(f)), new_ptr(element_slot_ptr(t)) {
     for (int e : changed) fresh[e] = 1;
   }
   int old_blocks(int e) const { return from.elem_scatter_ptr[e + 1] - from.elem_scatter_ptr[e]; }

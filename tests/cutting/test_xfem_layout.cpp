@@ -10,6 +10,7 @@
 #include "engine/fem/assemble_parallel.h"
 #include "engine/output/probe.h"
 #include "engine/dynamics/step.h"
+#include "engine/fem/polar.h"
 #include "test_util.h"
 
 namespace incise {
@@ -481,8 +482,7 @@ TEST(Xfem, ConsistentTangentOfACutModelParallelEqualsSerialAndStepsStably) {
     u[3 * n] = -0.05 * x * x;
     u[3 * n + 2] = 0.2 * x * x;
   }
-  std::vector<double> Rs(9 * m.nrot, 0.0), f0(m.ndof()), K0(m.nnz());
-  for (int r = 0; r < m.nrot; ++r) Rs[9 * r] = Rs[9 * r + 4] = Rs[9 * r + 8] = 1.0;
+  std::vector<double> Rs = identity_rotations(m.nrot), f0(m.ndof()), K0(m.nnz());
   std::vector<double> R = Rs, f(m.ndof()), K(m.nnz());
   update_rotations(m, u.data(), Rs.data());
   assemble_internal(m, u.data(), Rs.data(), f0.data(), K0.data());
@@ -527,8 +527,7 @@ TEST(Xfem, SplitElementsAssembleFromTheirPiecesRestStiffness) {
           u[3 * n + 1] = 0.1 * x * y;
           u[3 * n + 2] = 0.2 * x * x - 0.001 * (n % 7);
         }
-        std::vector<double> Rs(9 * m.nrot, 0.0), f0(m.ndof()), K0(m.nnz());
-        for (int r = 0; r < m.nrot; ++r) Rs[9 * r] = Rs[9 * r + 4] = Rs[9 * r + 8] = 1.0;
+        std::vector<double> Rs = identity_rotations(m.nrot), f0(m.ndof()), K0(m.nnz());
         const std::vector<double> I = Rs;
         update_rotations(m, u.data(), Rs.data());
         assemble_internal(m, u.data(), Rs.data(), f0.data(), K0.data());

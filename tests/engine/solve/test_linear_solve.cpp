@@ -14,6 +14,7 @@
 #include "engine/mesh/mesh_tools.h"
 #include "engine/dynamics/state.h"
 #include "engine/dynamics/step.h"
+#include "engine/fem/polar.h"
 #include "tests/engine/test_util.h"
 
 namespace incise {
@@ -347,8 +348,7 @@ TEST(SolverPolicies, ParallelAssemblyMatchesSerial) {
         u[3 * n + 1] = 0.4 * x * z - 0.02 * y;
         u[3 * n + 2] = 0.5 * x * x - 0.4 * x * y + 0.01 * std::cos(5 * z);
       }
-      std::vector<double> R0(9 * m.nrot, 0.0), f0(m.ndof()), K0(m.nnz());
-      for (int r = 0; r < m.nrot; ++r) R0[9 * r] = R0[9 * r + 4] = R0[9 * r + 8] = 1.0;
+      std::vector<double> R0 = identity_rotations(m.nrot), f0(m.ndof()), K0(m.nnz());
       std::vector<double> Rs = R0;
       update_rotations(m, u.data(), Rs.data());
       assemble_internal(m, u.data(), Rs.data(), f0.data(), K0.data());
