@@ -1,7 +1,9 @@
 #pragma once
-// The cutting stage of a frame: applies the scene's cuts that are due,
-// rebuilds the Model with the new X-FEM layout (a new DOF set, so a fresh
-// symbolic analysis) and carries the State over to it.
+// A cut update: applies the scene's cuts that are due, rebuilds the Model
+// with the new X-FEM layout ([preprint] eqs. (42), (44): enriched DOFs
+// appended), moves the State's fields onto it and hands the Workspace to
+// carry_workspace_over_cut (engine/solve/workspace_carry.h). The frame's
+// cutting stage (cut_stage.h) calls update_cuts and start_cut_ahead.
 #include "cutting/xfem_layout.h"
 #include <array>
 
@@ -42,7 +44,9 @@ struct Kinematics {
 
 // Moves kinematics to a model with more cuts (same mesh): every piece of the
 // new model keeps the displacement, velocity and acceleration of the old piece
-// it lies in, so the field is unchanged by the cut itself. Returns (to.ndof) arrays.
+// it lies in, so the field is unchanged by the cut itself: a piece's nodal
+// value is d_a = u_a + q_a ([preprint] eq. (66)), so u_a takes the home
+// piece's value and q_a = d_a(old piece) - u_a. Returns (to.ndof) arrays.
 Kinematics transfer_kinematics(const Model& from, const Kinematics& old, const Model& to);
 
 // For each DOF node of `to` (a model with more cuts, same mesh) the DOF node

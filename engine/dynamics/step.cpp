@@ -46,7 +46,7 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
 
 // Lumped mass with enrichment: each enriched DOF q couples only to its own
 // mesh node's standard DOF u with M_uq = M_qq = m_q (model_build.cpp,
-// build_mass; [preprint] eq. 81-82), so
+// build_mass; [preprint] eqs. (81)-(82)), so
 //   m_u a_u + sum_q m_q a_q = r_u,  m_q (a_u + a_q) = r_q
 // gives a_u = (r_u - sum_q r_q) / (m_u - sum_q m_q) (the home piece's mass)
 // and a_q = r_q / m_q - a_u: a direct solve. On the DOF nodes with mark
@@ -185,7 +185,7 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
   const double* K = internal_forces(m, s, ws, x, policy_needs_tangent(m), /*reuse_tangent=*/true);
   ws.timing.tangent_updates += ws.tangent_cache.updated;
 
-  // Newmark ([book] eq. 3.58; newmark_coefficients for general beta, gamma):
+  // Newmark ([book] eq. (3.58); newmark_coefficients for general beta, gamma):
   // a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v at beta = 1/4, gamma = 1/2.
   // Residual r = f_ext - f_int(x) - M a1 - D v1 with D = a M + b K. For
   // Delta = 0 this is eq. 3.60 with f_int the elastic force only (the book
@@ -217,7 +217,7 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
   }
   ws.last_residual = fnorm > 0 ? std::sqrt(rnorm / fnorm) : std::sqrt(rnorm);
   check_finite(ws.rhs, "residual", s);
-  // A = 4/dt^2 M + 2/dt D + K ([book] eq. 3.59; cM M + cK K in general), projected.
+  // A = 4/dt^2 M + 2/dt D + K ([book] eq. (3.59); cM M + cK K in general), projected.
   form_dynamic_matrix(m, s, ws, K);
 }
 
@@ -256,7 +256,7 @@ void integrate(const Model& m, State& s, Workspace& ws) {
   const int n = m.ndof();
   const double t1 = s.time + m.dt;
   const NewmarkCoefficients nc = newmark_coefficients(m);
-  // Newmark update ([book] eq. 3.58, general beta and gamma).
+  // Newmark update ([book] eq. (3.58), general beta and gamma).
   for (int d = 0; d < n; ++d) {
     const double a1 = nc.a_d * ws.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
     s.v[d] = nc.v_d * ws.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];

@@ -11,7 +11,7 @@
 //   } while the solve stage asks for another iteration
 //   integration      Newmark update of u, v, a; constraints; time
 //
-// Newmark average acceleration ([book] eq. 3.58-3.61) with the projection
+// Newmark average acceleration ([book] eqs. (3.58)-(3.61)) with the projection
 // constraints of [book] Algorithm 1. Each stage is one function of
 // (const Model&, State&, Workspace&); step() runs them through run_stage,
 // which times them (the pipeline, engine/runtime/pipeline.h, runs step_stages

@@ -2,7 +2,7 @@
 // Corotated element terms and their assembly into the global pattern.
 //
 // Per quadrature point q of weight w with gradients g_a and rotation R
-// (book eq. 3.64-3.66, A.45-A.52; preprint eq. 64 for enriched DOF nodes):
+// ([book] eqs. (3.64)-(3.66), (A.45)-(A.52); [preprint] eq. (66) for enriched DOF nodes):
 //   F     = sum_a (X_a + u_a) (x) g_a
 //   eps'  = sym(R^T F) - I,  sig' = 2 mu eps' + lambda tr(eps') I
 //   f_a  += w R sig' g_a

@@ -49,7 +49,7 @@ bool policy_needs_tangent(const Model& model);
 
 // The policy's three parts of a Newton iteration, one per stage of the step
 // (engine/dynamics/step.cpp):
-// assembly:      ws.A = cM M + cK K (eq. 3.59 in general form), projected
+// assembly:      ws.A = cM M + cK K ([book] eq. (3.59) in general form), projected
 //                (Algorithm 1), and the warped policies' node rotations; K is
 //                the tangent in the pattern (K0 for the linear model; may be
 //                null for warped);
