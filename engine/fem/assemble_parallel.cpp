@@ -15,10 +15,10 @@
 
 namespace incise {
 
-AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
-  AssemblyPlan p;
-  p.nthreads = std::max(1, nthreads);
-  // Rotation slots of each element (counting sort of rot_elem).
+namespace {
+
+// Rotation slots of each element (counting sort of rot_elem) and the largest element.
+void element_slots(const Model& m, AssemblyPlan& p) {
   p.elem_rot_ptr.assign(m.nelem + 1, 0);
   for (int r = 0; r < m.nrot; ++r) ++p.elem_rot_ptr[m.rot_elem[r] + 1];
   for (int e = 0; e < m.nelem; ++e) p.elem_rot_ptr[e + 1] += p.elem_rot_ptr[e];
@@ -28,39 +28,44 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
     for (int r = 0; r < m.nrot; ++r) p.elem_rot[next[m.rot_elem[r]]++] = r;
   }
   for (int e = 0; e < m.nelem; ++e) p.max_elem_nodes = std::max(p.max_elem_nodes, m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e]);
+}
 
-  // Blocks: slabs of equal element count across the longest axis of the
-  // mesh's bounding box (by element centroid), so the separator layer is the
-  // smallest cross-section; a DOF node touched by two blocks makes its
-  // elements separators. Enriched DOF nodes (X = 0) do not move centroids
-  // much: the corner nodes dominate.
-  const int T = p.nthreads;
+// Block of each element: slabs of equal element count across the longest
+// axis of the mesh's bounding box (by element centroid), so the separator
+// layer is the smallest cross-section. Enriched DOF nodes (X = 0) do not move
+// centroids much: the corner nodes dominate.
+std::vector<int> slab_blocks(const Model& m, int T) {
   std::vector<int> block_of(m.nelem, 0);
-  if (T > 1) {
-    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-    for (int node = 0; node < m.nnode; ++node)
-      for (int d = 0; d < 3; ++d) {
-        lo[d] = std::min(lo[d], m.X[3 * node + d]);
-        hi[d] = std::max(hi[d], m.X[3 * node + d]);
-      }
-    int axis = 0;
-    for (int d = 1; d < 3; ++d)
-      if (hi[d] - lo[d] > hi[axis] - lo[axis]) axis = d;
-    std::vector<std::pair<double, int>> key(m.nelem);
-    for (int e = 0; e < m.nelem; ++e) {
-      double c = 0.0;
-      int cnt = 0;
-      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
-        if (m.elem_dof_node[k] < m.nnode) c += m.X[3 * m.elem_dof_node[k] + axis], ++cnt;
-      key[e] = {cnt ? c / cnt : 0.0, e};
+  if (T <= 1) return block_of;
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (int node = 0; node < m.nnode; ++node)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], m.X[3 * node + d]);
+      hi[d] = std::max(hi[d], m.X[3 * node + d]);
     }
-    std::sort(key.begin(), key.end());
-    for (int t = 0; t < T; ++t) {
-      int b, e;
-      ThreadPool::split(m.nelem, T, t, b, e);
-      for (int k = b; k < e; ++k) block_of[key[k].second] = t;
-    }
+  int axis = 0;
+  for (int d = 1; d < 3; ++d)
+    if (hi[d] - lo[d] > hi[axis] - lo[axis]) axis = d;
+  std::vector<std::pair<double, int>> key(m.nelem);
+  for (int e = 0; e < m.nelem; ++e) {
+    double c = 0.0;
+    int cnt = 0;
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+      if (m.elem_dof_node[k] < m.nnode) c += m.X[3 * m.elem_dof_node[k] + axis], ++cnt;
+    key[e] = {cnt ? c / cnt : 0.0, e};
   }
+  std::sort(key.begin(), key.end());
+  for (int t = 0; t < T; ++t) {
+    int b, e;
+    ThreadPool::split(m.nelem, T, t, b, e);
+    for (int k = b; k < e; ++k) block_of[key[k].second] = t;
+  }
+  return block_of;
+}
+
+// Fills block_ptr/block_elem with each block's interior elements and returns
+// the separators: a DOF node touched by two blocks makes its elements separators.
+std::vector<int> split_blocks(const Model& m, const std::vector<int>& block_of, AssemblyPlan& p) {
   std::vector<int> node_block(m.ndofnode, -1);  // -2 = touched by several blocks
   for (int e = 0; e < m.nelem; ++e)
     for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) {
@@ -68,7 +73,7 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
       if (nb == -1) nb = block_of[e];
       else if (nb != block_of[e]) nb = -2;
     }
-  std::vector<std::vector<int>> blocks(T);
+  std::vector<std::vector<int>> blocks(p.nthreads);
   std::vector<int> separators;
   for (int e = 0; e < m.nelem; ++e) {
     bool interior = true;
@@ -80,7 +85,12 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
     p.block_elem.insert(p.block_elem.end(), b.begin(), b.end());
     p.block_ptr.push_back(static_cast<int>(p.block_elem.size()));
   }
-  // Greedy colouring of the separators: the smallest colour none of its nodes has yet.
+  return separators;
+}
+
+// Greedy colouring of the separators (the smallest colour none of its nodes
+// has yet) into color_ptr/color_elem.
+void color_separators(const Model& m, const std::vector<int>& separators, AssemblyPlan& p) {
   std::vector<std::vector<int>> node_colors(m.ndofnode);
   std::vector<int> color(separators.size());
   int ncolor = 0;
@@ -100,43 +110,51 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
   for (int c : color) ++p.color_ptr[c + 1];
   for (int c = 0; c < ncolor; ++c) p.color_ptr[c + 1] += p.color_ptr[c];
   p.color_elem.assign(separators.size(), 0);
-  {
-    std::vector<int> next(p.color_ptr.begin(), p.color_ptr.end() - 1);
-    for (size_t s = 0; s < separators.size(); ++s) p.color_elem[next[color[s]]++] = separators[s];
-  }
+  std::vector<int> next(p.color_ptr.begin(), p.color_ptr.end() - 1);
+  for (size_t s = 0; s < separators.size(); ++s) p.color_elem[next[color[s]]++] = separators[s];
+}
+
+// Each worker's element scratch, sized for the largest element.
+void size_scratch(const Model& m, AssemblyPlan& p) {
   for (int e = 0; e < m.nelem; ++e) {
     p.max_elem_slots = std::max(p.max_elem_slots, p.elem_rot_ptr[e + 1] - p.elem_rot_ptr[e]);
     for (int k = p.elem_rot_ptr[e]; k < p.elem_rot_ptr[e + 1]; ++k)  // slots numbered element by element
       assert(p.elem_rot[k] == p.elem_rot[p.elem_rot_ptr[e]] + (k - p.elem_rot_ptr[e]));
   }
   const int n = p.max_elem_nodes;
-  p.scratch.assign(T, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 9 * p.max_elem_slots + 16));
-  p.qp_own_rot = point_rotation_flags(m);
-  // A point whose slot is its own with the same gradients (tet10 per_point)
-  // has the F its rotation was extracted from: element_terms keeps it.
+  p.scratch.assign(p.nthreads, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 9 * p.max_elem_slots + 16));
+}
+
+// A point whose slot is its own with the same gradients (tet10 per_point)
+// has the F its rotation was extracted from: element_terms keeps it.
+void slot_F_flags(const Model& m, AssemblyPlan& p) {
   p.qp_slot_F.assign(m.qp_rot.size(), 0);
-  {
-    std::vector<int> users(m.nrot, 0);
-    for (int r : m.qp_rot) ++users[r];
-    for (size_t q = 0; q < m.qp_rot.size(); ++q) {
-      const int r = m.qp_rot[q];
-      const int len = m.qp_grad_ptr[q + 1] - m.qp_grad_ptr[q];
-      p.qp_slot_F[q] = users[r] == 1 && m.rot_grad_ptr[r + 1] - m.rot_grad_ptr[r] == len &&
-                       std::memcmp(&m.qp_grad[m.qp_grad_ptr[q]], &m.rot_grad[m.rot_grad_ptr[r]], len * sizeof(double)) == 0;
-    }
+  std::vector<int> users(m.nrot, 0);
+  for (int r : m.qp_rot) ++users[r];
+  for (size_t q = 0; q < m.qp_rot.size(); ++q) {
+    const int r = m.qp_rot[q];
+    const int len = m.qp_grad_ptr[q + 1] - m.qp_grad_ptr[q];
+    p.qp_slot_F[q] = users[r] == 1 && m.rot_grad_ptr[r + 1] - m.rot_grad_ptr[r] == len &&
+                     std::memcmp(&m.qp_grad[m.qp_grad_ptr[q]], &m.rot_grad[m.rot_grad_ptr[r]], len * sizeof(double)) == 0;
   }
-  p.slot_weight = shared_slot_weights(m);
-  // Condensed elements: every slot has a rest stiffness (Model::rot_K0).
+}
+
+// Condensed elements: every slot has a rest stiffness (Model::rot_K0).
+void condensed_elements(const Model& m, AssemblyPlan& p) {
   p.elem_condensed.assign(m.nelem, 0);
-  if (!m.rot_K0_ptr.empty())
-    for (int e = 0; e < m.nelem; ++e) {
-      bool all = p.elem_rot_ptr[e + 1] > p.elem_rot_ptr[e];
-      for (int k = p.elem_rot_ptr[e]; k < p.elem_rot_ptr[e + 1]; ++k)
-        all = all && m.rot_K0_ptr[p.elem_rot[k] + 1] > m.rot_K0_ptr[p.elem_rot[k]];
-      p.elem_condensed[e] = all;
-    }
-  // sym_matvec: ranges of whole node columns (node_block_matvec) of about
-  // equal nnz; workers t > 0 scatter into their own buffer.
+  if (m.rot_K0_ptr.empty()) return;
+  for (int e = 0; e < m.nelem; ++e) {
+    bool all = p.elem_rot_ptr[e + 1] > p.elem_rot_ptr[e];
+    for (int k = p.elem_rot_ptr[e]; k < p.elem_rot_ptr[e + 1]; ++k)
+      all = all && m.rot_K0_ptr[p.elem_rot[k] + 1] > m.rot_K0_ptr[p.elem_rot[k]];
+    p.elem_condensed[e] = all;
+  }
+}
+
+// sym_matvec: ranges of whole node columns (node_block_matvec) of about
+// equal nnz; workers t > 0 scatter into their own buffer.
+void matvec_ranges(const Model& m, AssemblyPlan& p) {
+  const int T = p.nthreads;
   p.matvec_col_ptr.assign(T + 1, m.ndof());
   p.matvec_col_ptr[0] = 0;
   for (int t = 1, c = 0; t < T; ++t) {
@@ -146,6 +164,22 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
   }
   p.matvec_buf.assign(T, std::vector<double>());
   for (int t = 1; t < T; ++t) p.matvec_buf[t].assign(m.ndof(), 0.0);
+}
+
+}  // namespace
+
+AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
+  AssemblyPlan p;
+  p.nthreads = std::max(1, nthreads);
+  element_slots(m, p);
+  const std::vector<int> separators = split_blocks(m, slab_blocks(m, p.nthreads), p);
+  color_separators(m, separators, p);
+  size_scratch(m, p);
+  p.qp_own_rot = point_rotation_flags(m);
+  slot_F_flags(m, p);
+  p.slot_weight = shared_slot_weights(m);
+  condensed_elements(m, p);
+  matvec_ranges(m, p);
   return p;
 }
 

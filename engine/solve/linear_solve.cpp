@@ -383,6 +383,102 @@ void lagged_apply(const Model& m, Workspace& ws, const double* A, const double* 
   }
 }
 
+// The patch's DOF nodes: unknown = a DOF node with a DOF the front map does
+// not carry, node_in = a node of an element touching an unknown one.
+void patch_nodes(const Model& m, const std::vector<int>& map, std::vector<char>& node_in, std::vector<char>& unknown) {
+  for (int d = 0; d < m.ndof(); ++d)
+    if (map[d] < 0) unknown[d / 3] = 1;
+  for (int e = 0; e < m.nelem; ++e) {
+    bool touch = false;
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = unknown[m.elem_dof_node[k]];
+    if (touch)
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) node_in[m.elem_dof_node[k]] = 1;
+  }
+}
+
+// patch_dof (the patch nodes' DOFs in order) and g2l, its inverse (-1 off the patch).
+void patch_dofs(const Model& m, const std::vector<char>& node_in, const std::vector<char>& unknown, SolverWork& w,
+                std::vector<int>& g2l) {
+  w.patch_dof.clear();
+  for (int n = 0; n < m.ndofnode; ++n)
+    if (node_in[n] || unknown[n])
+      for (int c = 0; c < 3; ++c) {
+        g2l[3 * n + c] = static_cast<int>(w.patch_dof.size());
+        w.patch_dof.push_back(3 * n + c);
+      }
+}
+
+// The patch matrix's pattern (Pp, Pi: A restricted to the patch) and patch_src.
+void patch_pattern(const Model& m, const std::vector<int>& g2l, SolverWork& w, std::vector<int>& Pp,
+                   std::vector<int>& Pi) {
+  w.patch_src.clear();
+  for (int C : w.patch_dof) {
+    for (int k = m.Ap[C]; k < m.Ap[C + 1]; ++k)
+      if (g2l[m.Ai[k]] >= 0) {
+        Pi.push_back(g2l[m.Ai[k]]);
+        w.patch_src.push_back(k);
+      }
+    Pp.push_back(static_cast<int>(Pi.size()));
+  }
+}
+
+// A's rows at the patch DOFs: entry (r, c), r <= c, is row r's at column c
+// and, off the diagonal, row c's at column r. Only columns of elements
+// with a patch node can hold such an entry: scanning those (in column
+// order, as a scan of every column would) instead of all of A took
+// about 1 ms of each cut frame at 10k DOF.
+void patch_rows(const Model& m, const std::vector<char>& node_in, const std::vector<char>& unknown,
+                const std::vector<int>& g2l, SolverWork& w) {
+  const int np = static_cast<int>(w.patch_dof.size());
+  std::vector<char> col_in(m.ndof(), 0);
+  for (int e = 0; e < m.nelem; ++e) {
+    bool touch = false;
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = node_in[m.elem_dof_node[k]] || unknown[m.elem_dof_node[k]];
+    if (touch)
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+        for (int c = 0; c < 3; ++c) col_in[3 * m.elem_dof_node[k] + c] = 1;
+  }
+  std::vector<int> cols;
+  for (int c = 0; c < m.ndof(); ++c)
+    if (col_in[c]) cols.push_back(c);
+  std::vector<int> cnt(np + 1, 0);
+  for (int c : cols)
+    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
+      const int r = m.Ai[k];
+      if (g2l[r] >= 0) ++cnt[g2l[r] + 1];
+      if (r != c && g2l[c] >= 0) ++cnt[g2l[c] + 1];
+    }
+  for (int i = 0; i < np; ++i) cnt[i + 1] += cnt[i];
+  w.patch_row_ptr = cnt;
+  w.patch_row_col.assign(cnt.back(), 0);
+  w.patch_row_k.assign(cnt.back(), 0);
+  for (int c : cols)
+    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
+      const int r = m.Ai[k];
+      if (g2l[r] >= 0) w.patch_row_col[cnt[g2l[r]]] = c, w.patch_row_k[cnt[g2l[r]]++] = k;
+      if (r != c && g2l[c] >= 0) w.patch_row_col[cnt[g2l[c]]] = r, w.patch_row_k[cnt[g2l[c]]++] = k;
+    }
+}
+
+// A new patch (the front slot or the pattern changed): its DOFs, pattern, rows and analysis.
+void build_patch(const Model& m, const std::vector<int>& map, SolverWork& w) {
+  std::vector<char> node_in(m.ndofnode, 0), unknown(m.ndofnode, 0);
+  patch_nodes(m, map, node_in, unknown);
+  std::vector<int> g2l(m.ndof(), -1);
+  patch_dofs(m, node_in, unknown, w, g2l);
+  std::vector<int> Pp(1, 0), Pi;
+  patch_pattern(m, g2l, w, Pp, Pi);
+  patch_rows(m, node_in, unknown, g2l, w);
+  // Supernodal (BLAS) only where BLAS may run beside the background job
+  // (blas_concurrency_safe); otherwise BLAS-free simplicial.
+  const int np = static_cast<int>(w.patch_dof.size());
+  w.patch.configure(blas_concurrency_safe() ? FactorMethod::Supernodal : FactorMethod::Simplicial,
+                    OrderingMethod::Amd);
+  w.patch.analyze(np, Pp, Pi);
+  w.patch_A.assign(Pi.size(), 0.0);
+  w.patch_r.assign(np, 0.0);
+}
+
 // The patch of the mapped front factor (see SolverWork::patch): built when
 // the front slot or the pattern changed, refactored with the current A.
 void lagged_patch(const Model& m, Workspace& ws, const double* A) {
@@ -396,75 +492,7 @@ void lagged_patch(const Model& m, Workspace& ws, const double* A) {
   const long long key = (static_cast<long long>(w.pattern) * 2 + w.front) * 1000003LL + w.front_frame;
   if (key != w.patch_key) {
     w.patch_key = key;
-    std::vector<char> node_in(m.ndofnode, 0), unknown(m.ndofnode, 0);
-    for (int d = 0; d < m.ndof(); ++d)
-      if (map[d] < 0) unknown[d / 3] = 1;
-    for (int e = 0; e < m.nelem; ++e) {
-      bool touch = false;
-      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = unknown[m.elem_dof_node[k]];
-      if (touch)
-        for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) node_in[m.elem_dof_node[k]] = 1;
-    }
-    w.patch_dof.clear();
-    std::vector<int> g2l(m.ndof(), -1);
-    for (int n = 0; n < m.ndofnode; ++n)
-      if (node_in[n] || unknown[n])
-        for (int c = 0; c < 3; ++c) {
-          g2l[3 * n + c] = static_cast<int>(w.patch_dof.size());
-          w.patch_dof.push_back(3 * n + c);
-        }
-    const int np = static_cast<int>(w.patch_dof.size());
-    std::vector<int> Pp(1, 0), Pi;
-    w.patch_src.clear();
-    for (int j = 0; j < np; ++j) {
-      const int C = w.patch_dof[j];
-      for (int k = m.Ap[C]; k < m.Ap[C + 1]; ++k)
-        if (g2l[m.Ai[k]] >= 0) {
-          Pi.push_back(g2l[m.Ai[k]]);
-          w.patch_src.push_back(k);
-        }
-      Pp.push_back(static_cast<int>(Pi.size()));
-    }
-    // A's rows at the patch DOFs: entry (r, c), r <= c, is row r's at column c
-    // and, off the diagonal, row c's at column r. Only columns of elements
-    // with a patch node can hold such an entry: scanning those (in column
-    // order, as a scan of every column would) instead of all of A took
-    // about 1 ms of each cut frame at 10k DOF.
-    std::vector<char> col_in(m.ndof(), 0);
-    for (int e = 0; e < m.nelem; ++e) {
-      bool touch = false;
-      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = node_in[m.elem_dof_node[k]] || unknown[m.elem_dof_node[k]];
-      if (touch)
-        for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
-          for (int c = 0; c < 3; ++c) col_in[3 * m.elem_dof_node[k] + c] = 1;
-    }
-    std::vector<int> cols;
-    for (int c = 0; c < m.ndof(); ++c)
-      if (col_in[c]) cols.push_back(c);
-    std::vector<int> cnt(np + 1, 0);
-    for (int c : cols)
-      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
-        const int r = m.Ai[k];
-        if (g2l[r] >= 0) ++cnt[g2l[r] + 1];
-        if (r != c && g2l[c] >= 0) ++cnt[g2l[c] + 1];
-      }
-    for (int i = 0; i < np; ++i) cnt[i + 1] += cnt[i];
-    w.patch_row_ptr = cnt;
-    w.patch_row_col.assign(cnt.back(), 0);
-    w.patch_row_k.assign(cnt.back(), 0);
-    for (int c : cols)
-      for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
-        const int r = m.Ai[k];
-        if (g2l[r] >= 0) w.patch_row_col[cnt[g2l[r]]] = c, w.patch_row_k[cnt[g2l[r]]++] = k;
-        if (r != c && g2l[c] >= 0) w.patch_row_col[cnt[g2l[c]]] = r, w.patch_row_k[cnt[g2l[c]]++] = k;
-      }
-    // Supernodal (BLAS) only where BLAS may run beside the background job
-    // (blas_concurrency_safe); otherwise BLAS-free simplicial.
-    w.patch.configure(blas_concurrency_safe() ? FactorMethod::Supernodal : FactorMethod::Simplicial,
-                      OrderingMethod::Amd);
-    w.patch.analyze(np, Pp, Pi);
-    w.patch_A.assign(Pi.size(), 0.0);
-    w.patch_r.assign(np, 0.0);
+    build_patch(m, map, w);
   }
   for (size_t t = 0; t < w.patch_src.size(); ++t) w.patch_A[t] = A[w.patch_src[t]];
   w.patch.factorize(w.patch_A.data());
