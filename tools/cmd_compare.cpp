@@ -68,6 +68,86 @@ std::vector<int> parse_frames(const std::string& text) {
   return out;
 }
 
+// The reference's displacements at the checkpoints, and its timing summary.
+struct Reference {
+  std::vector<std::vector<double>> u;  // (checkpoints) u at each
+  nlohmann::json exact;
+  int ndof = 0;
+};
+
+// The same scene and patches, then the whole solver object replaced by
+// solver.preset "reference" (exact), no tangent reuse, the runs'
+// integrator.tangent: no preset or solver flag reaches it.
+Reference run_reference(const CompareOptions& o, const Scene& first_run, const std::vector<int>& checkpoints) {
+  std::vector<ScenePatch> reference = o.patches;
+  for (ScenePatch& p : exact_reference_patches(first_run)) reference.push_back(std::move(p));
+  auto ref = load_checked_simulation(o.scene, reference);
+  print_model_summary(*ref);
+  Reference r;
+  std::vector<FrameTiming> t_ref;
+  for (int k = 1; k <= checkpoints.back(); ++k) {
+    t_ref.push_back(advance_frame(*ref));  // cutting stage, then the step
+    if (std::find(checkpoints.begin(), checkpoints.end(), k) != checkpoints.end()) r.u.push_back(ref->state.u);
+  }
+  const TimingSummary sr = summarize(t_ref);
+  std::printf("exact: frame median %.2f ms, p99 %.2f ms\n", sr.frame.median_ms, sr.frame.p99_ms);
+  r.exact = {{"frame_median_ms", sr.frame.median_ms}, {"frame_p99_ms", sr.frame.p99_ms}, {"nnz_L", ref->ws.solver.stats().nnz_L}};
+  r.ndof = ref->model.ndof();
+  return r;
+}
+
+// One policy's run against the reference: the relative L2 error at each
+// checkpoint (a diverging policy is a result, not the end of the comparison),
+// frame times and the solver's report.
+nlohmann::json run_policy(const CompareOptions& o, const std::string& policy, const std::vector<ScenePatch>& patches,
+                          const std::vector<int>& checkpoints, const Reference& ref) {
+  auto sim = load_checked_simulation(o.scene, patches);
+  std::printf("--- %s\n", policy.c_str());
+  std::printf("%s", format_resolved_settings(sim->scene).c_str());
+  std::printf("%8s %14s %14s\n", "frame", "rel L2 error", "|u_exact|");
+  std::vector<FrameTiming> t_pol;
+  nlohmann::json rows = nlohmann::json::array();
+  try {
+    for (int k = 1, c = 0; k <= checkpoints.back(); ++k) {
+      t_pol.push_back(advance_frame(*sim));
+      if (checkpoints[c] != k) continue;
+      const std::vector<double>& ue = ref.u[c++];
+      if (ue.size() != sim->state.u.size())
+        throw Error("compare: at frame " + std::to_string(k) + " the policy's model has " +
+                    std::to_string(sim->state.u.size()) + " DOFs and the reference " + std::to_string(ue.size()) +
+                    ": the cuts did not produce the same pieces");
+      double d2 = 0, u2 = 0;
+      for (size_t i = 0; i < ue.size(); ++i) {
+        const double d = sim->state.u[i] - ue[i];
+        d2 += d * d;
+        u2 += ue[i] * ue[i];
+      }
+      const double err = u2 > 0 ? std::sqrt(d2 / u2) : std::sqrt(d2);
+      std::printf("%8d %14.3e %14.3e\n", k, err, std::sqrt(u2));
+      std::fflush(stdout);
+      rows.push_back({{"frame", k}, {"rel_l2_error", std::isfinite(err) ? err : 1e300}, {"u_norm", std::sqrt(u2)}});
+    }
+  } catch (const Error& e) {
+    std::printf("%s: stopped at frame %d: %s\n", policy.c_str(), sim->state.frame + 1, e.what());
+    rows.push_back({{"frame", sim->state.frame + 1}, {"failed", e.what()}});
+  }
+  const TimingSummary sp = summarize(t_pol);
+  const SolverReport rp = solver_report(*sim, t_pol, sp);
+  std::printf("%s: frame median %.2f ms, p99 %.2f ms; substitutions/frame %.0f\n", policy.c_str(), sp.frame.median_ms,
+              sp.frame.p99_ms, rp.substitutions_per_frame);
+  if (policy == "lagged" || policy == "warped_cg")
+    std::printf("CG iterations/frame: median %.0f, max %.0f; %d frame(s) not converged (max residual %.2g)\n",
+                rp.iterations.median_ms, rp.iterations.max_ms, rp.not_converged_frames, rp.max_residual);
+  nlohmann::json pj = solver_report_json(rp);
+  pj["errors"] = rows;
+  pj["frame_median_ms"] = sp.frame.median_ms;
+  pj["frame_p99_ms"] = sp.frame.p99_ms;
+  pj["tolerance"] = sim->model.solver.tolerance;
+  pj["refresh_every"] = sim->model.solver.refresh_every;
+  pj["background"] = sim->model.solver.background;
+  return pj;
+}
+
 void compare(const CompareOptions& o) {
   const std::vector<int> checkpoints = parse_frames(o.frames);
   // Every run's scene is resolved (and checked) before the reference starts.
@@ -84,78 +164,16 @@ void compare(const CompareOptions& o) {
     resolved.push_back(load_scene(o.scene, o.patches));
     policies.push_back(policy_name(resolved.back().solver.policy));
   }
-  // The reference: the same scene and patches, then the whole solver object
-  // replaced by solver.preset "reference" (exact), no tangent reuse, the
-  // runs' integrator.tangent. No preset or solver flag reaches it.
-  std::vector<ScenePatch> reference = o.patches;
-  for (ScenePatch& p : exact_reference_patches(resolved.front())) reference.push_back(std::move(p));
-  auto ref = load_checked_simulation(o.scene, reference);
-  print_model_summary(*ref);
   // The reference runs first, then each policy: never two at once, because a
   // lagged background factorization must be the only BLAS user with a serial
   // OpenBLAS (no locks; blas_concurrency_safe), and the timings stay apart.
-  std::vector<FrameTiming> t_ref;
-  std::vector<std::vector<double>> u_ref;
-  for (int k = 1; k <= checkpoints.back(); ++k) {
-    t_ref.push_back(advance_frame(*ref));  // cutting stage, then the step
-    if (std::find(checkpoints.begin(), checkpoints.end(), k) != checkpoints.end()) u_ref.push_back(ref->state.u);
-  }
-  const TimingSummary sr = summarize(t_ref);
-  std::printf("exact: frame median %.2f ms, p99 %.2f ms\n", sr.frame.median_ms, sr.frame.p99_ms);
+  const Reference ref = run_reference(o, resolved.front(), checkpoints);
   nlohmann::json j;
   j["scene"] = o.scene;
-  j["dof"] = ref->model.ndof();
-  j["exact"] = {{"frame_median_ms", sr.frame.median_ms}, {"frame_p99_ms", sr.frame.p99_ms},
-                {"nnz_L", ref->ws.solver.stats().nnz_L}};
+  j["dof"] = ref.ndof;
+  j["exact"] = ref.exact;
   j["policies"] = nlohmann::json::array();
-  for (size_t r = 0; r < policies.size(); ++r) {
-    const std::string& policy = policies[r];
-    auto sim = load_checked_simulation(o.scene, runs[r]);
-    std::printf("--- %s\n", policy.c_str());
-    std::printf("%s", format_resolved_settings(sim->scene).c_str());
-    std::printf("%8s %14s %14s\n", "frame", "rel L2 error", "|u_exact|");
-    std::vector<FrameTiming> t_pol;
-    nlohmann::json rows = nlohmann::json::array();
-    try {
-      for (int k = 1, c = 0; k <= checkpoints.back(); ++k) {
-        t_pol.push_back(advance_frame(*sim));
-        if (checkpoints[c] != k) continue;
-        const std::vector<double>& ue = u_ref[c++];
-        if (ue.size() != sim->state.u.size())
-          throw Error("compare: at frame " + std::to_string(k) + " the policy's model has " +
-                      std::to_string(sim->state.u.size()) + " DOFs and the reference " + std::to_string(ue.size()) +
-                      ": the cuts did not produce the same pieces");
-        double d2 = 0, u2 = 0;
-        for (size_t i = 0; i < ue.size(); ++i) {
-          const double d = sim->state.u[i] - ue[i];
-          d2 += d * d;
-          u2 += ue[i] * ue[i];
-        }
-        const double err = u2 > 0 ? std::sqrt(d2 / u2) : std::sqrt(d2);
-        std::printf("%8d %14.3e %14.3e\n", k, err, std::sqrt(u2));
-        std::fflush(stdout);
-        rows.push_back({{"frame", k}, {"rel_l2_error", std::isfinite(err) ? err : 1e300}, {"u_norm", std::sqrt(u2)}});
-      }
-    } catch (const Error& e) {  // a diverging policy is a result, not the end of the comparison
-      std::printf("%s: stopped at frame %d: %s\n", policy.c_str(), sim->state.frame + 1, e.what());
-      rows.push_back({{"frame", sim->state.frame + 1}, {"failed", e.what()}});
-    }
-    const TimingSummary sp = summarize(t_pol);
-    const SolverReport rp = solver_report(*sim, t_pol, sp);
-    std::printf("%s: frame median %.2f ms, p99 %.2f ms; substitutions/frame %.0f\n", policy.c_str(), sp.frame.median_ms,
-                sp.frame.p99_ms, rp.substitutions_per_frame);
-    if (policy == "lagged" || policy == "warped_cg")
-      std::printf("CG iterations/frame: median %.0f, max %.0f; %d frame(s) not converged (max residual %.2g)\n",
-                  rp.iterations.median_ms, rp.iterations.max_ms, rp.not_converged_frames, rp.max_residual);
-    nlohmann::json pj = solver_report_json(rp);
-    pj["errors"] = rows;
-    pj["frame_median_ms"] = sp.frame.median_ms;
-    pj["frame_p99_ms"] = sp.frame.p99_ms;
-    pj["tolerance"] = sim->model.solver.tolerance;
-    pj["refresh_every"] = sim->model.solver.refresh_every;
-    pj["background"] = sim->model.solver.background;
-    j["policies"].push_back(pj);
-  }
+  for (size_t r = 0; r < policies.size(); ++r) j["policies"].push_back(run_policy(o, policies[r], runs[r], checkpoints, ref));
   if (!o.json.empty()) {
     std::ofstream os(o.json);
     if (!os) throw Error(o.json + ": cannot write the comparison");
