@@ -37,8 +37,9 @@ void put(std::ostream& os, const T& v) {
 template <class T>
 T get(std::istream& is, const std::string& what, const char* field) {
   T v{};
+  const long long at = static_cast<long long>(is.tellg());
   if (!is.read(reinterpret_cast<char*>(&v), sizeof v))
-    throw Error(what + ": state truncated in " + field + " (at byte " + std::to_string(static_cast<long long>(is.tellg())) + ")");
+    throw Error(what + ": state truncated in " + field + " (at byte " + std::to_string(at) + ")");
   return v;
 }
 

@@ -125,7 +125,10 @@ TEST(State, DamagedFilesAreRefusedWithTheField) {
   const std::string good = saved(s);
   EXPECT_EQ(read_error(good), "");
   EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 1"), std::string::npos);
-  EXPECT_NE(read_error(good.substr(0, 40)).find("run.state: state truncated in"), std::string::npos);
+  // Cut inside u's values (u's length at byte 24, its values from byte 32).
+  EXPECT_NE(read_error(good.substr(0, 40)).find("run.state: state truncated in u"), std::string::npos) << read_error(good.substr(0, 40));
+  EXPECT_NE(read_error(good.substr(0, 28)).find("run.state: state truncated in u (at byte 24)"), std::string::npos)
+      << read_error(good.substr(0, 28));
   // u's length claims 2^60 values: refused before any allocation.
   std::string huge = good;
   const std::uint64_t n = 1ULL << 60;
