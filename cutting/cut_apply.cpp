@@ -22,7 +22,7 @@ bool enriched(const Model& m, int e) { return m.elem_dof_ptr[e + 1] - m.elem_dof
 
 // Old model's effective value (u, v or a) of node a of element e, in its
 // piece P (piece_containing of a point of the new piece; -1: e was whole).
-void old_piece_values(const Model& m, const Kinematics& s, int e, int P, int a, double out[9]) {
+void old_piece_values(const Model& m, const State& s, int e, int P, int a, double out[9]) {
   const int npe = m.mesh.npe();
   const int i = m.mesh.tet[static_cast<size_t>(e) * npe + a];
   const int q = P >= 0 ? m.cuts.piece_enr[static_cast<size_t>(P) * npe + a] : -1;
@@ -115,7 +115,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   Stopwatch part;
   Model& next = *p.next;
   State& st = sim.state;
-  Kinematics k = transfer_kinematics(sim.model, {st.u, st.v, st.a}, next);
+  Kinematics k = transfer_kinematics(sim.model, st, next);  // (reads st: no copy of u, v, a)
   std::vector<double> R = carried_rotations(sim.model, st.R, next);
   std::unique_ptr<Model> old_model = std::make_unique<Model>(std::move(sim.model));
   sim.model = std::move(next);
@@ -233,7 +233,7 @@ std::vector<int> dofnode_map(const Model& from, const Model& to) {
   return map;
 }
 
-Kinematics transfer_kinematics(const Model& from, const Kinematics& os, const Model& to) {
+Kinematics transfer_kinematics(const Model& from, const State& os, const Model& to) {
   Kinematics ns;
   const int n = to.ndof(), nstd = 3 * to.nnode, npe = to.mesh.npe();
   ns.u.assign(os.u.begin(), os.u.begin() + nstd);

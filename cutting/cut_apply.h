@@ -39,7 +39,7 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep);
 CutUpdate apply_all_cuts(Simulation& sim);
 
 struct Kinematics {
-  std::vector<double> u, v, a;  // (ndof) of some model
+  std::vector<double> u, v, a;  // (to.ndof) the transferred fields
 };
 
 // Moves kinematics to a model with more cuts (same mesh): every piece of the
@@ -47,7 +47,7 @@ struct Kinematics {
 // it lies in, so the field is unchanged by the cut itself: a piece's nodal
 // value is d_a = u_a + q_a ([preprint] eq. (66)), so u_a takes the home
 // piece's value and q_a = d_a(old piece) - u_a. Returns (to.ndof) arrays.
-Kinematics transfer_kinematics(const Model& from, const Kinematics& old, const Model& to);
+Kinematics transfer_kinematics(const Model& from, const State& old, const Model& to);
 
 // For each DOF node of `to` (a model with more cuts, same mesh) the DOF node
 // of `from` carrying the same field: mesh nodes map to themselves, an

@@ -141,7 +141,6 @@ void step(const Model& m, State& s, Workspace& ws) {
 }
 
 void step_stages(const Model& m, State& s, Workspace& ws) {
-  ws.iteration = 0;
   ws.newton_done = false;
   ws.rescue_pending = false;
   ws.rotation_fallbacks = 0;
@@ -163,7 +162,7 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
   const double a_ray = m.material.rayleigh_mass, b_ray = m.material.rayleigh_stiffness;
   const bool linear = m.material.model == MaterialModel::Linear;
   const NewmarkCoefficients nc = newmark_coefficients(m);
-  if (ws.iteration == 0) {
+  if (ws.newton_iterations_done == 0) {
     // Increment Delta = u(t+dt) - u(t): constrained DOFs take their known
     // increments up front (projection, Algorithm 1); the solves then keep
     // them (rhs and off-diagonals zeroed) and find the free ones.
@@ -229,8 +228,7 @@ void solve_system(const Model& m, State& s, Workspace& ws) {
   if (ws.rescue_pending) return;  // the factorization stage runs again first
   check_finite(ws.du, "displacement increment", s);
   for (int d = 0; d < n; ++d) ws.delta[d] += ws.du[d];
-  ++ws.newton_iterations_done;
-  const int it = ws.iteration++;
+  const int it = ws.newton_iterations_done++;
   const bool linear = m.material.model == MaterialModel::Linear;
   const bool adaptive = !linear && m.rotation_tolerance > 0 && m.max_newton_iterations > m.newton_iterations;
   if (it + 1 >= m.max_newton_iterations) {

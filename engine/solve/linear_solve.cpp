@@ -756,9 +756,9 @@ void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
       // A rescue (solve_for_policy gave up on CG) factors A now,
       // synchronously (waiting for a running background job).
       const bool rescue = ws.rescue_pending;
-      if (rescue || ws.iteration == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
+      if (rescue || ws.newton_iterations_done == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
       if (m.solver.warp) lagged_warp_rotations(m, ws);
-      if (rescue || ws.iteration == 0 || ws.work.patch_key < 0) lagged_patch(m, ws, ws.A.data());
+      if (rescue || ws.newton_iterations_done == 0 || ws.work.patch_key < 0) lagged_patch(m, ws, ws.A.data());
       ws.timing.factor_age = s.frame - ws.work.front_frame;
       ws.timing.patch_dofs = static_cast<int>(ws.work.patch_dof.size());
       break;
@@ -772,7 +772,7 @@ void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
 
 void solve_for_policy(const Model& m, Workspace& ws) {
   double* du = ws.du.data();
-  const int iteration = ws.iteration;
+  const int iteration = ws.newton_iterations_done;
   switch (m.solver.policy) {
     case SolverPolicy::Exact:
       substitute(ws, ws.solver, ws.rhs.data(), du);
@@ -783,10 +783,8 @@ void solve_for_policy(const Model& m, Workspace& ws) {
       auto& guess = ws.work.guess;
       if (ws.rescue_pending) {  // the rescue factor is in place: CG again from 0
         ws.rescue_pending = false;
-        ws.timing.converged = ws.converged_before_rescue;
         pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, m.solver.max_iterations);
       } else {
-        ws.converged_before_rescue = ws.timing.converged;
         // The first Newton iteration's increment alternates in sign between
         // frames (the trapezoidal rule's undamped sawtooth about the
         // constant-velocity predictor): the last one, scaled, starts CG close.

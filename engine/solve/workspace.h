@@ -32,16 +32,14 @@ struct Workspace {
   RuntimeSettings runtime;      // threads, CPUs, priorities (the scene's; set before init_state)
 
   // The Newton loop of the step in progress (engine/dynamics/step.cpp).
-  int iteration = 0;             // linearised solves done this step
+  int newton_iterations_done = 0;  // linearised solves done so far in this step (all of them after it)
   bool newton_done = false;      // set by the solve stage: no further iteration
   bool rescue_pending = false;   // lagged: the solve stage asks the factorization stage for a rescue factor
-  bool converged_before_rescue = true;
 
   FrameTiming timing;           // the last (or current) frame
   int refactorizations = 0;     // numeric factorizations so far
   int rotation_fallbacks = 0;   // SVD fallbacks in the last frame (inverted points)
   double last_residual = 0.0;      // relative residual of the last Newton iteration
-  int newton_iterations_done = 0;  // linearised solves in the last step
 
   Workspace() = default;
   Workspace(const Workspace&) = delete;

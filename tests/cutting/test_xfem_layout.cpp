@@ -572,11 +572,15 @@ TEST(Xfem, CutFrameAccelerationIsRecomputedNearTheChangedElementsOnly) {
   ASSERT_TRUE(update_cuts(*sim, 0.0, 0.35).changed);  // the blade a third of the way down
   for (int k = 0; k < 8; ++k) step(sim->model, sim->state, sim->ws);  // the beam swings under gravity
   const Model before = sim->model;
-  const Kinematics moved = transfer_kinematics(before, {sim->state.u, sim->state.v, sim->state.a}, before);
+  const Kinematics moved = transfer_kinematics(before, sim->state, before);
   ASSERT_TRUE(update_cuts(*sim, 0.0, 0.75).changed);  // deeper: new split elements
   const Model& m = sim->model;
   const std::vector<double> near = sim->state.a;
-  const Kinematics carried = transfer_kinematics(before, moved, m);
+  State moved_state;
+  moved_state.u = moved.u;
+  moved_state.v = moved.v;
+  moved_state.a = moved.a;
+  const Kinematics carried = transfer_kinematics(before, moved_state, m);
   consistent_acceleration(m, sim->state, sim->ws);
   const std::vector<double> global = sim->state.a;
   double amax = 0;

@@ -36,7 +36,6 @@ TEST(Pipeline, AStageTheSceneDoesNotCallForRunsZeroTimes) {
     EXPECT_EQ(t.runs[kStageAssembly], t.newton) << "one assembly per Newton iteration";
     EXPECT_EQ(t.runs[kStageSolve], t.newton) << "no rescue under exact";
     EXPECT_EQ(t.runs[kStageFactorization], t.runs[kStageSolve]);
-    EXPECT_GT(t.frame_ms, 0.0);
   }
   for (Stage s : {kStageToolPoses, kStageCollision, kStageCutting, kStageContactPublish, kStageRender, kStageRecord}) {
     EXPECT_EQ(total.runs[s], 0) << kStageNames[s];
@@ -60,9 +59,6 @@ TEST(Pipeline, PluggedStagesRunInLoopOrderAroundTheStep) {
   EXPECT_EQ(seen, expect) << "before the step: frame 0; after it: frame 1";
   for (Stage s : {kStageToolPoses, kStageCollision, kStageCutting, kStageContactPublish, kStageRender, kStageRecord})
     EXPECT_EQ(t.runs[s], 1) << kStageNames[s];
-  double sum = 0;
-  for (int s = 0; s < kNumStages; ++s) sum += t.ms[s];
-  EXPECT_LE(sum, t.frame_ms) << "the stages' times lie within the frame's";
 }
 
 TEST(Pipeline, TheStepsOwnStagesCannotBeReplaced) {
