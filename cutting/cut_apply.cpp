@@ -59,6 +59,7 @@ bool same_layout(const Model& m, const CutLayout& L) {
 // the cut surfaces at t_sweep and the next Model built from it.
 struct PreparedCut {
   std::vector<double> progress;  // (scene.cuts) what the update applies
+  size_t swept = 0;              // instrument-swept triangles it includes (State::swept_tool.size())
   double t_sweep = 0.0;
   int base_version = -1;         // Simulation::model_version it was prepared from
   bool rebuild = false;          // the layout changed: `next` holds the new model
@@ -70,9 +71,17 @@ struct PreparedCut {
   double layout_ms = 0.0, model_ms = 0.0;
 };
 
-PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progress, double t_sweep) {
+// The instruments' swept triangles a cut update includes (a copy: the
+// cut-ahead helper must not read the State the stages change).
+struct SweptCuts {
+  std::vector<double> tris, tool;  // State::swept, swept_tool
+};
+
+PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progress, double t_sweep,
+                        const SweptCuts& swept) {
   PreparedCut p;
   p.progress = progress;
+  p.swept = swept.tool.size();
   p.t_sweep = t_sweep;
   p.base_version = sim.model_version;
   std::vector<std::unique_ptr<CutSurface>> owned;
@@ -80,6 +89,12 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
     if (progress[k] <= 0.0) continue;
     auto s = make_cut_surface(sim.scene.cuts[k], t_sweep);
+    if (!s) continue;
+    surfaces.push_back(s.get());
+    owned.push_back(std::move(s));
+  }
+  for (size_t i = 0; i < sim.scene.instruments.size(); ++i) {
+    auto s = make_swept_surface(swept.tris, swept.tool, static_cast<int>(i), sim.scene.instruments[i].json_path);
     if (!s) continue;
     surfaces.push_back(s.get());
     owned.push_back(std::move(s));
@@ -140,6 +155,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
 struct CutAhead {
   PreparedCut result;
   std::exception_ptr error;
+  SweptCuts swept;
   std::vector<double> progress;
   double t_sweep = 0.0;
   int base_version = -1;
@@ -168,13 +184,15 @@ std::vector<double> progress_at(const Simulation& sim, double t, double t_sweep,
 
 // Waits for a helper still running and takes its result when it was prepared
 // for exactly this update; otherwise drops it.
-bool take_ahead(Simulation& sim, const std::vector<double>& progress, double t_sweep, PreparedCut* out) {
+bool take_ahead(Simulation& sim, const std::vector<double>& progress, double t_sweep, size_t swept, PreparedCut* out) {
   auto ahead = std::static_pointer_cast<CutAhead>(sim.cut_ahead);
   if (!ahead) return false;
   sim.cut_ahead.reset();
   sim.cut_helper->wait();
   if (ahead->error) std::rethrow_exception(ahead->error);
-  if (ahead->base_version != sim.model_version || ahead->progress != progress || ahead->t_sweep != t_sweep) return false;
+  if (ahead->base_version != sim.model_version || ahead->progress != progress || ahead->t_sweep != t_sweep ||
+      ahead->result.swept != swept)
+    return false;
   *out = std::move(ahead->result);
   return true;
 }
@@ -183,11 +201,12 @@ bool take_ahead(Simulation& sim, const std::vector<double>& progress, double t_s
 
 void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   PreparedCut dropped;
-  take_ahead(sim, {}, 0.0, &dropped);  // at most one helper
+  take_ahead(sim, {}, 0.0, 0, &dropped);  // at most one helper
   bool changed = false;
   std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
   if (!changed) return;
   auto ahead = std::make_shared<CutAhead>();
+  ahead->swept = {sim.state.swept, sim.state.swept_tool};
   ahead->progress = progress;
   ahead->t_sweep = t_sweep;
   ahead->base_version = sim.model_version;
@@ -200,7 +219,7 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   sim.cut_helper->run([ahead, a, s, retired]() mutable {  // (ahead: the task keeps its result alive)
     retired.reset();  // the model the last cut replaced (0.2-0.4 ms of frees)
     try {
-      a->result = prepare_cut(*s, a->progress, a->t_sweep);
+      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept);
     } catch (...) {
       a->error = std::current_exception();
     }
@@ -277,14 +296,14 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
   return ns;
 }
 
-CutUpdate update_cuts(Simulation& sim, double t, double t_sweep) {
+CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_changed) {
   Stopwatch clock;
   bool changed = false;
   const std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
   PreparedCut p;
-  const bool ahead = take_ahead(sim, progress, t_sweep, &p);
-  if (!changed) return {};
-  if (!ahead) p = prepare_cut(sim, progress, t_sweep);
+  const bool ahead = take_ahead(sim, progress, t_sweep, sim.state.swept_tool.size(), &p);
+  if (!changed && !swept_changed) return {};
+  if (!ahead) p = prepare_cut(sim, progress, t_sweep, {sim.state.swept, sim.state.swept_tool});
   CutUpdate up = commit_cut(sim, std::move(p), clock);
   up.ahead = ahead;
   return up;
@@ -295,9 +314,9 @@ CutUpdate apply_all_cuts(Simulation& sim) {
   double t_end = 0.0;
   for (const CutSpec& c : sim.scene.cuts) t_end = std::max(t_end, c.at_time + c.duration);
   PreparedCut dropped;
-  take_ahead(sim, {}, 0.0, &dropped);
+  take_ahead(sim, {}, 0.0, 0, &dropped);
   Stopwatch clock;
-  return commit_cut(sim, prepare_cut(sim, progress, t_end), clock);
+  return commit_cut(sim, prepare_cut(sim, progress, t_end, {sim.state.swept, sim.state.swept_tool}), clock);
 }
 
 }  // namespace incise

@@ -23,7 +23,8 @@ struct CutUpdate {
 // Cuts with at_time <= t are active; a swept cut covers its sweep up to time
 // t_sweep (pass the end of the coming frame). Rebuilds only when the set of
 // split elements changes (a blade tip moving inside an element changes nothing).
-CutUpdate update_cuts(Simulation& sim, double t, double t_sweep);
+// swept_changed: instruments added swept triangles (State::swept) this frame.
+CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_changed = false);
 
 // Starts preparing, on a helper thread, the cut update of the frame at time t
 // (swept cuts reaching t_sweep): its layout and next Model, which read only

@@ -1,12 +1,14 @@
 #include "cutting/cut_stage.h"
 
+#include "cutting/blade_sweep.h"
 #include "cutting/cut_apply.h"
 
 namespace incise {
 
 void cutting_stage(Simulation& sim) {
   const double t = sim.state.time, dt = sim.model.dt;
-  const CutUpdate cut = update_cuts(sim, t, t + dt);
+  const int swept = sweep_blades(sim);  // the scalpels' bands of this frame
+  const CutUpdate cut = update_cuts(sim, t, t + dt, swept > 0);
   // The next frame's layout and model build run beside this step (the times
   // as the next frame will compute them: t1 = t + dt, then t1 + dt).
   // (t1 + dt, not t + 2 dt: the next frame sums its times the same way, and
@@ -20,7 +22,9 @@ void cutting_stage(Simulation& sim) {
 }
 
 void install_cutting_stage(Simulation& sim) {
-  if (!sim.scene.cuts.empty()) sim.pipeline.set(kStageCutting, cutting_stage);
+  bool scalpel = false;
+  for (const InstrumentSpec& i : sim.scene.instruments) scalpel = scalpel || i.kind == InstrumentSpec::Kind::Scalpel;
+  if (!sim.scene.cuts.empty() || scalpel) sim.pipeline.set(kStageCutting, cutting_stage);
 }
 
 }  // namespace incise

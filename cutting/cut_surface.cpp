@@ -221,4 +221,17 @@ std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& c, double t) {
   return surf;
 }
 
+std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept, const std::vector<double>& swept_tool,
+                                               int tool, const std::string& name) {
+  std::vector<Facet> facets;
+  for (size_t t = 0; t < swept_tool.size(); ++t) {
+    if (static_cast<int>(swept_tool[t]) != tool) continue;
+    const double* v = &swept[9 * t];
+    facets.push_back(triangle_facet(V(v[0], v[1], v[2]), V(v[3], v[4], v[5]), V(v[6], v[7], v[8])));
+  }
+  auto surf = std::make_unique<CutSurface>(std::move(facets), name);
+  if (surf->facets().empty()) return nullptr;
+  return surf;
+}
+
 }  // namespace incise

@@ -49,6 +49,11 @@ class CutSurface {
 // read .obj or ASCII .stl triangle files; errors name the file and line.
 std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& spec, double t);
 
+// The surface instrument `tool` swept (State::swept, swept_tool: (ntri, 9)
+// and (ntri)); nullptr when it swept nothing.
+std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept, const std::vector<double>& swept_tool,
+                                               int tool, const std::string& name);
+
 // Reads a triangle surface (.obj or ASCII .stl) as facets.
 std::vector<Facet> read_triangle_surface(const std::string& path);
 

@@ -22,12 +22,12 @@ std::uint64_t fnv(const void* data, size_t bytes, std::uint64_t h = kFnvOffset) 
   return h;
 }
 
-std::uint64_t fnv(const std::vector<double>& x) {
+std::uint64_t fnv(const std::vector<double>& x, std::uint64_t h = kFnvOffset) {
   const std::uint64_t n = x.size();
-  return fnv(x.data(), x.size() * sizeof(double), fnv(&n, sizeof n));
+  return fnv(x.data(), x.size() * sizeof(double), fnv(&n, sizeof n, h));
 }
 
-constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '1'};  // format version 1
+constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '2'};  // format version 2 (1 + swept cuts)
 
 template <class T>
 void put(std::ostream& os, const T& v) {
@@ -52,7 +52,7 @@ std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& s) {
   h[kFieldV] = fnv(s.v);
   h[kFieldA] = fnv(s.a);
   h[kFieldR] = fnv(s.R);
-  h[kFieldTopology] = fnv(s.cut_progress);
+  h[kFieldTopology] = fnv(s.swept_tool, fnv(s.swept, fnv(s.cut_progress)));
   return h;
 }
 
@@ -65,7 +65,7 @@ void write_state(std::ostream& os, const State& s) {
   os.write(kMagic, sizeof kMagic);
   put(os, s.time);
   put<std::int64_t>(os, s.frame);
-  for (const std::vector<double>* f : {&s.u, &s.v, &s.a, &s.R, &s.cut_progress}) {
+  for (const std::vector<double>* f : {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool}) {
     put<std::uint64_t>(os, f->size());
     os.write(reinterpret_cast<const char*>(f->data()), static_cast<std::streamsize>(f->size() * sizeof(double)));
   }
@@ -75,7 +75,7 @@ void write_state(std::ostream& os, const State& s) {
 State read_state(std::istream& is, const std::string& what) {
   char magic[sizeof kMagic];
   if (!is.read(magic, sizeof magic) || std::memcmp(magic, kMagic, sizeof kMagic) != 0)
-    throw Error(what + ": not an incise state file of version 1 (header 'INCSTAT1' expected)");
+    throw Error(what + ": not an incise state file of version 2 (header 'INCSTAT2' expected)");
   // Bytes left, so a corrupted length is refused before anything is allocated.
   const auto here = is.tellg();
   is.seekg(0, std::ios::end);
@@ -88,9 +88,9 @@ State read_state(std::istream& is, const std::string& what) {
     throw Error(what + ": state time or frame out of range (time " + std::to_string(s.time) + ", frame " +
                 std::to_string(frame) + ")");
   s.frame = static_cast<int>(frame);
-  const char* names[] = {"u", "v", "a", "R", "cut_progress"};
-  std::vector<double>* fields[] = {&s.u, &s.v, &s.a, &s.R, &s.cut_progress};
-  for (int k = 0; k < 5; ++k) {
+  const char* names[] = {"u", "v", "a", "R", "cut_progress", "swept", "swept_tool"};
+  std::vector<double>* fields[] = {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool};
+  for (int k = 0; k < 7; ++k) {
     const std::uint64_t n = get<std::uint64_t>(is, what, names[k]);
     if (n > static_cast<std::uint64_t>(left) / sizeof(double))
       throw Error(what + ": state field " + names[k] + " claims " + std::to_string(n) + " values, more than the file holds");

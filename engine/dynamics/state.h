@@ -20,10 +20,14 @@ struct State {
   std::vector<double> u, v, a;        // (ndof) displacement, velocity, acceleration
   std::vector<double> R;              // (nrot, 9) rotation of each slot, column-major
   std::vector<double> cut_progress;   // (scene.cuts) share of each cut applied: -1 none, 1 whole
+  // Cuts made by instruments (cutting/blade_sweep.h): the triangles a
+  // scalpel's edge swept inside the tissue, in reference coordinates.
+  std::vector<double> swept;          // (ntri, 9) corners
+  std::vector<double> swept_tool;     // (ntri) the instrument (scene.instruments index)
 
   bool operator==(const State& o) const {
     return time == o.time && frame == o.frame && u == o.u && v == o.v && a == o.a && R == o.R &&
-           cut_progress == o.cut_progress;
+           cut_progress == o.cut_progress && swept == o.swept && swept_tool == o.swept_tool;
   }
   bool operator!=(const State& o) const { return !(*this == o); }
 };

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "engine/dynamics/contact_solve.h"
 #include "engine/fem/assemble.h"
 #include "engine/fem/assemble_parallel.h"
 #include "engine/util/error.h"
@@ -145,12 +146,15 @@ void step_stages(const Model& m, State& s, Workspace& ws) {
   ws.rescue_pending = false;
   ws.rotation_fallbacks = 0;
   ws.newton_iterations_done = 0;
+  begin_contacts(m, ws);
+  const bool contacts = ws.contacts.nrow() > 0;
   while (!ws.newton_done) {
     run_stage(ws.timing, kStageAssembly, [&] { assemble_system(m, s, ws); });
     do {
       if (factorization_due(m, ws)) run_stage(ws.timing, kStageFactorization, [&] { factorize_system(m, s, ws); });
       run_stage(ws.timing, kStageSolve, [&] { solve_system(m, s, ws); });
     } while (ws.rescue_pending);
+    if (contacts) run_stage(ws.timing, kStageContact, [&] { solve_contacts(m, s, ws); });
   }
   run_stage(ws.timing, kStageIntegration, [&] { integrate(m, s, ws); });
   ws.timing.newton = ws.newton_iterations_done;
@@ -203,6 +207,10 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
     sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, m.mass_csc.data(), a1, ws.rhs.data());
   }
   for (int d = 0; d < n; ++d) ws.rhs[d] = m.f_gravity[d] - ws.f_int[d] - ws.rhs[d];
+  // The contact and grasp force found by the step's earlier iterations
+  // (engine/dynamics/contact_solve.h): an external force at t + dt.
+  if (ws.contact_force.size() == static_cast<size_t>(n))
+    for (int d = 0; d < n; ++d) ws.rhs[d] += ws.contact_force[d];
   if (b_ray > 0.0) {
     if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
     else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), v1, a1);  // warped: frozen-R K v without K

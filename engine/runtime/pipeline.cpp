@@ -19,7 +19,8 @@ double thread_cpu_ms() {
 }  // namespace
 
 bool is_dynamics_stage(Stage stage) {
-  return stage == kStageAssembly || stage == kStageFactorization || stage == kStageSolve || stage == kStageIntegration;
+  return stage == kStageAssembly || stage == kStageFactorization || stage == kStageSolve || stage == kStageContact ||
+         stage == kStageIntegration;
 }
 
 void Pipeline::set(Stage stage, StageFn fn) {

@@ -1,6 +1,7 @@
 #pragma once
 // A loaded scene ready to step: Scene -> Mesh -> Model -> State, with the
 // Workspace that steps it and the frame's Pipeline.
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -10,6 +11,7 @@
 #include "engine/model/model.h"
 #include "engine/runtime/helper_thread.h"
 #include "engine/runtime/pipeline.h"
+#include "engine/runtime/tool_pose.h"
 #include "engine/scene/scene.h"
 #include "engine/solve/workspace.h"
 
@@ -22,6 +24,13 @@ struct Simulation {
   State state;            // the physical state: copyable, hashable
   Workspace ws;           // factors, threads, caches, work arrays, timings
   Pipeline pipeline;      // the frame's stages (engine/runtime/pipeline.h)
+  // (scene.instruments) each instrument's pose at the start and end of the
+  // coming frame, set by the tool-poses stage; empty without instruments.
+  std::vector<ToolFrame> tools;
+  // Module state that lives as long as the simulation (the collision model,
+  // the instruments' trajectories, grasps): each module keeps its own, keyed
+  // by its stage; engine/ only holds it.
+  std::array<std::shared_ptr<void>, kNumStages> module_data{};
   double setup_ms = 0.0;  // reading the mesh, precomputation, symbolic analysis
   int model_version = 0;  // counts the models a cut put in place
   // cutting/cut_apply.cpp: the next frame's cut update being prepared on

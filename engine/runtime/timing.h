@@ -20,6 +20,7 @@ enum Stage {
   kStageAssembly,
   kStageFactorization,
   kStageSolve,
+  kStageContact,
   kStageIntegration,
   kStageContactPublish,
   kStageRender,
@@ -27,7 +28,7 @@ enum Stage {
   kNumStages
 };
 inline constexpr std::array<const char*, kNumStages> kStageNames = {
-    "tool_poses", "collision", "cutting", "assembly", "factorization", "solve", "integration", "contact_publish",
+    "tool_poses", "collision", "cutting", "assembly", "factorization", "solve", "contact", "integration", "contact_publish",
     "render", "record"};
 
 // Parts of the cutting stage in a cut frame (they sum to its ms[kStageCutting]
@@ -59,6 +60,14 @@ struct FrameTiming {
   int factor_age = 0;         // lagged: frames since the matrix of the preconditioning factor (last Newton iteration)
   int patch_dofs = 0;         // lagged after cuts: DOFs of the exactly solved patch (0: none)
   int tangent_updates = 0;    // elements whose tangent blocks were (re)computed (all but the kept ones: integrator.tangent_reuse)
+  // Instruments (collision/, engine/dynamics/contact_solve.h).
+  int contacts = 0;           // contact rows of the frame (after reduction to contact.max_rows)
+  int grasp_rows = 0;         // bilateral grasp rows
+  int contact_sweeps = 0;     // projected Gauss-Seidel sweeps (all Newton iterations)
+  double contact_force = 0;   // |sum of lambda dir| over the contact and grasp rows (N)
+  double max_depth = 0;       // deepest penetration collision found at the frame's start (before the response)
+  int bvh_refits = 0;         // tissue collision model refitted this frame
+  int bvh_rebuilds = 0;       // rebuilt (after a topology change)
 };
 
 class Stopwatch {

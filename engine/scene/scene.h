@@ -63,6 +63,45 @@ struct CutSpec {
   std::string json_path;        // "cuts[2]"
 };
 
+// An instrument of the scene (scene key "instruments"; docs/scene-format.md).
+// Poses are rigid transforms tool frame -> world: position and unit
+// quaternion (w, x, y, z). Tool-frame geometry (metres or the scene's unit):
+//   probe    a sphere of `radius` centred at the tool origin, or a capsule
+//            (`length` > 0): the segment from the origin to (0, 0, length)
+//            swept by `radius` (the tip is the hemisphere at the origin);
+//   scalpel  a blade box x in [-L/2, L/2], y in [-T/2, T/2], z in [0, H]
+//            (blade = [L, T, H]); its cutting edge is the segment
+//            edge[0] -> edge[1] (default: the blade's lower edge, z = 0);
+//   grasper  two parallel jaw boxes [W, T, J] (jaw = [width x, thickness y,
+//            length z], centred at z = 0) facing each other across the tool's
+//            y axis, their inner faces `opening` apart at jaw = 0 and touching
+//            at jaw = 1; while jaw >= grasp_at the tissue between them is held.
+struct InstrumentSpec {
+  enum class Kind { Probe, Scalpel, Grasper };
+  Kind kind = Kind::Probe;
+  std::string name;             // "instruments[0]" unless given
+  std::string trajectory;       // resolved keyframe CSV (t,x,y,z,qw,qx,qy,qz[,jaw]); empty: fixed `pose`
+  Vec3 position{};              // pose without a trajectory
+  std::array<double, 4> orientation{1.0, 0.0, 0.0, 0.0};  // (w, x, y, z), unit
+  double jaw = 0.0;             // grasper without a trajectory: 0 open .. 1 closed
+  double radius = 0.0;          // probe: > 0
+  double length = 0.0;          // probe: capsule length, 0 = sphere
+  Vec3 blade{};                 // scalpel: [L, T, H], each > 0
+  std::array<Vec3, 2> edge{};   // scalpel: cutting edge in the tool frame
+  Vec3 jaw_size{};              // grasper: [W, T, J], each > 0
+  double opening = 0.0;         // grasper: > 0
+  double grasp_at = 0.9;        // grasper: jaw value from which it holds, in (0, 1]
+  bool contact = true;          // probe and grasper: the tissue is pushed out of the tool
+  std::string json_path;        // "instruments[1]"
+};
+
+// Contact response settings (scene key "contact"; docs/scene-format.md).
+struct ContactSettings {
+  int max_rows = 48;            // contact constraints kept per frame (deepest first), >= 1
+  double friction = 0.0;        // Coulomb coefficient, >= 0 (0: frictionless)
+  int pgs_iterations = 200;     // projected Gauss-Seidel sweeps, >= 1
+};
+
 // Linear-solver policy of the dynamics (issue 4). Every policy is measured
 // against `exact` by `incise compare`; none is applied silently.
 enum class SolverPolicy {
@@ -184,6 +223,8 @@ struct Scene {
   int frames = 60;                      // run.frames default for `incise run`
   OutputSettings output;
   std::vector<CutSpec> cuts;
+  std::vector<InstrumentSpec> instruments;
+  ContactSettings contact;
   RenderSettings render;
 };
 

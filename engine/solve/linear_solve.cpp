@@ -818,4 +818,19 @@ void solve_for_policy(const Model& m, Workspace& ws) {
   }
 }
 
+void apply_factor_inverse(const Model& m, Workspace& ws, const double* b, double* x) {
+  switch (m.solver.policy) {
+    case SolverPolicy::Exact:
+      substitute(ws, ws.solver, b, x);
+      break;
+    case SolverPolicy::Lagged:
+      lagged_apply(m, ws, ws.A.data(), b, x);
+      break;
+    case SolverPolicy::Warped:
+    case SolverPolicy::WarpedCG:
+      warped_apply(m, ws, b, x);
+      break;
+  }
+}
+
 }  // namespace incise

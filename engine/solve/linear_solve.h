@@ -69,6 +69,13 @@ bool factorization_due(const Model& model, const Workspace& ws);
 void factorize_for_policy(const Model& model, const State& state, Workspace& ws);
 void solve_for_policy(const Model& model, Workspace& ws);
 
+// x ~= A^-1 b through the factor the policy solved with this iteration: the
+// exact factor of A; lagged: the preconditioner (the older factor, warped,
+// with its patch); warped and warped_cg: the warped rest factor. The contact
+// stage builds its compliance W = H A^-1 H^T with it (Courtecuisse et al.'s
+// compliance from the preconditioner). Call after the solve stage.
+void apply_factor_inverse(const Model& model, Workspace& ws, const double* b, double* x);
+
 // Node rotations of the warped policies from the slot rotations R (nrot, 9):
 // the polar rotation of the volume-weighted sum of the incident slots' R;
 // identity on nodes with some but not all components constrained.

@@ -7,6 +7,7 @@
 // the next Model in carry_workspace_over_cut (engine/solve/workspace_carry.h).
 #include <vector>
 
+#include "engine/dynamics/contact_rows.h"
 #include "engine/fem/assemble_parallel.h"
 #include "engine/runtime/timing.h"
 #include "engine/scene/scene.h"
@@ -35,6 +36,13 @@ struct Workspace {
   int newton_iterations_done = 0;  // linearised solves done so far in this step (all of them after it)
   bool newton_done = false;      // set by the solve stage: no further iteration
   bool rescue_pending = false;   // lagged: the solve stage asks the factorization stage for a rescue factor
+
+  // Contact and grasp constraints of the coming frame (collision/ fills
+  // them before the step; the contact stage solves them) and the force they
+  // put on the DOFs, H^T lambda (ndof; empty while there are none).
+  ContactRows contacts;
+  std::vector<double> contact_force;
+  std::vector<double> contact_work;  // (nrow, ndof) A^-1 H^T columns, reused between frames
 
   FrameTiming timing;           // the last (or current) frame
   int refactorizations = 0;     // numeric factorizations so far

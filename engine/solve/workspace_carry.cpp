@@ -225,6 +225,36 @@ void carry_workspace_over_cut(const Model& from, const Model& to, const std::vec
   carry_tangent_cache(from, kept, old_K, to, changed, ws);
   ws.tangent_cache.spare_K = std::move(old_K);
   ws.refactorizations = refactorizations;
+  carry_contact_rows(from, dofnode_map, ws.contacts);
+}
+
+void carry_contact_rows(const Model& from, const std::vector<int>& dofnode_map, ContactRows& rows) {
+  if (rows.nrow() == 0) return;
+  // Old DOF node -> the new one carrying its field (mesh nodes keep their
+  // ids); an old enriched node whose piece the cut split goes to the first
+  // new piece that carries it, an approximation for this one frame only
+  // (the next frame's collision maps its contacts on the new model).
+  std::vector<int> to_new(from.ndofnode, -1);
+  for (int q = static_cast<int>(dofnode_map.size()) - 1; q >= 0; --q)
+    if (dofnode_map[q] >= 0) to_new[dofnode_map[q]] = q;
+  for (int& d : rows.dof) {
+    const int node = d / 3 < from.ndofnode ? to_new[d / 3] : -1;
+    d = node >= 0 ? 3 * node + d % 3 : -1;
+  }
+  // Entries whose DOF node vanished are dropped.
+  ContactRows kept = rows;
+  kept.dof.clear();
+  kept.coef.clear();
+  kept.ptr.assign(1, 0);
+  for (int i = 0; i < rows.nrow(); ++i) {
+    for (int k = rows.ptr[i]; k < rows.ptr[i + 1]; ++k)
+      if (rows.dof[k] >= 0) {
+        kept.dof.push_back(rows.dof[k]);
+        kept.coef.push_back(rows.coef[k]);
+      }
+    kept.ptr.push_back(static_cast<int>(kept.dof.size()));
+  }
+  rows = std::move(kept);
 }
 
 }  // namespace incise

@@ -23,4 +23,8 @@ namespace incise {
 void carry_workspace_over_cut(const Model& from, const Model& to, const std::vector<int>& dofnode_map,
                               const std::vector<int>& changed, AssemblyPlan* plan, int frame, Workspace& ws);
 
+// The frame's contact rows (collision ran before the cut) onto the new
+// model's DOF nodes through dofnode_map (new -> old); called by the above.
+void carry_contact_rows(const Model& from, const std::vector<int>& dofnode_map, ContactRows& rows);
+
 }  // namespace incise

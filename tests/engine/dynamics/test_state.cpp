@@ -122,9 +122,11 @@ TEST(State, DamagedFilesAreRefusedWithTheField) {
   s.a = {0, 0, 1};
   s.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
   s.cut_progress = {0.25};
+  s.swept = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  s.swept_tool = {0};
   const std::string good = saved(s);
   EXPECT_EQ(read_error(good), "");
-  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 1"), std::string::npos);
+  EXPECT_NE(read_error("INCSTAT1" + good.substr(8)).find("not an incise state file of version 2"), std::string::npos);
   // Cut inside u's values (u's length at byte 24, its values from byte 32).
   EXPECT_NE(read_error(good.substr(0, 40)).find("run.state: state truncated in u"), std::string::npos) << read_error(good.substr(0, 40));
   EXPECT_NE(read_error(good.substr(0, 28)).find("run.state: state truncated in u (at byte 24)"), std::string::npos)

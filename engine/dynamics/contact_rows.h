@@ -1,0 +1,63 @@
+#pragma once
+// Contact and grasp constraints of a frame, as rows of H acting on the
+// step's increment Delta = u(t + dt) - u(t):
+//   unilateral (contact):  H_i Delta >= target_i,  lambda_i >= 0, complementary
+//   bilateral  (grasp):    H_i Delta == target_i,  lambda_i free
+//   friction   (tangent):  H_i Delta == target_i while |lambda_i| < mu lambda_n
+//                          of its normal row (Coulomb), else sliding
+// A row reads a material point of the tissue through the shape functions of
+// its element (enriched DOFs included, [preprint] eq. (66)): for a contact,
+// H_i = n^T sum_a N_a(point) (e_{u_a} + e_{q_a}), so a tool on one face of a
+// cut moves that side only. collision/ fills the rows each frame; the
+// contact stage (engine/dynamics/contact_solve.h) finds lambda. lambda_i is a
+// force in newtons along the row's direction, acting on the tissue.
+#include <vector>
+
+namespace incise {
+
+enum class RowKind : char { Contact, Grasp, Friction };
+
+struct ContactRows {
+  std::vector<int> ptr{0};       // (nrow + 1) into dof, coef
+  std::vector<int> dof;          // DOF of each entry of H
+  std::vector<double> coef;      // its coefficient
+  std::vector<double> target;    // (nrow) what H_i Delta must reach (>= for a contact)
+  std::vector<RowKind> kind;     // (nrow)
+  std::vector<int> normal_row;   // (nrow) friction: its contact row; -1 otherwise
+  std::vector<int> tool;         // (nrow) instrument index (scene.instruments)
+  std::vector<double> point;     // (nrow, 3) world point of the row (contact point, grasped point)
+  std::vector<double> dir;       // (nrow, 3) world direction of the row (contact normal into the tissue, axis)
+  std::vector<double> depth;     // (nrow) contact: penetration found by collision (>= 0); 0 otherwise
+  double friction = 0.0;         // Coulomb coefficient of the friction rows
+  int max_sweeps = 200;          // projected Gauss-Seidel sweeps at most (scene contact.pgs_iterations)
+  std::vector<double> lambda;    // (nrow) result: force along dir on the tissue (N)
+
+  int nrow() const { return static_cast<int>(target.size()); }
+  void clear() {
+    ptr.assign(1, 0);
+    for (auto* v : {&coef, &target, &point, &dir, &depth, &lambda}) v->clear();
+    dof.clear();
+    kind.clear();
+    normal_row.clear();
+    tool.clear();
+  }
+  // Starts a row; add entries with add(), in any order.
+  void begin_row(RowKind k, double tgt, int tool_id, const double p[3], const double d[3], double dep = 0.0,
+                 int normal = -1) {
+    target.push_back(tgt);
+    kind.push_back(k);
+    normal_row.push_back(normal);
+    tool.push_back(tool_id);
+    point.insert(point.end(), p, p + 3);
+    dir.insert(dir.end(), d, d + 3);
+    depth.push_back(dep);
+    ptr.push_back(static_cast<int>(dof.size()));
+  }
+  void add(int d, double c) {
+    dof.push_back(d);
+    coef.push_back(c);
+    ptr.back() = static_cast<int>(dof.size());
+  }
+};
+
+}  // namespace incise

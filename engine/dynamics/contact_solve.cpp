@@ -1,0 +1,121 @@
+#include "engine/dynamics/contact_solve.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "engine/solve/linear_solve.h"
+#include "engine/util/headroom.h"
+
+namespace incise {
+
+void begin_contacts(const Model& m, Workspace& ws) {
+  ContactRows& c = ws.contacts;
+  if (c.nrow() == 0) {
+    ws.contact_force.clear();
+    c.lambda.clear();
+    return;
+  }
+  c.lambda.assign(c.nrow(), 0.0);
+  ws.contact_force.assign(m.ndof(), 0.0);
+}
+
+namespace {
+
+// Projected Gauss-Seidel on W lambda ~ b (row kinds as in contact_rows.h),
+// from the lambda given. Stops when no lambda moves the constraint by more
+// than tol (a displacement). Returns the sweeps done.
+int projected_gauss_seidel(const ContactRows& c, const std::vector<double>& W, const std::vector<double>& b,
+                           std::vector<double>& lambda, int max_sweeps, double tol) {
+  const int r = c.nrow();
+  int sweep = 0;
+  while (sweep < max_sweeps) {
+    ++sweep;
+    double moved = 0.0;
+    for (int i = 0; i < r; ++i) {
+      const double wii = W[static_cast<size_t>(i) * r + i];
+      if (!(wii > 0.0)) continue;  // a row on constrained DOFs only: no force can act
+      double wl = 0.0;
+      for (int j = 0; j < r; ++j) wl += W[static_cast<size_t>(i) * r + j] * lambda[j];
+      double li = lambda[i] + (b[i] - wl) / wii;
+      switch (c.kind[i]) {
+        case RowKind::Contact:
+          li = std::max(0.0, li);
+          break;
+        case RowKind::Friction: {
+          const double bound = c.friction * lambda[c.normal_row[i]];
+          li = std::clamp(li, -bound, bound);
+          break;
+        }
+        case RowKind::Grasp:
+          break;
+      }
+      moved = std::max(moved, std::abs(li - lambda[i]) * wii);
+      lambda[i] = li;
+    }
+    if (moved <= tol) break;
+  }
+  return sweep;
+}
+
+}  // namespace
+
+void solve_contacts(const Model& m, State& /*s*/, Workspace& ws) {
+  ContactRows& c = ws.contacts;
+  const int r = c.nrow(), n = m.ndof();
+  if (r == 0) return;
+  if (c.lambda.size() != static_cast<size_t>(r)) c.lambda.assign(r, 0.0);
+  // Y = A^-1 H^T, one column per row (constrained DOFs: no force, no motion),
+  // and one more column as the right-hand side's scratch.
+  resize_with_headroom(ws.contact_work, static_cast<size_t>(r + 1) * n);
+  double* rhs = ws.contact_work.data() + static_cast<size_t>(r) * n;
+  for (int i = 0; i < r; ++i) {
+    std::fill(rhs, rhs + n, 0.0);
+    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
+      if (!m.constrained[c.dof[k]]) rhs[c.dof[k]] += c.coef[k];
+    double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
+    apply_factor_inverse(m, ws, rhs, y);
+    for (int d : m.fixed_dofs) y[d] = 0.0;
+    for (const auto& p : m.prescribed) y[p.dof] = 0.0;
+  }
+  // W = H Y (symmetrised: the lagged preconditioner is symmetric up to roundoff).
+  std::vector<double> W(static_cast<size_t>(r) * r), b(r), lambda = c.lambda;
+  for (int i = 0; i < r; ++i)
+    for (int j = 0; j < r; ++j) {
+      const double* y = ws.contact_work.data() + static_cast<size_t>(j) * n;
+      double w = 0.0;
+      for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) w += c.coef[k] * y[c.dof[k]];
+      W[static_cast<size_t>(i) * r + j] = w;
+    }
+  for (int i = 0; i < r; ++i)
+    for (int j = 0; j < i; ++j) {
+      const double w = 0.5 * (W[static_cast<size_t>(i) * r + j] + W[static_cast<size_t>(j) * r + i]);
+      W[static_cast<size_t>(i) * r + j] = W[static_cast<size_t>(j) * r + i] = w;
+    }
+  double bmax = 0.0;
+  for (int i = 0; i < r; ++i) {
+    double hd = 0.0, wl = 0.0;
+    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) hd += c.coef[k] * ws.delta[c.dof[k]];
+    for (int j = 0; j < r; ++j) wl += W[static_cast<size_t>(i) * r + j] * c.lambda[j];
+    b[i] = c.target[i] - hd + wl;
+    bmax = std::max(bmax, std::abs(b[i]));
+  }
+  const int sweeps = projected_gauss_seidel(c, W, b, lambda, c.max_sweeps, 1e-12 * bmax);
+  // Delta += Y (lambda - lambda_old); the force H^T lambda for later iterations.
+  for (int i = 0; i < r; ++i) {
+    const double dl = lambda[i] - c.lambda[i];
+    if (dl == 0.0) continue;
+    const double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
+    for (int d = 0; d < n; ++d) ws.delta[d] += dl * y[d];
+  }
+  c.lambda = lambda;
+  ws.contact_force.assign(n, 0.0);
+  double F[3] = {0, 0, 0};
+  for (int i = 0; i < r; ++i) {
+    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) ws.contact_force[c.dof[k]] += c.coef[k] * lambda[i];
+    for (int d = 0; d < 3; ++d) F[d] += lambda[i] * c.dir[3 * i + d];
+  }
+  ws.timing.contact_sweeps += sweeps;
+  ws.timing.contact_force = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+}
+
+}  // namespace incise

@@ -1,0 +1,37 @@
+#pragma once
+// The contact stage of the step: after each solve, the increment Delta is
+// corrected so the frame ends with the constraints of ws.contacts met
+// (engine/dynamics/contact_rows.h): contacts without penetration, grasped
+// points on the jaws, Coulomb friction when asked.
+//
+// Constraint-based response with the compliance from the frame's factor
+// (Courtecuisse et al., "Real-time simulation of contact and cutting of
+// heterogeneous soft-tissues", Med. Image Anal. 18(2), 2014, sec. 3): with
+// the free increment Delta_f (the solve's, which already includes the force
+// H^T lambda of earlier Newton iterations of the step),
+//   Delta = Delta_f + A^-1 H^T (lambda - lambda_old),
+//   W = H A^-1 H^T  (the contact compliance, nrow x nrow),
+// and lambda solves the mixed LCP
+//   W lambda - b >= 0, lambda >= 0, complementary   (contacts)
+//   W lambda - b  = 0                               (grasps)
+//   |lambda_t| <= mu lambda_n, sticking or sliding   (friction)
+// with b = target - H Delta_f + W lambda_old, by projected Gauss-Seidel. A^-1
+// is the policy's own (apply_factor_inverse: the exact factor, or the lagged
+// preconditioner): the correction then meets H Delta = target exactly, and
+// equilibrium holds to the preconditioner's accuracy, which the next Newton
+// iteration (lambda H^T stays in its residual) or frame corrects.
+#include "engine/dynamics/state.h"
+#include "engine/model/model.h"
+#include "engine/solve/workspace.h"
+
+namespace incise {
+
+// At the start of a step: lambda and the contact force zeroed for the
+// frame's rows (none: contact_force emptied, so assembly adds nothing).
+void begin_contacts(const Model& model, Workspace& ws);
+
+// The stage: lambda, the corrected ws.delta and ws.contact_force = H^T lambda.
+// Records rows, sweeps and the total force in ws.timing.
+void solve_contacts(const Model& model, State& state, Workspace& ws);
+
+}  // namespace incise
