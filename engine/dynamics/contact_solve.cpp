@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
 #include "engine/solve/linear_solve.h"
 #include "engine/util/headroom.h"
 
@@ -57,6 +59,61 @@ int projected_gauss_seidel(const ContactRows& c, const std::vector<double>& W, c
   return sweep;
 }
 
+// PGS converges linearly, slowly for coupled rows (a grasp's 3 rows per
+// point, contacts a face apart). Once it has found which rows are active
+// (contacts pushing, grasps, friction sticking inside its cone), their
+// lambda solves W_AA lambda_A = b_A - W_AI lambda_I exactly; the result is
+// kept when it is feasible (contacts still pushing, friction inside the
+// cone), so the constraints hold to roundoff instead of PGS's tolerance.
+void polish_active_set(const ContactRows& c, const std::vector<double>& W, const std::vector<double>& b,
+                       std::vector<double>& lambda) {
+  const int r = c.nrow();
+  std::vector<int> act;
+  for (int i = 0; i < r; ++i) {
+    if (!(W[static_cast<size_t>(i) * r + i] > 0.0)) continue;
+    switch (c.kind[i]) {
+      case RowKind::Contact:
+        if (lambda[i] > 0.0) act.push_back(i);
+        break;
+      case RowKind::Grasp:
+        act.push_back(i);
+        break;
+      case RowKind::Friction: {
+        const double ln = lambda[c.normal_row[i]];
+        if (ln > 0.0 && std::abs(lambda[i]) < c.friction * ln * (1.0 - 1e-9)) act.push_back(i);
+        break;
+      }
+    }
+  }
+  if (act.empty()) return;
+  const int k = static_cast<int>(act.size());
+  std::vector<char> in(r, 0);
+  for (int i : act) in[i] = 1;
+  Eigen::MatrixXd Wa(k, k);
+  Eigen::VectorXd ba(k);
+  for (int a = 0; a < k; ++a) {
+    const int i = act[a];
+    ba[a] = b[i];
+    for (int j = 0; j < r; ++j)
+      if (!in[j]) ba[a] -= W[static_cast<size_t>(i) * r + j] * lambda[j];
+    for (int q = 0; q < k; ++q) Wa(a, q) = W[static_cast<size_t>(i) * r + act[q]];
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(Wa);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return;
+  const Eigen::VectorXd x = ldlt.solve(ba);
+  if (!x.allFinite() || (Wa * x - ba).norm() > 1e-9 * (ba.norm() + 1e-300)) return;  // redundant rows: keep PGS's
+  std::vector<double> trial = lambda;
+  for (int a = 0; a < k; ++a) trial[act[a]] = x[a];
+  for (int i : act) {
+    if (c.kind[i] == RowKind::Contact && trial[i] < 0.0) return;
+    if (c.kind[i] == RowKind::Friction && std::abs(trial[i]) > c.friction * trial[c.normal_row[i]]) return;
+  }
+  for (int i = 0; i < r; ++i)  // sliding rows stay on the cone of the polished normal force
+    if (c.kind[i] == RowKind::Friction && !in[i] && lambda[c.normal_row[i]] > 0.0)
+      trial[i] = std::clamp(lambda[i] / lambda[c.normal_row[i]], -c.friction, c.friction) * trial[c.normal_row[i]];
+  lambda = trial;
+}
+
 }  // namespace
 
 void solve_contacts(const Model& m, State& /*s*/, Workspace& ws) {
@@ -100,6 +157,7 @@ void solve_contacts(const Model& m, State& /*s*/, Workspace& ws) {
     bmax = std::max(bmax, std::abs(b[i]));
   }
   const int sweeps = projected_gauss_seidel(c, W, b, lambda, c.max_sweeps, 1e-12 * bmax);
+  polish_active_set(c, W, b, lambda);
   // Delta += Y (lambda - lambda_old); the force H^T lambda for later iterations.
   for (int i = 0; i < r; ++i) {
     const double dl = lambda[i] - c.lambda[i];

@@ -1,0 +1,160 @@
+// The contact stage (engine/dynamics/contact_solve.cpp): bilateral rows give
+// the same displacements as prescribed ones, unilateral rows act only when
+// the free motion violates them and then meet them exactly, and Coulomb
+// friction sticks below its cone and slides on it.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "engine/dynamics/contact_solve.h"
+#include "engine/dynamics/step.h"
+#include "engine/mesh/mesh_tools.h"
+#include "tests/engine/test_util.h"
+
+namespace incise {
+namespace {
+
+Scene cantilever(Vec3 gravity) {
+  Scene s = test::basic_scene(2, MaterialModel::Linear);
+  s.material.young = 1e4;
+  s.gravity = gravity;
+  s.fixed.push_back(test::box_region({-1, -1, -1}, {0, 2, 2}));
+  return s;
+}
+
+const Mesh& beam() {
+  static const Mesh m = make_beam(2.0, 0.5, 0.5, 4, 1, 1, 1);
+  return m;
+}
+
+// Mesh nodes at x = 2 (the free end).
+std::vector<int> tip_nodes(const Model& m) {
+  std::vector<int> out;
+  for (int i = 0; i < m.nnode; ++i)
+    if (m.X[3 * i] > 2.0 - 1e-9) out.push_back(i);
+  return out;
+}
+
+void add_dof_row(ContactRows& rows, RowKind kind, int dof, double target, double sign = 1.0, int normal = -1) {
+  const double p[3] = {0, 0, 0};
+  double d[3] = {0, 0, 0};
+  d[dof % 3] = sign;
+  rows.begin_row(kind, target, 0, p, d, 0.0, normal);
+  rows.add(dof, sign);
+}
+
+TEST(ContactSolve, GraspRowsGiveThePrescribedDisplacementStep) {
+  const Vec3 g{0, 0, -9.81};
+  const Vec3 pull{0.0, 0.01, -0.05};
+  Scene sa = cantilever(g);
+  Prescribed p;
+  p.region = test::box_region({2, -1, -1}, {3, 2, 2}, "prescribed[0]");
+  p.active = {true, true, true};
+  p.displacement = pull;
+  sa.prescribed.push_back(p);
+  const Model ma = build_model(beam(), sa), mb = build_model(beam(), cantilever(g));
+  State a, b;
+  Workspace wa, wb;
+  init_state(ma, a, wa);
+  init_state(mb, b, wb);
+  const std::vector<int> tip = tip_nodes(mb);
+  ASSERT_GE(tip.size(), 4u);
+  for (int frame = 0; frame < 5; ++frame) {
+    wb.contacts.clear();
+    for (int i : tip)
+      for (int c = 0; c < 3; ++c) add_dof_row(wb.contacts, RowKind::Grasp, 3 * i + c, pull[c] - b.u[3 * i + c]);
+    step(ma, a, wa);
+    step(mb, b, wb);
+    EXPECT_LT(test::rel_diff(b.u, a.u), 1e-9) << "frame " << frame;
+    // Velocities agree off the grasped nodes; on them the prescribed run sets
+    // the prescribed velocity (0 after a step), the grasped one integrates.
+    std::vector<double> va = a.v, vb = b.v;
+    for (int i : tip)
+      for (int c = 0; c < 3; ++c) va[3 * i + c] = vb[3 * i + c] = 0.0;
+    EXPECT_LT(test::rel_diff(vb, va), 1e-7) << "frame " << frame;
+    EXPECT_EQ(wb.timing.runs[kStageContact], 1);
+  }
+  EXPECT_EQ(wa.timing.runs[kStageContact], 0) << "no rows, no contact stage";
+}
+
+// The tip's lowest node falls under gravity; a floor row below it is
+// inactive (lambda = 0, the step unchanged bit for bit); a floor above the
+// free position holds the node exactly on it with a positive force.
+TEST(ContactSolve, UnilateralRowsActOnlyWhenViolatedAndThenExactly) {
+  const Model m = build_model(beam(), cantilever({0, 0, -9.81}));
+  State free_state, s;
+  Workspace wf, ws;
+  init_state(m, free_state, wf);
+  init_state(m, s, ws);
+  step(m, free_state, wf);
+  const int node = tip_nodes(m).front();
+  const int dof = 3 * node + 2;
+  const double fall = free_state.u[dof];
+  ASSERT_LT(fall, 0.0);
+  for (double floor : {2.0 * fall, 0.5 * fall}) {
+    State st;
+    init_state(m, st, ws);
+    ws.contacts.clear();
+    add_dof_row(ws.contacts, RowKind::Contact, dof, floor);  // Delta_z >= floor
+    step(m, st, ws);
+    if (floor < fall) {
+      EXPECT_EQ(ws.contacts.lambda[0], 0.0);
+      EXPECT_EQ(st.u, free_state.u) << "an inactive contact changes nothing";
+    } else {
+      EXPECT_GT(ws.contacts.lambda[0], 0.0);
+      EXPECT_NEAR(st.u[dof], floor, 1e-12 * std::abs(floor));
+      EXPECT_NEAR(ws.timing.contact_force, ws.contacts.lambda[0], 1e-12 * ws.contacts.lambda[0]);
+    }
+  }
+}
+
+// Gravity has a component along x; the tip node rests on a floor row (z) with
+// two friction rows (x, y) whose target is no tangential motion.
+TEST(ContactSolve, CoulombFrictionSticksInsideTheConeAndSlidesOnIt) {
+  const Model m = build_model(beam(), cantilever({3.0, 0, -9.81}));
+  State free_state;
+  Workspace wf;
+  init_state(m, free_state, wf);
+  step(m, free_state, wf);
+  const int node = tip_nodes(m).front();
+  const double fall = free_state.u[3 * node + 2], slide_free = free_state.u[3 * node];
+  ASSERT_GT(slide_free, 0.0);
+  for (double mu : {0.0, 0.05, 100.0}) {
+    State st;
+    Workspace ws;
+    init_state(m, st, ws);
+    ws.contacts.friction = mu;
+    ws.contacts.max_sweeps = 10000;
+    add_dof_row(ws.contacts, RowKind::Contact, 3 * node + 2, 0.5 * fall);
+    add_dof_row(ws.contacts, RowKind::Friction, 3 * node, 0.0, 1.0, 0);
+    add_dof_row(ws.contacts, RowKind::Friction, 3 * node + 1, 0.0, 1.0, 0);
+    step(m, st, ws);
+    const double ln = ws.contacts.lambda[0], lt = ws.contacts.lambda[1];
+    ASSERT_GT(ln, 0.0);
+    EXPECT_LE(std::abs(lt), mu * ln * (1 + 1e-12));
+    if (mu == 0.0) {
+      EXPECT_EQ(lt, 0.0);
+    } else if (mu == 100.0) {
+      EXPECT_NEAR(st.u[3 * node], 0.0, 1e-10 * slide_free) << "sticks";
+      EXPECT_LT(std::abs(lt), mu * ln);
+    } else {
+      EXPECT_NEAR(std::abs(lt), mu * ln, 1e-9 * mu * ln) << "slides on the cone";
+      EXPECT_GT(st.u[3 * node], 1e-6 * slide_free);
+    }
+  }
+}
+
+TEST(ContactSolve, RowsOnConstrainedDofsCarryNoForce) {
+  const Model m = build_model(beam(), cantilever({0, 0, -9.81}));
+  State s;
+  Workspace ws;
+  init_state(m, s, ws);
+  ASSERT_FALSE(m.fixed_dofs.empty());
+  add_dof_row(ws.contacts, RowKind::Contact, m.fixed_dofs.front(), 1.0);
+  step(m, s, ws);
+  EXPECT_EQ(ws.contacts.lambda[0], 0.0);
+  for (double x : s.u) ASSERT_TRUE(std::isfinite(x));
+}
+
+}  // namespace
+}  // namespace incise
