@@ -40,8 +40,36 @@ std::array<double, 3> reference_point(const Model& m, const State& s, const doub
   return X;
 }
 
+namespace {
+
+// The after-row (edge samples at the end) of tool i's band swept in the
+// previous frame, if it swept one: the next band starts from it, so the
+// bands join without a gap even though the tissue moved in between.
+bool previous_edge(const State& s, int tool, std::array<std::array<double, 3>, kSweepSegments + 1>& row) {
+  const int nt = static_cast<int>(s.swept_tool.size());
+  int last = nt - 1;
+  while (last >= 0 && static_cast<int>(s.swept_tool[last]) != tool) --last;
+  if (last < 0 || static_cast<int>(s.swept_frame[last]) != s.frame - 1) return false;
+  // The band's triangles, segment j: (a0_j, b0_j, b1_j), (a0_j, b1_j, a1_j);
+  // b1_j is after-row point j + 1 and a1_j point j.
+  const int first = last - (2 * kSweepSegments - 1);
+  if (first < 0) return false;
+  for (int j = 0; j < kSweepSegments; ++j) {
+    const double* t0 = &s.swept[9 * static_cast<size_t>(first + 2 * j)];
+    const double* t1 = t0 + 9;
+    for (int d = 0; d < 3; ++d) {
+      row[j + 1][d] = t0[6 + d];
+      row[j][d] = t1[6 + d];
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 int sweep_blades(Simulation& sim) {
   int added = 0;
+  State& st = sim.state;
   for (size_t i = 0; i < sim.scene.instruments.size() && i < sim.tools.size(); ++i) {
     const InstrumentSpec& spec = sim.scene.instruments[i];
     if (spec.kind != InstrumentSpec::Kind::Scalpel) continue;
@@ -49,28 +77,29 @@ int sweep_blades(Simulation& sim) {
     if (f.before.p == f.after.p && f.before.q == f.after.q) continue;  // no motion, no band
     // Edge samples at the frame's start (row 0) and end (row 1), mapped to
     // the reference configuration the tissue is in now.
-    std::array<std::array<double, 3>, 2 * (kSweepSegments + 1)> P;
+    std::array<std::array<double, 3>, kSweepSegments + 1> row[2];
     bool any_inside = false;
-    for (int row = 0; row < 2; ++row)
+    for (int r = 0; r < 2; ++r)
       for (int j = 0; j <= kSweepSegments; ++j) {
         const double w = static_cast<double>(j) / kSweepSegments;
         std::array<double, 3> e{};
         for (int d = 0; d < 3; ++d) e[d] = (1.0 - w) * spec.edge[0][d] + w * spec.edge[1][d];
-        const std::array<double, 3> x = tool_to_world(row == 0 ? f.before : f.after, e);
+        const std::array<double, 3> x = tool_to_world(r == 0 ? f.before : f.after, e);
         bool inside = false;
-        P[row * (kSweepSegments + 1) + j] = reference_point(sim.model, sim.state, x.data(), &inside);
+        row[r][j] = reference_point(sim.model, st, x.data(), &inside);
         any_inside = any_inside || inside;
       }
     if (!any_inside) continue;
+    previous_edge(st, static_cast<int>(i), row[0]);  // continue the last band where it ended
     const auto push = [&](const std::array<double, 3>& a, const std::array<double, 3>& b, const std::array<double, 3>& c) {
-      for (const auto* p : {&a, &b, &c}) sim.state.swept.insert(sim.state.swept.end(), p->begin(), p->end());
-      sim.state.swept_tool.push_back(static_cast<double>(i));
+      for (const auto* p : {&a, &b, &c}) st.swept.insert(st.swept.end(), p->begin(), p->end());
+      st.swept_tool.push_back(static_cast<double>(i));
+      st.swept_frame.push_back(static_cast<double>(st.frame));
       ++added;
     };
     for (int j = 0; j < kSweepSegments; ++j) {
-      const auto &a0 = P[j], &b0 = P[j + 1], &a1 = P[kSweepSegments + 1 + j], &b1 = P[kSweepSegments + 2 + j];
-      push(a0, b0, b1);
-      push(a0, b1, a1);
+      push(row[0][j], row[0][j + 1], row[1][j + 1]);
+      push(row[0][j], row[1][j + 1], row[1][j]);
     }
   }
   return added;

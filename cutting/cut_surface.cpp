@@ -85,6 +85,7 @@ CutSurface::Value CutSurface::value(const double x[3]) const {
 
 bool CutSurface::covers(const double y[3], double tol) const {
   const V x(y[0], y[1], y[2]);
+  tol *= 1.0 + slack_;
   for (const Facet& f : facets_) {
     if (f.unbounded) return true;
     if (triangle_distance(x, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol) return true;
@@ -231,6 +232,8 @@ std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept,
   }
   auto surf = std::make_unique<CutSurface>(std::move(facets), name);
   if (surf->facets().empty()) return nullptr;
+  // The layout's tolerance is 1e-9 of the element size: reach 1e-2 of it.
+  surf->set_cover_slack(1e7);
   return surf;
 }
 

@@ -36,11 +36,18 @@ class CutSurface {
   // extent, within tol: distance to the nearest facet triangle <= tol.
   bool covers(const double y[3], double tol) const;
   const std::string& name() const { return name_; }
+  // Extra reach of covers(), in multiples of the caller's tolerance. 0 for
+  // the scene's cuts (their extent is exact); an instrument's sweep is a
+  // chain of bands mapped through the deformed tissue, slightly out of plane
+  // with each other, so the zero set of the nearest-facet level set strays
+  // from its facets by a fraction of an element (make_swept_surface).
+  void set_cover_slack(double multiple) { slack_ = multiple; }
   const std::vector<Facet>& facets() const { return facets_; }
 
  private:
   std::vector<Facet> facets_;
   std::string name_;
+  double slack_ = 0.0;
   int nearest_facet(const double x[3]) const;
 };
 

@@ -52,7 +52,7 @@ std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& s) {
   h[kFieldV] = fnv(s.v);
   h[kFieldA] = fnv(s.a);
   h[kFieldR] = fnv(s.R);
-  h[kFieldTopology] = fnv(s.swept_tool, fnv(s.swept, fnv(s.cut_progress)));
+  h[kFieldTopology] = fnv(s.swept_frame, fnv(s.swept_tool, fnv(s.swept, fnv(s.cut_progress))));
   return h;
 }
 
@@ -65,7 +65,7 @@ void write_state(std::ostream& os, const State& s) {
   os.write(kMagic, sizeof kMagic);
   put(os, s.time);
   put<std::int64_t>(os, s.frame);
-  for (const std::vector<double>* f : {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool}) {
+  for (const std::vector<double>* f : {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool, &s.swept_frame}) {
     put<std::uint64_t>(os, f->size());
     os.write(reinterpret_cast<const char*>(f->data()), static_cast<std::streamsize>(f->size() * sizeof(double)));
   }
@@ -88,9 +88,9 @@ State read_state(std::istream& is, const std::string& what) {
     throw Error(what + ": state time or frame out of range (time " + std::to_string(s.time) + ", frame " +
                 std::to_string(frame) + ")");
   s.frame = static_cast<int>(frame);
-  const char* names[] = {"u", "v", "a", "R", "cut_progress", "swept", "swept_tool"};
-  std::vector<double>* fields[] = {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool};
-  for (int k = 0; k < 7; ++k) {
+  const char* names[] = {"u", "v", "a", "R", "cut_progress", "swept", "swept_tool", "swept_frame"};
+  std::vector<double>* fields[] = {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool, &s.swept_frame};
+  for (int k = 0; k < 8; ++k) {
     const std::uint64_t n = get<std::uint64_t>(is, what, names[k]);
     if (n > static_cast<std::uint64_t>(left) / sizeof(double))
       throw Error(what + ": state field " + names[k] + " claims " + std::to_string(n) + " values, more than the file holds");

@@ -24,10 +24,12 @@ struct State {
   // scalpel's edge swept inside the tissue, in reference coordinates.
   std::vector<double> swept;          // (ntri, 9) corners
   std::vector<double> swept_tool;     // (ntri) the instrument (scene.instruments index)
+  std::vector<double> swept_frame;    // (ntri) the frame that swept it
 
   bool operator==(const State& o) const {
     return time == o.time && frame == o.frame && u == o.u && v == o.v && a == o.a && R == o.R &&
-           cut_progress == o.cut_progress && swept == o.swept && swept_tool == o.swept_tool;
+           cut_progress == o.cut_progress && swept == o.swept && swept_tool == o.swept_tool &&
+           swept_frame == o.swept_frame;
   }
   bool operator!=(const State& o) const { return !(*this == o); }
 };

@@ -124,6 +124,7 @@ TEST(State, DamagedFilesAreRefusedWithTheField) {
   s.cut_progress = {0.25};
   s.swept = {0, 0, 0, 1, 0, 0, 0, 1, 0};
   s.swept_tool = {0};
+  s.swept_frame = {3};
   const std::string good = saved(s);
   EXPECT_EQ(read_error(good), "");
   EXPECT_NE(read_error("INCSTAT1" + good.substr(8)).find("not an incise state file of version 2"), std::string::npos);
