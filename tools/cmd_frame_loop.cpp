@@ -2,6 +2,7 @@
 #include "cutting/cut_surface.h"
 #include "engine/util/error.h"
 #include "tools/frame_loop.h"
+#include "tools/instrument_stage.h"
 
 namespace incise {
 
@@ -15,6 +16,7 @@ std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_pat
       throw Error(scene_path + ": " + e.what());
     }
   }
+  install_instrument_stage(*sim);  // before cutting: the scalpels' sweep reads sim.tools
   install_cutting_stage(*sim);
   return sim;
 }

@@ -580,6 +580,112 @@ void parse_cuts(const Parser& p, const json& v, Scene& s) {
   }
 }
 
+// A unit quaternion [w, x, y, z] (within 1e-6), returned normalised.
+std::array<double, 4> unit_quaternion(const Parser& p, const json& v, const std::string& where) {
+  if (!v.is_array() || v.size() != 4) {
+    std::string got = v.is_array() ? "array of " + std::to_string(v.size()) + " values" : describe(v);
+    p.fail(where, " must be a unit quaternion [w, x, y, z], got " + got);
+  }
+  std::array<double, 4> q{};
+  for (size_t i = 0; i < 4; ++i) q[i] = p.number(v[i], Parser::index(where, i));
+  const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  if (!(std::abs(n - 1.0) <= 1e-6)) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.10g", n);
+    p.fail(where, " must be a unit quaternion [w, x, y, z] (norm 1 within 1e-6), got norm " + std::string(buf));
+  }
+  for (double& c : q) c /= n;
+  return q;
+}
+
+// [a, b, c], each > 0 (blade and jaw sizes).
+Vec3 positive_vec3(const Parser& p, const json& v, const std::string& where) {
+  Vec3 out = p.vec3(v, where);
+  for (size_t i = 0; i < 3; ++i) out[i] = p.positive(v[i], Parser::index(where, i));
+  return out;
+}
+
+void parse_instruments(const Parser& p, const json& v, Scene& s) {
+  p.array(v, "instruments");
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string at = Parser::index("instruments", i);
+    const json& e = p.object(v[i], at);
+    InstrumentSpec t;
+    t.json_path = at;
+    t.name = at;
+    const size_t type = p.choice(p.required(e, at, "type", "\"probe\", \"scalpel\" or \"grasper\""), at + ".type",
+                                 {"probe", "scalpel", "grasper"});
+    const std::vector<std::string> common{"type", "name", "trajectory", "pose", "contact"};
+    const std::vector<std::vector<std::string>> own{
+        {"radius", "length"}, {"blade", "edge"}, {"jaw", "jaw_size", "opening", "grasp_at"}};
+    std::vector<std::string> allowed = common;
+    allowed.insert(allowed.end(), own[type].begin(), own[type].end());
+    p.allowed_keys(e, at, allowed);
+    t.kind = static_cast<InstrumentSpec::Kind>(type);
+    if (auto it = e.find("name"); it != e.end()) t.name = p.nonempty_string(*it, at + ".name");
+    if (auto it = e.find("trajectory"); it != e.end()) {
+      const std::string tp = at + ".trajectory";
+      t.trajectory = p.resolve(p.nonempty_string(*it, tp));
+      std::error_code ec;
+      auto st = fs::status(t.trajectory, ec);
+      if (ec || !fs::exists(st)) p.fail(tp, ": file not found: " + t.trajectory);
+      if (!fs::is_regular_file(st)) p.fail(tp, ": is not a regular file: " + t.trajectory);
+      if (e.contains("pose"))
+        p.fail(at + ".pose", ": give either pose or trajectory (the trajectory sets the pose of every frame), not both");
+    }
+    if (auto it = e.find("pose"); it != e.end()) {
+      const std::string pp = at + ".pose";
+      p.object(*it, pp);
+      p.allowed_keys(*it, pp, {"position", "orientation"});
+      if (auto c = it->find("position"); c != it->end()) t.position = p.vec3(*c, pp + ".position");
+      if (auto c = it->find("orientation"); c != it->end()) t.orientation = unit_quaternion(p, *c, pp + ".orientation");
+    }
+    if (t.kind == InstrumentSpec::Kind::Probe) {
+      t.radius = p.positive(p.required(e, at, "radius", "a number > 0"), at + ".radius");
+      if (auto it = e.find("length"); it != e.end()) t.length = p.nonnegative(*it, at + ".length");
+    } else if (t.kind == InstrumentSpec::Kind::Scalpel) {
+      t.blade = positive_vec3(p, p.required(e, at, "blade", "[L, T, H], each > 0"), at + ".blade");
+      t.edge = {Vec3{-0.5 * t.blade[0], 0.0, 0.0}, Vec3{0.5 * t.blade[0], 0.0, 0.0}};
+      if (auto it = e.find("edge"); it != e.end()) {
+        const std::string ep = at + ".edge";
+        if (!it->is_array() || it->size() != 2)
+          p.fail(ep, " must be two points [[x, y, z], [x, y, z]], got " + describe(*it));
+        t.edge = {p.vec3((*it)[0], Parser::index(ep, 0)), p.vec3((*it)[1], Parser::index(ep, 1))};
+        if (t.edge[0] == t.edge[1]) p.fail(ep, " must have nonzero length (two distinct points), got " + show(*it));
+      }
+    } else {
+      if (auto it = e.find("jaw"); it != e.end()) {
+        t.jaw = p.number(*it, at + ".jaw");
+        if (!(t.jaw >= 0.0 && t.jaw <= 1.0)) p.fail(at + ".jaw", " must be in [0, 1] (0 open .. 1 closed), got " + show(*it));
+      }
+      t.jaw_size = positive_vec3(p, p.required(e, at, "jaw_size", "[W, T, J], each > 0"), at + ".jaw_size");
+      t.opening = p.positive(p.required(e, at, "opening", "a number > 0"), at + ".opening");
+      if (auto it = e.find("grasp_at"); it != e.end()) {
+        t.grasp_at = p.number(*it, at + ".grasp_at");
+        if (!(t.grasp_at > 0.0 && t.grasp_at <= 1.0)) p.fail(at + ".grasp_at", " must be in (0, 1], got " + show(*it));
+      }
+    }
+    t.contact = t.kind != InstrumentSpec::Kind::Scalpel;
+    if (auto it = e.find("contact"); it != e.end()) {
+      const bool c = p.boolean(*it, at + ".contact");
+      if (c && t.kind == InstrumentSpec::Kind::Scalpel)
+        p.fail(at + ".contact", ": a scalpel's blade cuts rather than pushes, so contact must be false (or absent), got true");
+      t.contact = c;
+    }
+    s.instruments.push_back(std::move(t));
+  }
+}
+
+void parse_contact(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "contact";
+  p.object(v, at);
+  p.allowed_keys(v, at, {"max_rows", "friction", "pgs_iterations"});
+  if (auto it = v.find("max_rows"); it != v.end()) s.contact.max_rows = p.at_least_one(*it, at + ".max_rows");
+  if (auto it = v.find("friction"); it != v.end()) s.contact.friction = p.nonnegative(*it, at + ".friction");
+  if (auto it = v.find("pgs_iterations"); it != v.end())
+    s.contact.pgs_iterations = p.at_least_one(*it, at + ".pgs_iterations");
+}
+
 void parse_render(const Parser& p, const json& v, Scene& s) {
   const std::string at = "render";
   RenderSettings& r = s.render;
@@ -719,7 +825,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   Parser p(path, &applied);
   p.allowed_keys(root, "",
                  {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
-                  "solver", "static", "run", "output", "cuts", "render"});
+                  "solver", "static", "run", "output", "cuts", "render", "instruments", "contact"});
 
   Scene s;
   s.path = path;
@@ -760,6 +866,8 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   if (auto it = root.find("output"); it != root.end()) parse_output(p, *it, s);
   if (auto it = root.find("cuts"); it != root.end()) parse_cuts(p, *it, s);
   if (auto it = root.find("render"); it != root.end()) parse_render(p, *it, s);
+  if (auto it = root.find("instruments"); it != root.end()) parse_instruments(p, *it, s);
+  if (auto it = root.find("contact"); it != root.end()) parse_contact(p, *it, s);
   return s;
 }
 

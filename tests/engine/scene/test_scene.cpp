@@ -375,7 +375,7 @@ TEST_F(SceneTest, SolverSettingsChecked) {
 TEST_F(SceneTest, UnknownTopLevelKey) {
   expect_error(minimal(R"("materal": {})"),
                "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
-               "prescribed, integrator, solver, static, run, output, cuts, render; did you mean "
+               "prescribed, integrator, solver, static, run, output, cuts, render, instruments, contact; did you mean "
                "\"material\"?");
 }
 
@@ -523,6 +523,130 @@ TEST_F(SceneTest, CutErrorsNameThePathAndWhatIsAllowed) {
                         "cuts[0].edge_start must be two points");
   expect_error_contains(minimal(R"("cuts": [{"type": "plane", "point": [0,0,0], "normal": [1,0,0], "pointt": 1}])"),
                         "cuts[0].pointt: unknown key");
+}
+
+// --- instruments and contact ------------------------------------------------------
+
+TEST_F(SceneTest, InstrumentsParseWithDefaults) {
+  std::ofstream(root_ / "scenes" / "cut.csv") << "t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n";
+  const Scene s = parse_scene(minimal(R"("instruments": [
+      {"type": "probe", "radius": 0.01},
+      {"type": "probe", "name": "tip", "radius": 0.02, "length": 0.1, "contact": false,
+       "pose": {"position": [1, 2, 3], "orientation": [0, 0, 0, 1.0000002]}},
+      {"type": "scalpel", "blade": [0.04, 0.001, 0.01], "trajectory": "cut.csv"},
+      {"type": "scalpel", "blade": [0.04, 0.001, 0.01], "edge": [[0, 0, 0], [0, 0, 0.01]], "contact": false},
+      {"type": "grasper", "jaw_size": [0.01, 0.002, 0.03], "opening": 0.02},
+      {"type": "grasper", "jaw_size": [0.01, 0.002, 0.03], "opening": 0.02, "jaw": 1, "grasp_at": 1}])"),
+                              scene_path_);
+  ASSERT_EQ(s.instruments.size(), 6u);
+  const auto& probe = s.instruments[0];
+  EXPECT_EQ(probe.kind, incise::InstrumentSpec::Kind::Probe);
+  EXPECT_EQ(probe.name, "instruments[0]");
+  EXPECT_EQ(probe.json_path, "instruments[0]");
+  EXPECT_EQ(probe.radius, 0.01);
+  EXPECT_EQ(probe.length, 0.0);
+  EXPECT_TRUE(probe.contact);
+  EXPECT_TRUE(probe.trajectory.empty());
+  EXPECT_EQ(probe.position, (incise::Vec3{0, 0, 0}));
+  EXPECT_EQ(probe.orientation, (std::array<double, 4>{1, 0, 0, 0}));
+  const auto& tip = s.instruments[1];
+  EXPECT_EQ(tip.name, "tip");
+  EXPECT_EQ(tip.length, 0.1);
+  EXPECT_FALSE(tip.contact);
+  EXPECT_EQ(tip.position, (incise::Vec3{1, 2, 3}));
+  EXPECT_EQ(tip.orientation, (std::array<double, 4>{0, 0, 0, 1}));  // normalised (norm 1 + 2e-7 accepted)
+  const auto& scalpel = s.instruments[2];
+  EXPECT_EQ(scalpel.kind, incise::InstrumentSpec::Kind::Scalpel);
+  EXPECT_EQ(scalpel.trajectory, resolved(root_ / "scenes" / "cut.csv"));
+  EXPECT_FALSE(scalpel.contact) << "a blade cuts, it does not push";
+  EXPECT_EQ(scalpel.edge[0], (incise::Vec3{-0.02, 0, 0})) << "default: the blade's lower edge";
+  EXPECT_EQ(scalpel.edge[1], (incise::Vec3{0.02, 0, 0}));
+  EXPECT_EQ(s.instruments[3].edge[1], (incise::Vec3{0, 0, 0.01}));
+  const auto& grasper = s.instruments[4];
+  EXPECT_EQ(grasper.kind, incise::InstrumentSpec::Kind::Grasper);
+  EXPECT_EQ(grasper.jaw_size, (incise::Vec3{0.01, 0.002, 0.03}));
+  EXPECT_EQ(grasper.opening, 0.02);
+  EXPECT_EQ(grasper.jaw, 0.0);
+  EXPECT_EQ(grasper.grasp_at, 0.9);
+  EXPECT_TRUE(grasper.contact);
+  EXPECT_EQ(s.instruments[5].jaw, 1.0);
+  EXPECT_EQ(s.instruments[5].grasp_at, 1.0);
+  // No "contact" object: the defaults.
+  EXPECT_EQ(s.contact.max_rows, 48);
+  EXPECT_EQ(s.contact.friction, 0.0);
+  EXPECT_EQ(s.contact.pgs_iterations, 200);
+}
+
+TEST_F(SceneTest, InstrumentErrorsNameThePathAndWhatIsAllowed) {
+  expect_error(minimal(R"("instruments": {})"), "instruments must be an array, got object {}");
+  expect_error(minimal(R"("instruments": [{"radius": 1}])"),
+               R"(instruments[0].type: required key is missing (expected "probe", "scalpel" or "grasper"))");
+  expect_error(minimal(R"("instruments": [{"type": "forceps"}])"),
+               R"(instruments[0].type must be one of "probe", "scalpel", "grasper", got "forceps")");
+  expect_error(minimal(R"("instruments": [{"type": "probe"}])"),
+               "instruments[0].radius: required key is missing (expected a number > 0)");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 0}])"), "instruments[0].radius must be > 0, got 0");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "length": -1}])"),
+               "instruments[0].length must be >= 0, got -1");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "blade": [1, 1, 1]}])"),
+               "instruments[0].blade: unknown key; allowed: type, name, trajectory, pose, contact, radius, length");
+  expect_error(minimal(R"("instruments": [{"type": "scalpel", "blade": [1, 1, 1], "jaw": 0.5}])"),
+               "instruments[0].jaw: unknown key; allowed: type, name, trajectory, pose, contact, blade, edge");
+  expect_error(minimal(R"("instruments": [{"type": "scalpel", "blade": [1, 0, 1]}])"), "instruments[0].blade[1] must be > 0, got 0");
+  expect_error(minimal(R"("instruments": [{"type": "scalpel", "blade": [1, 1]}])"),
+               "instruments[0].blade must be an array of 3 numbers [x, y, z], got array of 2 values");
+  expect_error(minimal(R"("instruments": [{"type": "scalpel", "blade": [1, 1, 1], "edge": [[1, 0, 0], [1, 0, 0]]}])"),
+               "instruments[0].edge must have nonzero length (two distinct points), got [[1,0,0],[1,0,0]]");
+  expect_error(minimal(R"("instruments": [{"type": "scalpel", "blade": [1, 1, 1], "edge": [[1, 0, 0]]}])"),
+               "instruments[0].edge must be two points [[x, y, z], [x, y, z]], got array [[1,0,0]]");
+  expect_error(minimal(R"("instruments": [{"type": "scalpel", "blade": [1, 1, 1], "contact": true}])"),
+               "instruments[0].contact: a scalpel's blade cuts rather than pushes, so contact must be false (or absent), got true");
+  expect_error(minimal(R"("instruments": [{"type": "grasper", "opening": 1}])"),
+               "instruments[0].jaw_size: required key is missing (expected [W, T, J], each > 0)");
+  expect_error(minimal(R"("instruments": [{"type": "grasper", "jaw_size": [1, 1, 1]}])"),
+               "instruments[0].opening: required key is missing (expected a number > 0)");
+  expect_error(minimal(R"("instruments": [{"type": "grasper", "jaw_size": [1, 1, 1], "opening": 1, "jaw": 1.5}])"),
+               "instruments[0].jaw must be in [0, 1] (0 open .. 1 closed), got 1.5");
+  expect_error(minimal(R"("instruments": [{"type": "grasper", "jaw_size": [1, 1, 1], "opening": 1, "grasp_at": 0}])"),
+               "instruments[0].grasp_at must be in (0, 1], got 0");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "contact": 1}])"),
+               "instruments[0].contact must be a boolean (true or false), got number 1");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "name": ""}])"),
+               "instruments[0].name must be a non-empty string, got \"\"");
+}
+
+TEST_F(SceneTest, InstrumentPosesAndTrajectoriesChecked) {
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "pose": {"orientation": [1, 0, 0, 0.01]}}])"),
+               "instruments[0].pose.orientation must be a unit quaternion [w, x, y, z] (norm 1 within 1e-6), got norm 1.000049999");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "pose": {"orientation": [0, 0, 0, 0]}}])"),
+               "instruments[0].pose.orientation must be a unit quaternion [w, x, y, z] (norm 1 within 1e-6), got norm 0");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "pose": {"orientation": [1, 0, 0]}}])"),
+               "instruments[0].pose.orientation must be a unit quaternion [w, x, y, z], got array of 3 values");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "pose": {"orientation": [1, 0, 0, "nan"]}}])"),
+               "instruments[0].pose.orientation[3] must be a number, got string \"nan\"");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "pose": {"rotation": [1, 0, 0, 0]}}])"),
+               "instruments[0].pose.rotation: unknown key; allowed: position, orientation");
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "trajectory": "nope.csv"}])"),
+               "instruments[0].trajectory: file not found: " + resolved(root_ / "scenes" / "nope.csv"));
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "trajectory": "../meshes"}])"),
+               "instruments[0].trajectory: is not a regular file: " + resolved(root_ / "meshes"));
+  std::ofstream(root_ / "scenes" / "t.csv") << "t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n";
+  expect_error(minimal(R"("instruments": [{"type": "probe", "radius": 1, "trajectory": "t.csv", "pose": {}}])"),
+               "instruments[0].pose: give either pose or trajectory (the trajectory sets the pose of every frame), not both");
+}
+
+TEST_F(SceneTest, ContactSettingsParsedAndChecked) {
+  const Scene s = parse_scene(minimal(R"("contact": {"max_rows": 10, "friction": 0.3, "pgs_iterations": 50})"), scene_path_);
+  EXPECT_EQ(s.contact.max_rows, 10);
+  EXPECT_EQ(s.contact.friction, 0.3);
+  EXPECT_EQ(s.contact.pgs_iterations, 50);
+  expect_error(minimal(R"("contact": {"max_rows": 0})"), "contact.max_rows must be an integer >= 1, got 0");
+  expect_error(minimal(R"("contact": {"max_rows": 2.5})"), "contact.max_rows must be an integer, got 2.5");
+  expect_error(minimal(R"("contact": {"friction": -0.1})"), "contact.friction must be >= 0, got -0.1");
+  expect_error(minimal(R"("contact": {"pgs_iterations": 0})"), "contact.pgs_iterations must be an integer >= 1, got 0");
+  expect_error(minimal(R"("contact": {"stiffness": 1})"),
+               "contact.stiffness: unknown key; allowed: max_rows, friction, pgs_iterations");
+  expect_error(minimal(R"("contact": [])"), "contact must be an object, got array []");
 }
 
 // --- render ---------------------------------------------------------------------

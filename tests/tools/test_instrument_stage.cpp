@@ -1,0 +1,145 @@
+// The tool-poses stage: once per frame, the analytic poses at the frame's
+// start and end; absent without instruments; the scale and trajectory errors.
+#include "tools/instrument_stage.h"
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "engine/util/error.h"
+#include "tools/frame_loop.h"
+
+namespace fs = std::filesystem;
+
+namespace incise {
+namespace {
+
+const double kPi = 3.14159265358979323846;
+
+// Rotation by `angle` about z as (w, x, y, z).
+std::array<double, 4> about_z(double angle) { return {std::cos(angle / 2), 0.0, 0.0, std::sin(angle / 2)}; }
+
+// A folder with a scene on the 2 x 1 x 0.5 box (bounding-box diagonal
+// sqrt(5.25)) fixed at x = 0, plus its instruments and trajectory files.
+class InstrumentStage : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("incise_instr_" + std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  void write(const std::string& name, const std::string& text) const { std::ofstream(dir_ / name) << text; }
+  // scene.json with `instruments` as the value of the "instruments" key (empty: no key).
+  std::string scene(const std::string& instruments) const {
+    std::string text = R"({"mesh": {"file": ")" + std::string(INCISE_SOURCE_DIR) + R"(/assets/meshes/box_tet10.vtu"},
+      "material": {"young": 1e4, "poisson": 0.3, "density": 1000},
+      "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}])";
+    if (!instruments.empty()) text += R"(, "instruments": )" + instruments;
+    write("scene.json", text + "}");
+    return path("scene.json");
+  }
+  std::string error_of(const std::string& scene_path) const {
+    try {
+      load_checked_simulation(scene_path);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << "no error";
+    return "";
+  }
+  fs::path dir_;
+};
+
+void expect_pose(const ToolPose& got, const std::array<double, 3>& p, const std::array<double, 4>& q, double jaw,
+                 const std::string& what) {
+  for (int d = 0; d < 3; ++d) EXPECT_NEAR(got.p[d], p[d], 1e-12) << what << " p[" << d << "]";
+  for (int d = 0; d < 4; ++d) EXPECT_NEAR(got.q[d], q[d], 1e-12) << what << " q[" << d << "]";
+  EXPECT_NEAR(got.jaw, jaw, 1e-12) << what << " jaw";
+}
+
+TEST_F(InstrumentStage, PosesAtTheFramesStartAndEndOncePerFrame) {
+  // probe: (3, 3t, 1), turning about z by 90 t degrees over [0, 1];
+  // grasper: fixed at (-3, 0, 1), its jaw closing as t (the jaw column);
+  // scalpel: a fixed pose, 90 degrees about x.
+  write("probe.csv", "t,x,y,z,qw,qx,qy,qz\n0, 3,0,1, 1,0,0,0\n1, 3,3,1, 0.7071067811865476,0,0,0.7071067811865476\n");
+  write("grasp.csv", "t,x,y,z,qw,qx,qy,qz,jaw\n0, -3,0,1, 1,0,0,0, 0\n1, -3,0,1, 1,0,0,0, 1\n");
+  const std::string s = scene(R"([
+      {"type": "probe", "radius": 0.05, "trajectory": "probe.csv"},
+      {"type": "grasper", "name": "left", "jaw_size": [0.02, 0.01, 0.1], "opening": 0.05, "trajectory": "grasp.csv"},
+      {"type": "scalpel", "blade": [0.2, 0.01, 0.05], "pose": {"position": [0, -3, 2], "orientation": [0.7071067811865476, 0.7071067811865476, 0, 0]}}])");
+  auto sim = load_checked_simulation(s);
+  ASSERT_TRUE(sim->pipeline.has(kStageToolPoses));
+  ASSERT_EQ(sim->tools.size(), 3u);
+  const double h = std::sqrt(0.5), dt = sim->model.dt;
+  auto check = [&](const ToolPose& pose, int i, double t, const std::string& what) {
+    if (i == 0) expect_pose(pose, {3, 3 * t, 1}, about_z(kPi / 2 * t), 0.0, what);
+    if (i == 1) expect_pose(pose, {-3, 0, 1}, {1, 0, 0, 0}, t, what);
+    if (i == 2) expect_pose(pose, {0, -3, 2}, {h, h, 0, 0}, 0.0, what);
+  };
+  for (int i = 0; i < 3; ++i) {  // right after set-up: the poses at time 0
+    check(sim->tools[i].before, i, 0.0, "set-up before");
+    check(sim->tools[i].after, i, 0.0, "set-up after");
+  }
+  for (int frame = 0; frame < 5; ++frame) {
+    const double t = sim->state.time;
+    const FrameTiming timing = advance_frame(*sim);
+    EXPECT_EQ(timing.runs[kStageToolPoses], 1);
+    for (int i = 0; i < 3; ++i) {
+      check(sim->tools[i].before, i, t, "frame " + std::to_string(frame) + " tool " + std::to_string(i) + " before");
+      check(sim->tools[i].after, i, t + dt, "frame " + std::to_string(frame) + " tool " + std::to_string(i) + " after");
+    }
+  }
+  // instrument_pose clamps past the trajectory's end.
+  check(instrument_pose(*sim, 0, 5.0), 0, 1.0, "clamped");
+}
+
+TEST_F(InstrumentStage, TheScenesJawWhenTheTrajectoryHasNoJawColumn) {
+  write("g.csv", "t,x,y,z,qw,qx,qy,qz\n0, -3,0,1, 1,0,0,0\n");
+  auto sim = load_checked_simulation(
+      scene(R"([{"type": "grasper", "jaw_size": [0.02, 0.01, 0.1], "opening": 0.05, "jaw": 0.7, "trajectory": "g.csv"}])"));
+  EXPECT_EQ(sim->tools[0].before.jaw, 0.7);
+  advance_frame(*sim);
+  EXPECT_EQ(sim->tools[0].after.jaw, 0.7);
+}
+
+TEST_F(InstrumentStage, NoInstrumentsNoStage) {
+  auto sim = load_checked_simulation(scene(""));
+  EXPECT_FALSE(sim->pipeline.has(kStageToolPoses));
+  int runs = 0;
+  for (int k = 0; k < 3; ++k) runs += advance_frame(*sim).runs[kStageToolPoses];
+  EXPECT_EQ(runs, 0);
+  EXPECT_TRUE(sim->tools.empty());
+  EXPECT_FALSE(sim->module_data[kStageToolPoses]);
+}
+
+TEST_F(InstrumentStage, AnInstrumentOutsideAnySensibleScaleIsRefused) {
+  // Diagonal sqrt(5.25) = 2.29129: sizes must lie in [0.000229129, 22.9129].
+  const std::string range = " is outside [0.000229129, 22.9129], 1e-4 to 10 times the mesh's bounding-box diagonal 2.29129: "
+                            "an instrument outside any sensible scale (check the units)";
+  std::string s = scene(R"([{"type": "probe", "radius": 50}])");
+  EXPECT_EQ(error_of(s), s + ": instruments[0].radius = 50" + range);
+  s = scene(R"([{"type": "probe", "radius": 0.05}, {"type": "probe", "radius": 0.05, "length": 1e-5}])");
+  EXPECT_EQ(error_of(s), s + ": instruments[1].length = 1e-05" + range);
+  s = scene(R"([{"type": "scalpel", "blade": [0.2, 0.00001, 0.05]}])");
+  EXPECT_EQ(error_of(s), s + ": instruments[0].blade[1] = 1e-05" + range);
+  s = scene(R"([{"type": "grasper", "jaw_size": [0.02, 0.01, 0.1], "opening": 40}])");
+  EXPECT_EQ(error_of(s), s + ": instruments[0].opening = 40" + range);
+}
+
+TEST_F(InstrumentStage, TrajectoryErrorsNameTheSceneTheKeyAndTheLine) {
+  write("bad.csv", "t,x,y,z,qw,qx,qy,qz\n0, 0,0,0, 1,0,0,0\n1, 0,0,0, 1,0,0,0\n0.5, 0,0,0, 1,0,0,0\n");
+  const std::string s = scene(R"([{"type": "probe", "radius": 0.05}, {"type": "probe", "radius": 0.05, "trajectory": "bad.csv"}])");
+  EXPECT_EQ(error_of(s), s + ": instruments[1].trajectory: " + path("bad.csv") +
+                             ":4: time must increase strictly: t = 0.5 follows t = 1 (line 3)");
+}
+
+}  // namespace
+}  // namespace incise

@@ -1,0 +1,124 @@
+#include "tools/instrument_stage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/util/error.h"
+#include "tools/trajectory.h"
+
+namespace incise {
+namespace {
+
+// sim.module_data[kStageToolPoses]: one entry per instrument, empty without a trajectory.
+struct InstrumentPaths {
+  std::vector<std::optional<Trajectory>> trajectory;
+};
+
+const InstrumentPaths* paths_of(const Simulation& sim) {
+  return static_cast<const InstrumentPaths*>(sim.module_data[kStageToolPoses].get());
+}
+
+std::string number_text(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", x);
+  return buf;
+}
+
+double bounding_box_diagonal(const Mesh& mesh) {
+  if (mesh.nnode() == 0) return 0.0;
+  double lo[3], hi[3];
+  for (int d = 0; d < 3; ++d) lo[d] = hi[d] = mesh.X[d];
+  for (int n = 1; n < mesh.nnode(); ++n)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], mesh.X[3 * n + d]);
+      hi[d] = std::max(hi[d], mesh.X[3 * n + d]);
+    }
+  return std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+}
+
+// A size far from the tissue's scale is a unit mistake (mm for m), not an instrument.
+void check_sizes(const Simulation& sim) {
+  const double diag = bounding_box_diagonal(sim.mesh);
+  const double lo = 1e-4 * diag, hi = 10.0 * diag;
+  auto check = [&](const std::string& where, double value) {
+    if (value >= lo && value <= hi) return;
+    throw Error(sim.scene.path + ": " + where + " = " + number_text(value) + " is outside [" + number_text(lo) + ", " +
+                number_text(hi) + "], 1e-4 to 10 times the mesh's bounding-box diagonal " + number_text(diag) +
+                ": an instrument outside any sensible scale (check the units)");
+  };
+  for (const InstrumentSpec& s : sim.scene.instruments) {
+    const std::string& at = s.json_path;
+    switch (s.kind) {
+      case InstrumentSpec::Kind::Probe:
+        check(at + ".radius", s.radius);
+        if (s.length > 0.0) check(at + ".length", s.length);  // 0: a sphere
+        break;
+      case InstrumentSpec::Kind::Scalpel:
+        for (int k = 0; k < 3; ++k) check(at + ".blade[" + std::to_string(k) + "]", s.blade[k]);
+        break;
+      case InstrumentSpec::Kind::Grasper:
+        for (int k = 0; k < 3; ++k) check(at + ".jaw_size[" + std::to_string(k) + "]", s.jaw_size[k]);
+        check(at + ".opening", s.opening);
+        break;
+    }
+  }
+}
+
+}  // namespace
+
+ToolPose instrument_pose(const Simulation& sim, int i, double t) {
+  if (i < 0 || i >= static_cast<int>(sim.scene.instruments.size()))
+    throw Error("instrument_pose: no instrument " + std::to_string(i) + " (the scene has " +
+                std::to_string(sim.scene.instruments.size()) + ")");
+  const InstrumentSpec& spec = sim.scene.instruments[static_cast<size_t>(i)];
+  if (spec.trajectory.empty()) {
+    ToolPose pose;
+    pose.p = spec.position;
+    pose.q = spec.orientation;
+    pose.jaw = spec.jaw;
+    return pose;
+  }
+  const InstrumentPaths* paths = paths_of(sim);
+  if (!paths || !paths->trajectory[static_cast<size_t>(i)])
+    throw Error("instrument_pose: " + spec.json_path + " has a trajectory but install_instrument_stage has not read it");
+  const Trajectory& tr = *paths->trajectory[static_cast<size_t>(i)];
+  ToolPose pose = tr.sample(t);
+  if (!tr.has_jaw()) pose.jaw = spec.jaw;
+  return pose;
+}
+
+void tool_poses_stage(Simulation& sim) {
+  const double t0 = sim.state.time, t1 = sim.state.time + sim.model.dt;
+  for (size_t i = 0; i < sim.tools.size(); ++i) {
+    sim.tools[i].before = instrument_pose(sim, static_cast<int>(i), t0);
+    sim.tools[i].after = instrument_pose(sim, static_cast<int>(i), t1);
+  }
+}
+
+void install_instrument_stage(Simulation& sim) {
+  const std::vector<InstrumentSpec>& specs = sim.scene.instruments;
+  if (specs.empty()) return;
+  auto paths = std::make_shared<InstrumentPaths>();
+  paths->trajectory.resize(specs.size());
+  for (size_t i = 0; i < specs.size(); ++i) {
+    if (specs[i].trajectory.empty()) continue;
+    try {
+      paths->trajectory[i] = Trajectory::read(specs[i].trajectory);
+    } catch (const Error& e) {
+      throw Error(sim.scene.path + ": " + specs[i].json_path + ".trajectory: " + e.what());
+    }
+  }
+  check_sizes(sim);
+  sim.module_data[kStageToolPoses] = paths;
+  sim.tools.assign(specs.size(), ToolFrame{});
+  for (size_t i = 0; i < specs.size(); ++i)
+    sim.tools[i].before = sim.tools[i].after = instrument_pose(sim, static_cast<int>(i), sim.state.time);
+  sim.pipeline.set(kStageToolPoses, tool_poses_stage);
+}
+
+}  // namespace incise
