@@ -16,7 +16,7 @@
 #include "render/egl_context.h"
 #include "render/image.h"
 #include "render/instrument_shape.h"
-#include "render/surface_extract.h"
+#include "engine/output/surface_extract.h"
 #include "render/tessellate.h"
 
 namespace incise {

@@ -40,31 +40,19 @@ void eval_face(int npf, const double* L, const P& node, double x[3], double n[3]
 
 Tessellation build_tessellation(const Surface& s, const DisplayMesh& m, int segments) {
   Tessellation t;
-  const int n = s.order == 2 ? std::max(2, segments) : 1;
+  const FaceGrid fg = face_grid(face_segments(s.order, segments));
   const int npf = s.npf();
-  t.segments = n;
-  t.verts_per_face = (n + 1) * (n + 2) / 2;
-  t.tris_per_face = n * n;
-  // Grid vertex (i, j), i + j <= n, at xi = i/n, eta = j/n; integer weights
-  // w = (n - i - j, i, j) identify it on the face edges for sharing.
-  std::vector<std::array<int, 3>> w;
-  std::vector<int> vid((n + 1) * (n + 1), -1);
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i + j <= n; ++i) {
-      vid[j * (n + 1) + i] = static_cast<int>(w.size());
-      w.push_back({n - i - j, i, j});
-      for (int k = 0; k < 3; ++k) t.grid.push_back(static_cast<double>(w.back()[k]) / n);
-    }
+  t.segments = fg.segments;
+  t.verts_per_face = fg.verts_per_face;
+  t.tris_per_face = fg.tris_per_face;
+  t.grid = fg.weights;
+  // Integer weights w = (n - i - j, i, j) identify a grid vertex on the face edges for sharing.
+  auto w = [&fg](int g) { return &fg.steps[3 * static_cast<size_t>(g)]; };
   const int nface = s.nface(), vpf = t.verts_per_face;
   t.tris.reserve(static_cast<size_t>(nface) * t.tris_per_face * 3);
   for (int f = 0; f < nface; ++f) {
     const unsigned base = static_cast<unsigned>(f * vpf);
-    auto v = [&](int i, int j) { return base + static_cast<unsigned>(vid[j * (n + 1) + i]); };
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i + j < n; ++i) {
-        t.tris.insert(t.tris.end(), {v(i, j), v(i + 1, j), v(i, j + 1)});
-        if (i + j < n - 1) t.tris.insert(t.tris.end(), {v(i + 1, j), v(i + 1, j + 1), v(i, j + 1)});
-      }
+    for (int v : fg.tris) t.tris.push_back(base + static_cast<unsigned>(v));
   }
 
   // Smoothing groups. Key: (kind, point a, weight a, point b, weight b) for a
@@ -84,7 +72,7 @@ Tessellation build_tessellation(const Surface& s, const DisplayMesh& m, int segm
     for (int g = 0; g < vpf; ++g) {
       int nz = 0, ids[3], wts[3];
       for (int k = 0; k < 3; ++k)
-        if (w[g][k] > 0) ids[nz] = fn[k], wts[nz] = w[g][k], ++nz;
+        if (w(g)[k] > 0) ids[nz] = fn[k], wts[nz] = w(g)[k], ++nz;
       int& out = t.group[static_cast<size_t>(f) * vpf + g];
       if (nz == 3) {
         out = t.ngroup++;

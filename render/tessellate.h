@@ -1,14 +1,16 @@
 #pragma once
 // Curved faces as flat triangles: each 6-node (tet10) face is sampled on a
-// regular grid of n segments per edge (n^2 triangles), each 3-node face is
-// one triangle. Normals are the analytic normals of the quadratic face,
-// averaged over the grid vertices that coincide on one surface (same
-// DisplayMesh points, same kind, within a crease angle), so a curved surface
-// shades smoothly while a cut face never shares a normal with the boundary.
+// regular grid of n segments per edge (n^2 triangles; engine/output/face_grid.h,
+// shared with collision/), each 3-node face is one triangle. Normals are the
+// analytic normals of the quadratic face, averaged over the grid vertices
+// that coincide on one surface (same DisplayMesh points, same kind, within a
+// crease angle), so a curved surface shades smoothly while a cut face never
+// shares a normal with the boundary.
 #include <vector>
 
 #include "engine/output/display_mesh.h"
-#include "render/surface_extract.h"
+#include "engine/output/face_grid.h"
+#include "engine/output/surface_extract.h"
 
 namespace incise {
 

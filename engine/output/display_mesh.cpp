@@ -3,6 +3,18 @@
 #include "engine/fem/element.h"
 
 namespace incise {
+namespace {
+
+// Local coordinates of the reference element's nodes: corners (0,0,0),
+// (1,0,0), (0,1,0), (0,0,1), then the kTet10Edge midpoints.
+void append_reference_rst(int npe, std::vector<double>& out) {
+  static const double corner[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  for (int a = 0; a < npe; ++a)
+    for (int c = 0; c < 3; ++c)
+      out.push_back(a < 4 ? corner[a][c] : 0.5 * (corner[kTet10Edge[a - 4][0]][c] + corner[kTet10Edge[a - 4][1]][c]));
+}
+
+}  // namespace
 
 DisplayMesh display_mesh(const Model& m, const State& s) {
   DisplayMesh d;
@@ -15,6 +27,9 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
     d.cells = m.mesh.tet;
     d.cell_elem.resize(nt);
     for (int e = 0; e < nt; ++e) d.cell_elem[e] = e;
+    d.cell_piece.assign(nt, -1);
+    d.cell_rst.reserve(static_cast<size_t>(nt) * npe * 3);
+    for (int e = 0; e < nt; ++e) append_reference_rst(npe, d.cell_rst);
     d.face_flags.assign(m.tet_face_boundary.begin(), m.tet_face_boundary.end());  // kFaceBoundary == 1
     return d;
   }
@@ -42,6 +57,8 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
         }
       }
       d.cell_elem.push_back(e);
+      d.cell_piece.push_back(P);
+      append_reference_rst(npe, d.cell_rst);
       for (int k = 0; k < 4; ++k)
         d.face_flags.push_back((m.tet_face_boundary[4 * e + k] ? kFaceBoundary : 0) |
                                (L.elem_face_cut[4 * e + k] ? kFaceCut : 0));
@@ -70,11 +87,13 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
               vel[c] += N[b] * (s.v[3 * nodes[b] + c] + (enr[b] >= 0 ? s.v[3 * enr[b] + c] : 0.0));
             }
           d.cells.push_back(d.npoint());
+          d.cell_rst.insert(d.cell_rst.end(), r, r + 3);
           d.X.insert(d.X.end(), X, X + 3);
           d.u.insert(d.u.end(), u, u + 3);
           d.v.insert(d.v.end(), vel, vel + 3);
         }
         d.cell_elem.push_back(e);
+        d.cell_piece.push_back(P);
         for (int k = 0; k < 4; ++k) {
           const signed char tag = L.subtet_face[4 * static_cast<size_t>(t) + k];
           unsigned char flag = 0;

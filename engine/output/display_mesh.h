@@ -19,6 +19,12 @@ struct DisplayMesh {
   std::vector<double> v;           // (npoint, 3) velocity
   std::vector<int> cells;          // (ncell, npe) point ids
   std::vector<int> cell_elem;      // (ncell) model element the cell belongs to
+  std::vector<int> cell_piece;     // (ncell) model piece (CutLayout) of the cell; -1 when the model has no cuts
+  // (ncell, npe, 3) local coordinates (r, s, t) of each cell node in its
+  // element: the reference tet4/tet10 nodes for a whole element, the
+  // sub-tetrahedron's corners and their edge midpoints for a piece's cell.
+  // Mapped through the element's shape functions they give the cell's X.
+  std::vector<double> cell_rst;
   // (ncell, 4) flags of face k (the face opposite corner k): kFaceBoundary =
   // on the body's outer surface, kFaceCut = on a cut surface. Faces with no
   // flag are inside the body; a renderer draws the flagged ones only.

@@ -13,7 +13,7 @@
 #include <memory>
 #include <string>
 
-#include "tests/render/display_fixtures.h"
+#include "tests/engine/output/display_fixtures.h"
 #include "engine/output/display_mesh.h"
 #include "engine/util/error.h"
 #include "engine/mesh/mesh_io.h"

@@ -17,7 +17,7 @@
 #include "engine/runtime/timing.h"
 #include "engine/util/error.h"
 #include "render/renderer.h"
-#include "tests/render/display_fixtures.h"
+#include "tests/engine/output/display_fixtures.h"
 
 namespace {
 

@@ -6,6 +6,7 @@ packages=(
   libeigen3-dev libsuitesparse-dev libopenblas0-pthread
   nlohmann-json3-dev libcli11-dev libgtest-dev libbenchmark-dev
   libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0 libpng-dev
+  libfcl-dev libccd-dev
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -1,12 +1,12 @@
 // Which faces are drawn: exactly the flagged ones, boundary before cut, and
 // the signature that decides when the topology is rebuilt.
-#include "render/surface_extract.h"
+#include "engine/output/surface_extract.h"
 
 #include <gtest/gtest.h>
 
 #include <set>
 
-#include "render_test_util.h"
+#include "tests/engine/output/display_fixtures.h"
 
 namespace incise::test {
 namespace {

@@ -1,5 +1,5 @@
 #pragma once
-// Display meshes built in code, shared by the render tests
+// Display meshes built in code, shared by the engine/output and render tests
 // (render_test_util.h) and the render benchmark (tools/bench/render_bench.cpp):
 // an undeformed body, and a block cut by hand into two halves with a gap.
 // No GoogleTest here.

@@ -1,7 +1,8 @@
 #pragma once
-// The faces a viewer sees: exactly the DisplayMesh cell faces flagged
-// kFaceBoundary or kFaceCut (never unflagged inner faces), boundary faces
-// first, then cut faces, so each group is one contiguous draw.
+// The faces a viewer (render/) draws and an instrument (collision/) touches:
+// exactly the DisplayMesh cell faces flagged kFaceBoundary or kFaceCut (never
+// unflagged inner faces), boundary faces first, then cut faces, so each group
+// is one contiguous draw.
 #include <cstdint>
 #include <vector>
 
@@ -15,6 +16,7 @@ struct Surface {
   std::vector<int> face_nodes;       // (nface, npf) DisplayMesh point ids: corners 0,1,2 then (tet10)
                                      // mid-edge nodes of face edges 0-1, 1-2, 2-0; outward orientation
   std::vector<int> face_cell;        // (nface) cell the face belongs to
+  std::vector<int> face_local;       // (nface) which face of the cell: k, opposite corner k (kTetFace)
   int npf() const { return order == 2 ? 6 : 3; }
   int nface() const { return nboundary + ncut; }
 };

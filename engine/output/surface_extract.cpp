@@ -1,4 +1,4 @@
-#include "render/surface_extract.h"
+#include "engine/output/surface_extract.h"
 
 namespace incise {
 
@@ -17,6 +17,7 @@ Surface extract_surface(const DisplayMesh& m) {
         if (npf == 6)
           for (int j = 0; j < 3; ++j) s.face_nodes.push_back(cell[kTet10FaceMid[k][j]]);
         s.face_cell.push_back(c);
+        s.face_local.push_back(k);
         ++(pass == 0 ? s.nboundary : s.ncut);
       }
     }

@@ -1,0 +1,156 @@
+// Closed-form contact geometry against independent references: closest
+// points, and the depth/normal convention for spheres, capsules and boxes.
+#include "collision/narrowphase.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Geometry>
+
+#include "tests/collision/collision_test_util.h"
+
+namespace incise::test {
+namespace {
+
+using Eigen::Vector3d;
+
+Vector3d random_vec(std::mt19937& rng, double scale) {
+  std::uniform_real_distribution<double> U(-scale, scale);
+  return Vector3d(U(rng), U(rng), U(rng));
+}
+
+TEST(Narrowphase, ClosestPointOnTriangleMatchesProjectionOrEdges) {
+  std::mt19937 rng(3);
+  for (int k = 0; k < 2000; ++k) {
+    const Vector3d a = random_vec(rng, 1), b = random_vec(rng, 1), c = random_vec(rng, 1), p = random_vec(rng, 2);
+    double bary[3];
+    const Vector3d q = closest_point_on_triangle(p, a, b, c, bary);
+    const Vector3d r = ref_closest_point(p, a, b, c);
+    EXPECT_NEAR((q - p).norm(), (r - p).norm(), 1e-12) << "case " << k;
+    EXPECT_LT((q - (bary[0] * a + bary[1] * b + bary[2] * c)).norm(), 1e-14);
+    EXPECT_NEAR(bary[0] + bary[1] + bary[2], 1.0, 1e-14);
+    for (double l : bary) EXPECT_GE(l, -1e-15);
+  }
+}
+
+TEST(Narrowphase, SegmentTriangleDistanceIsTheMinimumAlongTheSegment) {
+  std::mt19937 rng(5);
+  for (int k = 0; k < 500; ++k) {
+    const Vector3d a = random_vec(rng, 1), b = random_vec(rng, 1), c = random_vec(rng, 1);
+    const Vector3d p = random_vec(rng, 1.5), q = random_vec(rng, 1.5);
+    double t, bary[3];
+    const double d2 = closest_segment_triangle(p, q, a, b, c, t, bary);
+    // The distance to a convex set is convex along the segment: ternary search.
+    auto dist = [&](double s) {
+      const Vector3d x = p + s * (q - p);
+      return (ref_closest_point(x, a, b, c) - x).norm();
+    };
+    double lo = 0, hi = 1;
+    for (int it = 0; it < 200; ++it) {
+      const double m1 = lo + (hi - lo) / 3, m2 = hi - (hi - lo) / 3;
+      (dist(m1) < dist(m2) ? hi : lo) = (dist(m1) < dist(m2) ? m2 : m1);
+    }
+    const double ref = std::min({dist(0.0), dist(1.0), dist(0.5 * (lo + hi))});
+    EXPECT_NEAR(std::sqrt(d2), ref, 1e-9) << "case " << k;
+    // The reported pair is at that distance.
+    const Vector3d x = bary[0] * a + bary[1] * b + bary[2] * c, y = p + t * (q - p);
+    EXPECT_NEAR((x - y).norm(), std::sqrt(d2), 1e-12);
+  }
+}
+
+// Triangle in the plane z = 0, outward normal +z.
+const Vector3d T0(-1, -1, 0), T1(2, -1, 0), T2(-1, 2, 0);
+
+TEST(Narrowphase, SphereOverAFacePushesTheTissueInwardByRadiusMinusDistance) {
+  TriangleContact c;
+  const Vector3d centre(0.2, 0.1, 0.3);
+  ASSERT_TRUE(round_triangle_contact(centre, centre, 0.5, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.5 - 0.3, 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
+  EXPECT_LT((c.point - Vector3d(0.2, 0.1, 0)).norm(), 1e-15);
+  EXPECT_FALSE(round_triangle_contact(Vector3d(0, 0, 0.5), Vector3d(0, 0, 0.5), 0.5, T0, T1, T2, c)) << "touching is no contact";
+}
+
+TEST(Narrowphase, ASphereThroughTheFaceStillPushesInward) {
+  // Centre 0.2 below the face: the tissue point must go down by r + 0.2, not up.
+  TriangleContact c;
+  const Vector3d centre(0.2, 0.1, -0.2);
+  ASSERT_TRUE(round_triangle_contact(centre, centre, 0.5, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.7, 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
+  // Continuous through the face: just above and just below agree.
+  TriangleContact up, down;
+  ASSERT_TRUE(round_triangle_contact(Vector3d(0.2, 0.1, 1e-9), Vector3d(0.2, 0.1, 1e-9), 0.5, T0, T1, T2, up));
+  ASSERT_TRUE(round_triangle_contact(Vector3d(0.2, 0.1, -1e-9), Vector3d(0.2, 0.1, -1e-9), 0.5, T0, T1, T2, down));
+  EXPECT_NEAR(up.depth, down.depth, 3e-9);
+  EXPECT_LT((up.normal - down.normal).norm(), 1e-12);
+}
+
+TEST(Narrowphase, SphereBesideAnEdgeGetsTheGeometricNormal) {
+  // Centre beyond edge T0-T1 (y = -1), above the plane: closest point on the edge.
+  TriangleContact c;
+  const Vector3d centre(0.5, -1.3, 0.4);
+  ASSERT_TRUE(round_triangle_contact(centre, centre, 0.6, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.6 - 0.5, 1e-15);
+  EXPECT_LT((c.point - Vector3d(0.5, -1, 0)).norm(), 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0.6, -0.8)).norm(), 1e-15);
+}
+
+TEST(Narrowphase, CapsuleLyingOnAFaceAndPokingThroughIt) {
+  TriangleContact c;
+  // Axis parallel to the face at height 0.1: depth r - 0.1.
+  ASSERT_TRUE(round_triangle_contact(Vector3d(-0.5, 0, 0.1), Vector3d(0.5, 0, 0.1), 0.25, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.15, 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
+  // Axis through the face, its lower end 0.3 under it: the tissue must clear the end by r.
+  ASSERT_TRUE(round_triangle_contact(Vector3d(0, 0, 0.5), Vector3d(0.1, 0, -0.3), 0.25, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.55, 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
+  EXPECT_NEAR(c.point.z(), 0.0, 1e-15);
+}
+
+TEST(Narrowphase, BoxPressedIntoAFaceHasDepthAlongTheInwardNormal) {
+  TriangleContact c;
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  const Vector3d half(0.2, 0.1, 0.3);
+  // Bottom face at z = -0.05.
+  ASSERT_TRUE(box_triangle_contact(Vector3d(0, 0, 0.25), I, half, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.05, 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
+  EXPECT_NEAR(c.point.z(), 0.0, 1e-15);
+  EXPECT_LE(std::abs(c.point.x()), 0.2 + 1e-15);
+  // Deeper than its half height: still inward, depth = the bottom face's.
+  ASSERT_TRUE(box_triangle_contact(Vector3d(0, 0, -0.2), I, half, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.5, 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
+  // A box off the triangle's prism gives nothing.
+  EXPECT_FALSE(box_triangle_contact(Vector3d(3, 3, 0), I, half, T0, T1, T2, c));
+}
+
+TEST(Narrowphase, TiltedBoxCornerDepthAndAPartlyOverhangingBox) {
+  TriangleContact c;
+  // Unit cube turned so its diagonal (1,1,1) points along -z: the lowest
+  // corner is sqrt(3)/2 under the centre.
+  const Eigen::Matrix3d R =
+      Eigen::Quaterniond::FromTwoVectors(Vector3d(1, 1, 1).normalized(), Vector3d(0, 0, -1)).toRotationMatrix();
+  const Vector3d half(0.5, 0.5, 0.5);
+  ASSERT_TRUE(box_triangle_contact(Vector3d(0, 0, 0.8), R, half, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, std::sqrt(3.0) / 2 - 0.8, 1e-14);
+  EXPECT_LT((c.point - Vector3d(0, 0, 0)).norm(), 1e-14);
+  // A flat box overhanging the edge x + y = 1 of the triangle: only the part
+  // over the triangle counts, and its lowest point there is the bottom face.
+  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(0.1, Vector3d(0, 1, 0)).toRotationMatrix();  // lower towards +x
+  ASSERT_TRUE(box_triangle_contact(Vector3d(1.4, 0, 0.05), tilt, Vector3d(1, 0.2, 0.1), T0, T1, T2, c));
+  // Bottom face: z = 0.05 - 0.1 cos(0.1) + (x - 1.4) (-sin 0.1)... lowest over the triangle where x is largest:
+  // on the triangle's hypotenuse x + y = 1 at y = -0.2 cos-free (box y in [-0.2, 0.2]): x = 1.2.
+  const double zc = 0.05, s = std::sin(0.1), co = std::cos(0.1);
+  // Box point b = centre + tilt * (lx, ly, -0.1): z = zc - s lx - 0.1 co, x = 1.4 + co lx - 0.1 s.
+  const double lx = (1.2 - 1.4 + 0.1 * s) / co;
+  EXPECT_NEAR(c.depth, -(zc - s * lx - 0.1 * co), 1e-12);
+  EXPECT_NEAR(c.point.x() + c.point.y(), 1.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace incise::test
