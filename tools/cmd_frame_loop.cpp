@@ -1,3 +1,4 @@
+#include "collision/collision_stage.h"
 #include "cutting/cut_stage.h"
 #include "cutting/cut_surface.h"
 #include "engine/util/error.h"
@@ -16,7 +17,8 @@ std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_pat
       throw Error(scene_path + ": " + e.what());
     }
   }
-  install_instrument_stage(*sim);  // before cutting: the scalpels' sweep reads sim.tools
+  install_instrument_stage(*sim);  // before collision and cutting: they read sim.tools
+  install_collision_stage(*sim);
   install_cutting_stage(*sim);
   return sim;
 }

@@ -28,6 +28,8 @@ struct ContactRows {
   std::vector<double> point;     // (nrow, 3) world point of the row (contact point, grasped point)
   std::vector<double> dir;       // (nrow, 3) world direction of the row (contact normal into the tissue, axis)
   std::vector<double> depth;     // (nrow) contact: penetration found by collision (>= 0); 0 otherwise
+  std::vector<double> velocity;  // (nrow) the tool's velocity along the row at the frame's end: an active
+                                 // row's point ends the frame moving with the tool (inelastic contact)
   double friction = 0.0;         // Coulomb coefficient of the friction rows
   int max_sweeps = 200;          // projected Gauss-Seidel sweeps at most (scene contact.pgs_iterations)
   std::vector<double> lambda;    // (nrow) result: force along dir on the tissue (N)
@@ -35,7 +37,7 @@ struct ContactRows {
   int nrow() const { return static_cast<int>(target.size()); }
   void clear() {
     ptr.assign(1, 0);
-    for (auto* v : {&coef, &target, &point, &dir, &depth, &lambda}) v->clear();
+    for (auto* v : {&coef, &target, &point, &dir, &depth, &velocity, &lambda}) v->clear();
     dof.clear();
     kind.clear();
     normal_row.clear();
@@ -43,7 +45,8 @@ struct ContactRows {
   }
   // Starts a row; add entries with add(), in any order.
   void begin_row(RowKind k, double tgt, int tool_id, const double p[3], const double d[3], double dep = 0.0,
-                 int normal = -1) {
+                 int normal = -1, double vel = 0.0) {
+    velocity.push_back(vel);
     target.push_back(tgt);
     kind.push_back(k);
     normal_row.push_back(normal);

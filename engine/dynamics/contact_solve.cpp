@@ -65,8 +65,7 @@ int projected_gauss_seidel(const ContactRows& c, const std::vector<double>& W, c
 // lambda solves W_AA lambda_A = b_A - W_AI lambda_I exactly; the result is
 // kept when it is feasible (contacts still pushing, friction inside the
 // cone), so the constraints hold to roundoff instead of PGS's tolerance.
-void polish_active_set(const ContactRows& c, const std::vector<double>& W, const std::vector<double>& b,
-                       std::vector<double>& lambda) {
+std::vector<int> active_rows(const ContactRows& c, const std::vector<double>& W, const std::vector<double>& lambda) {
   const int r = c.nrow();
   std::vector<int> act;
   for (int i = 0; i < r; ++i) {
@@ -85,6 +84,13 @@ void polish_active_set(const ContactRows& c, const std::vector<double>& W, const
       }
     }
   }
+  return act;
+}
+
+void polish_active_set(const ContactRows& c, const std::vector<double>& W, const std::vector<double>& b,
+                       std::vector<double>& lambda) {
+  const int r = c.nrow();
+  const std::vector<int> act = active_rows(c, W, lambda);
   if (act.empty()) return;
   const int k = static_cast<int>(act.size());
   std::vector<char> in(r, 0);
@@ -135,7 +141,9 @@ void solve_contacts(const Model& m, State& /*s*/, Workspace& ws) {
     for (const auto& p : m.prescribed) y[p.dof] = 0.0;
   }
   // W = H Y (symmetrised: the lagged preconditioner is symmetric up to roundoff).
-  std::vector<double> W(static_cast<size_t>(r) * r), b(r), lambda = c.lambda;
+  std::vector<double>& W = ws.contact_W;
+  W.assign(static_cast<size_t>(r) * r, 0.0);
+  std::vector<double> b(r), lambda = c.lambda;
   for (int i = 0; i < r; ++i)
     for (int j = 0; j < r; ++j) {
       const double* y = ws.contact_work.data() + static_cast<size_t>(j) * n;
@@ -174,6 +182,41 @@ void solve_contacts(const Model& m, State& /*s*/, Workspace& ws) {
   }
   ws.timing.contact_sweeps += sweeps;
   ws.timing.contact_force = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+}
+
+void project_contact_kinematics(const Model& m, State& s, Workspace& ws) {
+  const ContactRows& c = ws.contacts;
+  const int r = c.nrow(), n = m.ndof();
+  if (r == 0 || ws.contact_W.size() != static_cast<size_t>(r) * r) return;
+  const std::vector<int> act = active_rows(c, ws.contact_W, c.lambda);
+  if (act.empty()) return;
+  const int k = static_cast<int>(act.size());
+  Eigen::MatrixXd Wa(k, k);
+  for (int a = 0; a < k; ++a)
+    for (int q = 0; q < k; ++q) Wa(a, q) = ws.contact_W[static_cast<size_t>(act[a]) * r + act[q]];
+  // Redundant rows (several contacts on one face) make W_AA singular: the
+  // complete orthogonal decomposition gives the least-norm multipliers.
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(Wa);
+  Eigen::VectorXd bv(k), ba(k);
+  for (int a = 0; a < k; ++a) {
+    const int i = act[a];
+    double hv = 0.0, ha = 0.0;
+    for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e) {
+      hv += c.coef[e] * s.v[c.dof[e]];
+      ha += c.coef[e] * s.a[c.dof[e]];
+    }
+    bv[a] = c.velocity[i] - hv;
+    ba[a] = -ha;
+  }
+  const Eigen::VectorXd mv = cod.solve(bv), ma = cod.solve(ba);
+  if (!mv.allFinite() || !ma.allFinite()) return;
+  for (int a = 0; a < k; ++a) {
+    const double* y = ws.contact_work.data() + static_cast<size_t>(act[a]) * n;
+    for (int d = 0; d < n; ++d) {
+      s.v[d] += mv[a] * y[d];
+      s.a[d] += ma[a] * y[d];
+    }
+  }
 }
 
 }  // namespace incise

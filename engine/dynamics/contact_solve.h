@@ -34,4 +34,13 @@ void begin_contacts(const Model& model, Workspace& ws);
 // Records rows, sweeps and the total force in ws.timing.
 void solve_contacts(const Model& model, State& state, Workspace& ws);
 
+// In the integration stage, after the Newmark update: the rows active at the
+// end of the step (contacts pushing, grasps, friction sticking) get the
+// velocity of the tool they touch and no acceleration along them, through
+// the same compliance: v += Y W_AA^-1 (v_tool - H v), a += Y W_AA^-1 (-H a).
+// Without it the trapezoidal rule integrates the impulsive correction as
+// v1 = 2/dt Delta - v, a sawtooth that never decays at a held contact (the
+// prescribed DOFs get the same treatment in integrate()).
+void project_contact_kinematics(const Model& model, State& state, Workspace& ws);
+
 }  // namespace incise

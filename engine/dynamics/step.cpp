@@ -278,6 +278,7 @@ void integrate(const Model& m, State& s, Workspace& ws) {
     s.v[p.dof] = m.prescribed_velocity(p, t1);
     s.a[p.dof] = 0.0;  // piecewise linear in time
   }
+  project_contact_kinematics(m, s, ws);
   s.time = t1;
   ++s.frame;
 }

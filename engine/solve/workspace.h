@@ -42,7 +42,8 @@ struct Workspace {
   // put on the DOFs, H^T lambda (ndof; empty while there are none).
   ContactRows contacts;
   std::vector<double> contact_force;
-  std::vector<double> contact_work;  // (nrow, ndof) A^-1 H^T columns, reused between frames
+  std::vector<double> contact_work;  // (nrow + 1, ndof) A^-1 H^T columns (and a scratch column), reused
+  std::vector<double> contact_W;     // (nrow, nrow) the compliance H A^-1 H^T of the last solve
 
   FrameTiming timing;           // the last (or current) frame
   int refactorizations = 0;     // numeric factorizations so far

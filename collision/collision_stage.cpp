@@ -1,0 +1,155 @@
+#include "collision/collision_stage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+namespace incise {
+
+namespace {
+
+bool touches(const InstrumentSpec& s) { return s.kind != InstrumentSpec::Kind::Scalpel && s.contact; }
+
+// The instrument as the query sees it: a probe inflated by its margin.
+InstrumentSpec inflated(const InstrumentSpec& s, double margin) {
+  InstrumentSpec t = s;
+  if (t.kind == InstrumentSpec::Kind::Probe) t.radius += margin;
+  return t;
+}
+
+double contact_margin(const InstrumentSpec& s) {
+  return s.kind == InstrumentSpec::Kind::Probe ? kContactMarginShare * s.radius : 0.0;
+}
+
+// Two unit tangents orthogonal to n.
+void tangents(const double n[3], double t1[3], double t2[3]) {
+  const int a = std::abs(n[0]) < 0.6 ? 0 : (std::abs(n[1]) < 0.6 ? 1 : 2);
+  double e[3] = {0, 0, 0};
+  e[a] = 1.0;
+  t1[0] = n[1] * e[2] - n[2] * e[1];
+  t1[1] = n[2] * e[0] - n[0] * e[2];
+  t1[2] = n[0] * e[1] - n[1] * e[0];
+  const double l = std::sqrt(t1[0] * t1[0] + t1[1] * t1[1] + t1[2] * t1[2]);
+  for (int d = 0; d < 3; ++d) t1[d] /= l;
+  t2[0] = n[1] * t1[2] - n[2] * t1[1];
+  t2[1] = n[2] * t1[0] - n[0] * t1[2];
+  t2[2] = n[0] * t1[1] - n[1] * t1[0];
+}
+
+// Where the tool's surface point at p (world, at the frame's start) is at its end.
+std::array<double, 3> carried(const ToolFrame& f, const double p[3]) {
+  return tool_to_world(f.after, world_to_tool(f.before, {p[0], p[1], p[2]}));
+}
+
+// One unilateral row: n . (sum_k w_k Delta_k) >= target.
+void add_contact_row(const TissueContact& c, double target, const ToolFrame& f, double dt, int tool,
+                     ContactRows& rows) {
+  const std::array<double, 3> moved = carried(f, c.point);
+  double vel = 0.0;
+  for (int d = 0; d < 3; ++d) vel += c.normal[d] * (moved[d] - c.point[d]) / dt;
+  rows.begin_row(RowKind::Contact, target, tool, c.point, c.normal, std::max(0.0, target), -1, vel);
+  for (int k = 0; k < c.weights.n; ++k)
+    for (int d = 0; d < 3; ++d) rows.add(3 * c.weights.dofnode[k] + d, c.weights.weight[k] * c.normal[d]);
+}
+
+// Coulomb friction: the tissue point follows the tool's surface tangentially
+// while it sticks. Target: the tool's motion at the point over the frame.
+void add_friction_rows(const TissueContact& c, const ToolFrame& tool_frame, double dt, int tool, int normal_row,
+                       ContactRows& rows) {
+  double t[2][3];
+  tangents(c.normal, t[0], t[1]);
+  const std::array<double, 3> moved = carried(tool_frame, c.point);
+  for (const auto& dir : t) {
+    double target = 0.0;
+    for (int d = 0; d < 3; ++d) target += dir[d] * (moved[d] - c.point[d]);
+    rows.begin_row(RowKind::Friction, target, tool, c.point, dir, 0.0, normal_row, target / dt);
+    for (int k = 0; k < c.weights.n; ++k)
+      for (int d = 0; d < 3; ++d) rows.add(3 * c.weights.dofnode[k] + d, c.weights.weight[k] * dir[d]);
+  }
+}
+
+}  // namespace
+
+CollisionData* collision_data(Simulation& sim) {
+  return static_cast<CollisionData*>(sim.module_data[kStageCollision].get());
+}
+
+ToolShape instrument_shape(const Simulation& sim, int i, const ToolPose& pose) {
+  return make_tool_shape(sim.scene.instruments[i], pose);
+}
+
+void collision_stage(Simulation& sim) {
+  CollisionData& cd = *collision_data(sim);
+  FrameTiming& ft = sim.ws.timing;
+  if (cd.model.sync(sim.model, sim.state, sim.model_version) == SyncAction::Rebuild) ++ft.bvh_rebuilds;
+  else ++ft.bvh_refits;
+  const TissueSurface& surface = cd.model.surface();
+  ContactRows& rows = sim.ws.contacts;
+  rows.clear();
+  rows.friction = sim.scene.contact.friction;
+  rows.max_sweeps = sim.scene.contact.pgs_iterations;
+  // Grasps first: they are what the user asked for, and not subject to max_rows.
+  struct Candidate {
+    double depth;
+    int tool, index;
+  };
+  std::vector<Candidate> candidates;
+  for (size_t i = 0; i < sim.scene.instruments.size(); ++i) {
+    const InstrumentSpec& spec = sim.scene.instruments[i];
+    if (!touches(spec)) continue;
+    const ToolFrame& tf = sim.tools[i];
+    if (spec.kind == InstrumentSpec::Kind::Grasper) {
+      update_grasp(sim.model, spec, tf, surface, sim.model_version, cd.grasps[i]);
+      if (cd.grasps[i].holding) {
+        add_grasp_rows(sim.state, cd.grasps[i], tf, sim.model.dt, static_cast<int>(i), surface, rows);
+        continue;  // the jaws hold: no contact rows from them
+      }
+    }
+    set_tool_pose(cd.shapes[i], inflated(spec, cd.margin[i]), tf.after);
+    query_contacts(cd.model, cd.shapes[i], cd.request, cd.results[i]);
+    const auto& found = cd.results[i].contacts;
+    for (size_t k = 0; k < found.size(); ++k)
+      candidates.push_back({found[k].depth - cd.margin[i], static_cast<int>(i), static_cast<int>(k)});
+  }
+  ft.grasp_rows = rows.nrow();
+  // The deepest contacts, up to contact.max_rows rows (a contact and its two
+  // friction rows count three).
+  std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) { return a.depth > b.depth; });
+  const bool friction = rows.friction > 0.0;
+  int budget = sim.scene.contact.max_rows;
+  double deepest = 0.0;
+  for (const Candidate& c : candidates) {
+    if (budget < (friction ? 3 : 1)) break;
+    const TissueContact& tc = cd.results[c.tool].contacts[c.index];
+    const int normal_row = rows.nrow();
+    add_contact_row(tc, c.depth, sim.tools[c.tool], sim.model.dt, c.tool, rows);
+    if (friction) add_friction_rows(tc, sim.tools[c.tool], sim.model.dt, c.tool, normal_row, rows);
+    budget -= friction ? 3 : 1;
+    deepest = std::max(deepest, c.depth);
+    ++ft.contacts;
+  }
+  ft.max_depth = deepest;
+}
+
+void install_collision_stage(Simulation& sim) {
+  bool any = false;
+  for (const InstrumentSpec& s : sim.scene.instruments) any = any || touches(s);
+  if (!any) return;
+  auto cd = std::make_shared<CollisionData>();
+  cd->model = CollisionModel(sim.scene.render.subdivision);
+  const size_t n = sim.scene.instruments.size();
+  cd->margin.resize(n, 0.0);
+  cd->results.resize(n);
+  cd->grasps.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const InstrumentSpec& s = sim.scene.instruments[i];
+    cd->margin[i] = contact_margin(s);
+    const ToolPose pose = i < sim.tools.size() ? sim.tools[i].after : ToolPose{};
+    cd->shapes.push_back(make_tool_shape(inflated(s, cd->margin[i]), pose));
+  }
+  cd->request.max_contacts = std::max(sim.scene.contact.max_rows, 1);
+  sim.module_data[kStageCollision] = cd;
+  sim.pipeline.set(kStageCollision, collision_stage);
+}
+
+}  // namespace incise

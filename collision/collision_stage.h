@@ -1,0 +1,50 @@
+#pragma once
+// The collision stage plugged into the frame's pipeline: the tissue's FCL
+// model synced to the State (refit, or rebuilt after a cut), each instrument
+// posed where it will be at the end of the frame, and what the step must
+// respect turned into rows of ws.contacts (engine/dynamics/contact_rows.h):
+//   probe, open grasper  contacts: the tissue point must move by the depth
+//                        along the contact normal (unilateral), plus two
+//                        friction rows each with contact.friction > 0;
+//   closed grasper       the held points follow the jaws (bilateral,
+//                        collision/grasp.h); opening releases them;
+//   scalpel              nothing here: its edge cuts (cutting/blade_sweep.h).
+// Contacts are found with the tissue where it is (start of the frame) and
+// the tool where it will be (end), inflated by a margin so that tissue moving
+// towards a tool during the frame is caught too (such rows have a negative
+// target: inactive unless the tissue closes the gap). Installed only when
+// the scene has an instrument that touches.
+#include <vector>
+
+#include "collision/collision_model.h"
+#include "collision/contact_query.h"
+#include "collision/grasp.h"
+#include "collision/tool_shape.h"
+#include "engine/runtime/simulation.h"
+
+namespace incise {
+
+// What the stage keeps between frames (sim.module_data[kStageCollision]).
+struct CollisionData {
+  CollisionModel model;
+  std::vector<ToolShape> shapes;         // (instruments) posed at the frame's end, inflated by the margin
+  std::vector<double> margin;            // (instruments) detection margin (tool length units)
+  std::vector<ContactResult> results;    // (instruments) the last query
+  std::vector<Grasp> grasps;             // (instruments) held points of graspers
+  ContactRequest request;
+};
+
+// Fraction of an instrument's smallest dimension used as detection margin.
+inline constexpr double kContactMarginShare = 0.25;
+
+void collision_stage(Simulation& sim);
+void install_collision_stage(Simulation& sim);
+
+// The stage's data (nullptr when the stage is not installed).
+CollisionData* collision_data(Simulation& sim);
+
+// A copy of instrument i's shape at `pose`, not inflated: for penetration
+// measurements (max_penetration) and rendering.
+ToolShape instrument_shape(const Simulation& sim, int i, const ToolPose& pose);
+
+}  // namespace incise

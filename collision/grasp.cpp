@@ -1,0 +1,82 @@
+#include "collision/grasp.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "collision/tool_shape.h"
+#include "engine/output/probe.h"
+
+namespace incise {
+
+void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFrame& tool, const TissueSurface& surface,
+                  int model_version, Grasp& grasp) {
+  const bool closed = tool.after.jaw >= spec.grasp_at;
+  if (!closed) {
+    grasp.holding = false;
+    grasp.held.clear();
+    return;
+  }
+  if (grasp.holding) {
+    if (grasp.model_version != model_version) {  // a cut renumbered the pieces
+      for (HeldPoint& h : grasp.held) h.piece = piece_containing(model, h.elem, h.rst);
+      grasp.model_version = model_version;
+    }
+    return;
+  }
+  // Closing now: the vertices between the jaws, in the tool frame at the
+  // frame's start (where the tissue is).
+  const double gap = jaw_gap(spec, tool.before.jaw);
+  const double hx = 0.5 * spec.jaw_size[0], hy = 0.5 * gap + spec.jaw_size[1], hz = 0.5 * spec.jaw_size[2];
+  std::vector<std::pair<double, int>> inside;
+  for (int v = 0; v < surface.nvert(); ++v) {
+    const std::array<double, 3> l =
+        world_to_tool(tool.before, {surface.x[3 * v], surface.x[3 * v + 1], surface.x[3 * v + 2]});
+    if (std::abs(l[0]) <= hx && std::abs(l[1]) <= hy && std::abs(l[2]) <= hz)
+      inside.emplace_back(l[0] * l[0] + l[1] * l[1] + l[2] * l[2], v);
+  }
+  if (inside.empty()) return;  // closed on nothing: nothing held until it opens and closes again
+  std::sort(inside.begin(), inside.end());
+  // A vertex appears once per face it lies on: keep distinct material positions.
+  grasp.held.clear();
+  for (const auto& [d2, v] : inside) {
+    if (static_cast<int>(grasp.held.size()) == kMaxHeldPoints) break;
+    const std::array<double, 3> l =
+        world_to_tool(tool.before, {surface.x[3 * v], surface.x[3 * v + 1], surface.x[3 * v + 2]});
+    bool dup = false;
+    for (const HeldPoint& h : grasp.held)
+      dup = dup || (std::abs(h.local[0] - l[0]) + std::abs(h.local[1] - l[1]) + std::abs(h.local[2] - l[2]) <
+                    1e-9 * (spec.opening + spec.jaw_size[0]));
+    if (dup) continue;
+    HeldPoint h;
+    h.elem = surface.vert_elem[v];
+    h.piece = surface.vert_piece[v];
+    for (int d = 0; d < 3; ++d) {
+      h.rst[d] = surface.vert_rst[3 * v + d];
+      h.local[d] = l[d];
+    }
+    grasp.held.push_back(h);
+  }
+  grasp.holding = true;
+  grasp.model_version = model_version;
+}
+
+void add_grasp_rows(const State& state, const Grasp& grasp, const ToolFrame& tool_frame, double dt, int tool,
+                    const TissueSurface& surface, ContactRows& rows) {
+  if (!grasp.holding) return;
+  for (const HeldPoint& h : grasp.held) {
+    const PointWeights w = surface.point_weights(h.elem, h.piece, h.rst);
+    double X[3], x[3];
+    surface.reference_position(h.elem, h.rst, X);
+    point_position(w, X, state.u.data(), x);
+    const std::array<double, 3> goal = tool_to_world(tool_frame.after, {h.local[0], h.local[1], h.local[2]});
+    const std::array<double, 3> was = tool_to_world(tool_frame.before, {h.local[0], h.local[1], h.local[2]});
+    for (int c = 0; c < 3; ++c) {
+      double dir[3] = {0, 0, 0};
+      dir[c] = 1.0;
+      rows.begin_row(RowKind::Grasp, goal[c] - x[c], tool, x, dir, 0.0, -1, (goal[c] - was[c]) / dt);
+      for (int k = 0; k < w.n; ++k) rows.add(3 * w.dofnode[k] + c, w.weight[k]);
+    }
+  }
+}
+
+}  // namespace incise

