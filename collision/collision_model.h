@@ -19,8 +19,10 @@
 
 namespace incise {
 
-// Bounding volume of the tree: AABB refits fastest and tests a sphere or box
-// in a few comparisons; OBBRSS (FCL's usual mesh choice) fits tighter.
+// Bounding volume of the tree. AABB (the default): FCL refits it in 0.4 ms on
+// the 20k organ, and queries descend it in collision/contact_query.cpp.
+// OBBRSS (FCL's usual mesh choice): tighter, queried by fcl::collide itself,
+// but FCL refits it in 14 ms (an eigen-decomposition fit per node).
 // tools/bench/collision_bench.cpp measures both.
 enum class TissueBV { AABB, OBBRSS };
 

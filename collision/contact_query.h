@@ -15,12 +15,16 @@
 // nearest. Other shapes go through libccd's MPR: a positive depth, a point
 // midway between the surfaces and the direction of least translation, which
 // on a zero-thickness triangle turns sideways or flips once the tool is more
-// than half way through. So FCL's BVH traversal and intersection tests decide
-// WHICH triangles touch (enable_contact off: no MPR penetration run), and
-// collision/narrowphase.h computes each contact in closed form with one
+// than half way through. So FCL's tree only says WHICH triangles may touch,
+// and collision/narrowphase.h computes each contact in closed form with one
 // convention: normal = the unit direction the tissue must move to leave the
 // tool (into the tissue; a tool pressing on a face pushes it along -n_out,
-// the face's inward normal), depth >= 0 along it, point on the triangle.
+// the face's inward normal), depth > 0 along it, point on the triangle.
+// With the default AABB tree the query descends FCL's refitted BVHModel
+// itself and the exact test is the leaf test (contact_query.cpp says why not
+// fcl::collide); with OBBRSS, fcl::collide (enable_contact off, so no MPR
+// penetration runs) picks the triangles and the exact test keeps those with
+// depth.
 #include <vector>
 
 #include <fcl/narrowphase/collision_result.h>
@@ -33,7 +37,7 @@ namespace incise {
 
 struct ContactRequest {
   int max_contacts = 48;      // kept, deepest first (scene contact.max_rows)
-  // Triangles FCL may report per tool part; FCL stops its traversal there (in
+  // Triangles the tree may pass per tool part; the descent stops there (in
   // tree order, not by depth), so this must exceed what a tool can touch.
   int max_candidates = 4096;
 };
@@ -59,10 +63,12 @@ struct TissueContact {
 
 struct ContactResult {
   std::vector<TissueContact> contacts;  // deepest first (ties: lower triangle id first)
-  int candidates = 0;                   // triangles FCL reported, all parts
+  int candidates = 0;                   // triangles given to the exact test, all parts
   bool capped = false;                  // a part reached max_candidates: contacts may be missing
   double max_depth() const { return contacts.empty() ? 0.0 : contacts.front().depth; }
-  fcl::CollisionResultd fcl_result;     // FCL's result, kept to reuse its buffer
+  // Scratch kept between queries, so a frame allocates nothing.
+  std::vector<int> candidate_tris, stack;
+  fcl::CollisionResultd fcl_result;
 };
 
 void query_contacts(const CollisionModel& model, const ToolShape& tool, const ContactRequest& request,

@@ -20,13 +20,14 @@
 
 namespace incise::test {
 
-// Straight-sided tet10 block [0,2]x[0,1]x[0,1] (4x2x2 cells).
+// Straight-sided block [0,2]x[0,1]x[0,1] (4x2x2 cells, 6 tetrahedra each).
 inline Mesh collision_block() { return make_beam(2, 1, 1, 4, 2, 2, 1); }
 
-// Model of the block; with `cut`, cut through by the plane through (1.05, 0, 0)
-// with normal (1, 0.1, 0.05): two bodies, x < plane on side 0, x > plane on side 1.
-inline Model block_model(bool cut) {
-  const Scene s = block_scene(2);
+// Model of the block (tet10, or tet4 for order 1); with `cut`, cut through by
+// the plane through (1.05, 0, 0) with normal (1, 0.1, 0.05): two bodies,
+// x < plane on side 0, x > plane on side 1.
+inline Model block_model(bool cut, int order = 2) {
+  const Scene s = block_scene(order);
   const Mesh mesh = collision_block();
   const Model uncut = build_model(mesh, s);
   if (!cut) return uncut;

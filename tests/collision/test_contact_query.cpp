@@ -9,6 +9,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <utility>
 
 #include "tests/collision/collision_test_util.h"
 
@@ -49,49 +50,53 @@ std::array<double, 3> bend1(const double* X) {
   return {u[0] + 0.15, u[1] - 0.01 * X[2] * X[2], u[2] + 0.02 * X[0]};
 }
 
+// Both trees: AABB (descended in contact_query.cpp) and OBBRSS (fcl::collide).
 TEST(ContactQuery, SphereContactsAfterACutEqualABruteForceOverEveryTriangle) {
-  const Model m = block_model(true);
-  const Field f[2] = {bend0, bend1};
-  const State st = side_state(m, f);
-  CollisionModel cm(3);
-  cm.sync(m, st, 0);
-  const TissueSurface& s = cm.surface();
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> X(0.6, 1.6), Y(-0.3, 1.3), Z(0.4, 1.3), R(0.05, 0.35);
-  int total = 0, on_cut = 0, deep = 0;
-  ContactResult res;
-  for (int trial = 0; trial < 60; ++trial) {
-    const double r = R(rng);
-    const Vector3d c(X(rng), Y(rng), Z(rng));
-    query_contacts(cm, make_tool_shape(probe(r), at(c[0], c[1], c[2])), all_of(cm), res);
-    ASSERT_FALSE(res.capped);
-    std::map<int, double> got, want;
-    for (const TissueContact& k : res.contacts) got[k.tri] = k.depth;
-    for (int t = 0; t < s.ntri(); ++t) {
-      const Vector3d a = vert(s, s.tri[3 * t]), b = vert(s, s.tri[3 * t + 1]), e = vert(s, s.tri[3 * t + 2]);
-      const Vector3d p = ref_closest_point(c, a, b, e);
-      const double d = (p - c).norm();
-      if (!(d < r)) continue;
-      const Vector3d n = (b - a).cross(e - a).normalized();
-      // The convention of collision/narrowphase.h: geometric while the centre
-      // is outside the face, along the face once it is in or behind its plane.
-      want[t] = (c - p).dot(n) > 0 ? r - d : r - (c - p).dot(n);
+  for (auto [order, bv] : {std::pair{2, TissueBV::AABB}, std::pair{1, TissueBV::AABB}, std::pair{2, TissueBV::OBBRSS}}) {
+    const Model m = block_model(true, order);
+    const Field f[2] = {bend0, bend1};
+    const State st = side_state(m, f);
+    CollisionModel cm(3, bv);
+    cm.sync(m, st, 0);
+    const TissueSurface& s = cm.surface();
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> X(0.6, 1.6), Y(-0.3, 1.3), Z(0.4, 1.3), R(0.05, 0.35);
+    int total = 0, on_cut = 0, deep = 0;
+    ContactResult res;
+    for (int trial = 0; trial < 60; ++trial) {
+      const double r = R(rng);
+      const Vector3d c(X(rng), Y(rng), Z(rng));
+      query_contacts(cm, make_tool_shape(probe(r), at(c[0], c[1], c[2])), all_of(cm), res);
+      ASSERT_FALSE(res.capped);
+      std::map<int, double> got, want;
+      for (const TissueContact& k : res.contacts) got[k.tri] = k.depth;
+      for (int t = 0; t < s.ntri(); ++t) {
+        const Vector3d a = vert(s, s.tri[3 * t]), b = vert(s, s.tri[3 * t + 1]), e = vert(s, s.tri[3 * t + 2]);
+        const Vector3d p = ref_closest_point(c, a, b, e);
+        const double d = (p - c).norm();
+        if (!(d < r)) continue;
+        const Vector3d n = (b - a).cross(e - a).normalized();
+        // The convention of collision/narrowphase.h: geometric while the centre
+        // is outside the face, along the face once it is in or behind its plane.
+        want[t] = (c - p).dot(n) > 0 ? r - d : r - (c - p).dot(n);
+      }
+      ASSERT_EQ(got.size(), want.size()) << "order " << order << (bv == TissueBV::AABB ? " AABB" : " OBBRSS") << " trial " << trial << ": centre " << c.transpose()
+                                         << " radius " << r;
+      for (const auto& [t, depth] : want) {
+        ASSERT_TRUE(got.count(t)) << "FCL missed triangle " << t << " in trial " << trial;
+        EXPECT_NEAR(got[t], depth, 1e-9 * depth) << "triangle " << t << " trial " << trial;
+      }
+      for (const TissueContact& k : res.contacts) {
+        on_cut += k.on_cut;
+        deep += k.depth > r;
+        EXPECT_NEAR(Vector3d(k.normal[0], k.normal[1], k.normal[2]).norm(), 1.0, 1e-14);
+      }
+      total += static_cast<int>(res.contacts.size());
     }
-    ASSERT_EQ(got.size(), want.size()) << "trial " << trial << ": centre " << c.transpose() << " radius " << r;
-    for (const auto& [t, depth] : want) {
-      ASSERT_TRUE(got.count(t)) << "FCL missed triangle " << t << " in trial " << trial;
-      EXPECT_NEAR(got[t], depth, 1e-9 * depth) << "triangle " << t << " trial " << trial;
-    }
-    for (const TissueContact& k : res.contacts) {
-      on_cut += k.on_cut;
-      deep += k.depth > r;
-      EXPECT_NEAR(Vector3d(k.normal[0], k.normal[1], k.normal[2]).norm(), 1.0, 1e-14);
-    }
-    total += static_cast<int>(res.contacts.size());
+    EXPECT_GT(total, order == 2 ? 200 : 50);
+    EXPECT_GT(on_cut, 10) << "the spheres must reach into the opened cut";
+    EXPECT_GT(deep, 0) << "some centres inside the tissue (the face rule)";
   }
-  EXPECT_GT(total, 200);
-  EXPECT_GT(on_cut, 10) << "the spheres must reach into the opened cut";
-  EXPECT_GT(deep, 0) << "some centres inside the tissue (the face rule)";
 }
 
 TEST(ContactQuery, KeepsTheDeepestContactsInOrder) {
@@ -123,8 +128,8 @@ TEST(ContactQuery, WeightsReproduceTheContactPointOnFlatFaces) {
   const TissueSurface& s = cm.surface();
   int checked = 0, cut = 0;
   ContactResult res;
-  for (const Vector3d& c : {Vector3d(1.1, 0.5, 0.9), Vector3d(1.15, 0.2, 1.1), Vector3d(0.3, -0.05, 0.5),
-                           Vector3d(1.7, 0.6, 1.08)}) {
+  for (const Vector3d& c :
+       {Vector3d(1.1, 0.5, 0.9), Vector3d(1.15, 0.2, 1.1), Vector3d(0.3, -0.05, 0.5), Vector3d(1.7, 0.6, 1.08)}) {
     query_contacts(cm, make_tool_shape(probe(0.2), at(c[0], c[1], c[2])), all_of(cm), res);
     for (const TissueContact& k : res.contacts) {
       double X[3], x[3];
@@ -212,7 +217,8 @@ TEST(ContactQuery, SphereAndCapsuleDepthOverAFlatRotatedFace) {
   }
   // A capsule lying along the face (tool z along the rotated x axis), 0.05 above it.
   ToolPose pose;
-  const Eigen::Quaterniond q = Eigen::Quaterniond(Rm) * Eigen::Quaterniond::FromTwoVectors(Vector3d(0, 0, 1), Vector3d(1, 0, 0));
+  const Eigen::Quaterniond q =
+      Eigen::Quaterniond(Rm) * Eigen::Quaterniond::FromTwoVectors(Vector3d(0, 0, 1), Vector3d(1, 0, 0));
   pose.q = {q.w(), q.x(), q.y(), q.z()};
   const Vector3d c = Rm * Vector3d(0.4, 0.5, 1.05) + Vector3d(0.1, -0.2, 0.3);
   pose.p = {c[0], c[1], c[2]};
