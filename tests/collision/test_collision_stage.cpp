@@ -27,6 +27,7 @@ Scene tissue_block() {
   s.material.poisson = 0.45;
   s.material.density = 1000;
   s.material.rayleigh_mass = 8.0;
+  s.material.rayleigh_stiffness = 0.01;
   s.fixed.push_back(test::box({-1, -1, -1}, {1, 1, 0}));
   return s;
 }
@@ -85,14 +86,9 @@ TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
     const FrameTiming t = advance_frame(*sim);
     EXPECT_EQ(t.runs[kStageCollision], 1);
     worst = std::max(worst, penetration_after_step(*sim));
-    if (getenv("DBG")) {
-      double vmax = 0;
-      for (double v : sim->state.v) vmax = std::max(vmax, std::abs(v));
-      printf("frame %d rows %d F %.4f pen %.3e depth %.3e vmax %.3e sweeps %d newton %d\n", k, t.contacts, t.contact_force,
-             penetration_after_step(*sim), t.max_depth, vmax, t.contact_sweeps, t.newton);
-    }
   }
   EXPECT_LT(worst, tol) << "penetration after the step, in every frame";
+  RecordProperty("worst_penetration_over_indent", std::to_string(worst / indent));
   // Static equilibrium: f_int = f_gravity + f_contact on the free DOFs; the
   // supports carry S = f_int - f_gravity on the fixed ones.
   const Model& m = sim->model;
@@ -119,6 +115,9 @@ TEST(CollisionStage, AProbeOnOneSideOfACutLeavesTheOtherAlone) {
   const Mesh mesh = make_beam(0.1, 0.1, 0.05, 4, 4, 2, 1);
   Scene scene = tissue_block();
   scene.cuts = {test::plane_cut({0.0475, 0, 0}, {1, 0, 0})};
+  // One Newton iteration per frame in both runs: the adaptive count is a
+  // global decision that the probe's side would change for both sides.
+  scene.rotation_tolerance = 0.0;
   const double r = 0.008;
   std::unique_ptr<Simulation> sims[2];
   for (int with = 0; with < 2; ++with) {
