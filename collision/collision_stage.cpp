@@ -8,7 +8,10 @@ namespace incise {
 
 namespace {
 
-bool touches(const InstrumentSpec& s) { return s.kind != InstrumentSpec::Kind::Scalpel && s.contact; }
+// Probes that push and every grasper (it holds even without contact rows).
+bool touches(const InstrumentSpec& s) {
+  return s.kind == InstrumentSpec::Kind::Grasper || (s.kind == InstrumentSpec::Kind::Probe && s.contact);
+}
 
 // The instrument as the query sees it: a probe inflated by its margin.
 InstrumentSpec inflated(const InstrumentSpec& s, double margin) {
@@ -104,6 +107,7 @@ void collision_stage(Simulation& sim) {
         add_grasp_rows(sim.state, cd.grasps[i], tf, sim.model.dt, static_cast<int>(i), surface, rows);
         continue;  // the jaws hold: no contact rows from them
       }
+      if (!spec.contact) continue;
     }
     set_tool_pose(cd.shapes[i], inflated(spec, cd.margin[i]), tf.after);
     query_contacts(cd.model, cd.shapes[i], cd.request, cd.results[i]);

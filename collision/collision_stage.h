@@ -13,7 +13,7 @@
 // the tool where it will be (end), inflated by a margin so that tissue moving
 // towards a tool during the frame is caught too (such rows have a negative
 // target: inactive unless the tissue closes the gap). Installed only when
-// the scene has an instrument that touches.
+// the scene has a probe that pushes or a grasper.
 #include <vector>
 
 #include "collision/collision_model.h"

@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 
+#include "engine/dynamics/step.h"
 #include "engine/solve/linear_solve.h"
 #include "engine/util/headroom.h"
 
@@ -191,12 +192,17 @@ void project_contact_kinematics(const Model& m, State& s, Workspace& ws) {
   const std::vector<int> act = active_rows(c, ws.contact_W, c.lambda);
   if (act.empty()) return;
   const int k = static_cast<int>(act.size());
-  Eigen::MatrixXd Wa(k, k);
-  for (int a = 0; a < k; ++a)
-    for (int q = 0; q < k; ++q) Wa(a, q) = ws.contact_W[static_cast<size_t>(act[a]) * r + act[q]];
-  // Redundant rows (several contacts on one face) make W_AA singular: the
-  // complete orthogonal decomposition gives the least-norm multipliers.
-  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(Wa);
+  // Z's columns: M^-1 h_i (lumped), else the stage's A^-1 h_i.
+  std::vector<double> Z(static_cast<size_t>(k) * n), h(n), z;
+  for (int a = 0; a < k; ++a) {
+    const int i = act[a];
+    std::fill(h.begin(), h.end(), 0.0);
+    for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e)
+      if (!m.constrained[c.dof[e]]) h[c.dof[e]] += c.coef[e];
+    if (lumped_mass_solve(m, h, z)) std::copy(z.begin(), z.end(), Z.begin() + static_cast<size_t>(a) * n);
+    else std::copy_n(ws.contact_work.begin() + static_cast<size_t>(i) * n, n, Z.begin() + static_cast<size_t>(a) * n);
+  }
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(k, k);
   Eigen::VectorXd bv(k), ba(k);
   for (int a = 0; a < k; ++a) {
     const int i = act[a];
@@ -204,17 +210,21 @@ void project_contact_kinematics(const Model& m, State& s, Workspace& ws) {
     for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e) {
       hv += c.coef[e] * s.v[c.dof[e]];
       ha += c.coef[e] * s.a[c.dof[e]];
+      for (int q = 0; q < k; ++q) G(a, q) += c.coef[e] * Z[static_cast<size_t>(q) * n + c.dof[e]];
     }
     bv[a] = c.velocity[i] - hv;
     ba[a] = -ha;
   }
+  // Redundant rows (several contacts on one face) make G singular: the
+  // complete orthogonal decomposition gives the least-norm multipliers.
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(G);
   const Eigen::VectorXd mv = cod.solve(bv), ma = cod.solve(ba);
   if (!mv.allFinite() || !ma.allFinite()) return;
   for (int a = 0; a < k; ++a) {
-    const double* y = ws.contact_work.data() + static_cast<size_t>(act[a]) * n;
+    const double* za = Z.data() + static_cast<size_t>(a) * n;
     for (int d = 0; d < n; ++d) {
-      s.v[d] += mv[a] * y[d];
-      s.a[d] += ma[a] * y[d];
+      s.v[d] += mv[a] * za[d];
+      s.a[d] += ma[a] * za[d];
     }
   }
 }

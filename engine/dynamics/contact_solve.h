@@ -36,8 +36,10 @@ void solve_contacts(const Model& model, State& state, Workspace& ws);
 
 // In the integration stage, after the Newmark update: the rows active at the
 // end of the step (contacts pushing, grasps, friction sticking) get the
-// velocity of the tool they touch and no acceleration along them, through
-// the same compliance: v += Y W_AA^-1 (v_tool - H v), a += Y W_AA^-1 (-H a).
+// velocity of the tool they touch and no acceleration along them, by the
+// change of least kinetic energy: with Z = M^-1 H_A^T and G = H_A Z,
+// v += Z G^-1 (v_tool - H_A v), a += Z G^-1 (-H_A a) (a lumped mass; for a
+// consistent one, Z = the contact stage's A^-1 H_A^T stands in for M^-1).
 // Without it the trapezoidal rule integrates the impulsive correction as
 // v1 = 2/dt Delta - v, a sawtooth that never decays at a held contact (the
 // prescribed DOFs get the same treatment in integrate()).

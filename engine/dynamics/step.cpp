@@ -81,6 +81,17 @@ void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, cons
 
 }  // namespace
 
+bool lumped_mass_solve(const Model& m, const std::vector<double>& r, std::vector<double>& x) {
+  if (m.mass_kind != MassKind::Lumped) return false;
+  x.resize(m.ndof());
+  if (m.mass_csc.empty()) {
+    for (int d = 0; d < m.ndof(); ++d) x[d] = m.constrained[d] ? 0.0 : r[d] / m.mass_lumped[d];
+  } else {
+    lumped_xfem_acceleration(m, r, nullptr, x);
+  }
+  return true;
+}
+
 void size_workspace(const Model& m, Workspace& ws, bool zero) {
   const int n = m.ndof();
   ws.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one

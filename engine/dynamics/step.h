@@ -73,6 +73,10 @@ void consistent_acceleration_near(const Model& model, State& state, Workspace& w
 // linear model 1/2 v'Mv + 1/2 u'K0u - f'u.
 double total_energy(const Model& model, const State& state);
 
+// x = M^-1 r for a lumped mass (X-FEM couplings included, a direct solve per
+// mesh node), 0 on constrained DOFs; returns false for a consistent mass.
+bool lumped_mass_solve(const Model& model, const std::vector<double>& r, std::vector<double>& x);
+
 // y = M x with the model's mass (lumped or consistent).
 void mass_matvec(const Model& model, const double* x, double* y);
 

@@ -82,12 +82,17 @@ TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
   });
   const double tol = 0.02 * indent;
   double worst = 0.0;
+  int rebuilds = 0, refits = 0;
   for (int k = 0; k < 120; ++k) {
     const FrameTiming t = advance_frame(*sim);
     EXPECT_EQ(t.runs[kStageCollision], 1);
+    rebuilds += t.bvh_rebuilds;
+    refits += t.bvh_refits;
     worst = std::max(worst, penetration_after_step(*sim));
   }
   EXPECT_LT(worst, tol) << "penetration after the step, in every frame";
+  EXPECT_EQ(rebuilds, 1) << "built once; no topology change, no rebuild";
+  EXPECT_EQ(refits, 119);
   RecordProperty("worst_penetration_over_indent", std::to_string(worst / indent));
   // Static equilibrium: f_int = f_gravity + f_contact on the free DOFs; the
   // supports carry S = f_int - f_gravity on the fixed ones.
@@ -128,8 +133,12 @@ TEST(CollisionStage, AProbeOnOneSideOfACutLeavesTheOtherAlone) {
       return at(0.035, 0.05, 0.05 + r + 0.001 - k * 0.005);
     });
   }
-  for (int k = 0; k < 15; ++k)
-    for (auto& sim : sims) advance_frame(*sim);
+  int rebuilds = 0;
+  for (int k = 0; k < 15; ++k) {
+    advance_frame(*sims[0]);
+    rebuilds += advance_frame(*sims[1]).bvh_rebuilds;
+  }
+  EXPECT_EQ(rebuilds, 2) << "built in frame 1, rebuilt after the cut of frame 1 only";
   const DisplayMesh a = display_mesh(sims[0]->model, sims[0]->state), b = display_mesh(sims[1]->model, sims[1]->state);
   ASSERT_EQ(a.npoint(), b.npoint());
   double right = 0.0, left = 0.0;
