@@ -111,9 +111,17 @@ void collision_stage(Simulation& sim) {
     }
     set_tool_pose(cd.shapes[i], inflated(spec, cd.margin[i]), tf.after);
     query_contacts(cd.model, cd.shapes[i], cd.request, cd.results[i]);
+    // One row per tissue face a tool part touches, at its deepest point (the
+    // contacts come deepest first): a face's triangles give nearly the same
+    // row, and each row costs the contact stage a substitution.
     const auto& found = cd.results[i].contacts;
-    for (size_t k = 0; k < found.size(); ++k)
+    cd.face_seen.assign(cd.model.surface().nface, 0);
+    for (size_t k = 0; k < found.size(); ++k) {
+      unsigned char& seen = cd.face_seen[found[k].face];
+      if (seen & (1 << found[k].part)) continue;
+      seen |= static_cast<unsigned char>(1 << found[k].part);
       candidates.push_back({found[k].depth - cd.margin[i], static_cast<int>(i), static_cast<int>(k)});
+    }
   }
   ft.grasp_rows = rows.nrow();
   // The deepest contacts, up to contact.max_rows rows (a contact and its two

@@ -4,8 +4,9 @@
 // posed where it will be at the end of the frame, and what the step must
 // respect turned into rows of ws.contacts (engine/dynamics/contact_rows.h):
 //   probe, open grasper  contacts: the tissue point must move by the depth
-//                        along the contact normal (unilateral), plus two
-//                        friction rows each with contact.friction > 0;
+//                        along the contact normal (unilateral), one per
+//                        tissue face and tool part at its deepest point,
+//                        plus two friction rows each with contact.friction > 0;
 //   closed grasper       the held points follow the jaws (bilateral,
 //                        collision/grasp.h); opening releases them;
 //   scalpel              nothing here: its edge cuts (cutting/blade_sweep.h).
@@ -32,6 +33,7 @@ struct CollisionData {
   std::vector<ContactResult> results;    // (instruments) the last query
   std::vector<Grasp> grasps;             // (instruments) held points of graspers
   ContactRequest request;
+  std::vector<unsigned char> face_seen;  // (surface faces) tool parts with a row on the face this frame
 };
 
 // Fraction of an instrument's smallest dimension used as detection margin.

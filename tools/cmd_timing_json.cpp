@@ -27,6 +27,11 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
     j["stages"][kStageNames[k]]["runs"] = s.runs[k];
   }
   j["newton"] = {{"mean", s.newton_mean}, {"max", s.newton_max}};
+  j["instruments"] = {{"contact_frames", s.contact_frames},   {"contacts_mean", s.contacts_mean},
+                      {"contacts_max", s.contacts_max},       {"grasp_rows_max", s.grasp_rows_max},
+                      {"pgs_sweeps_mean", s.contact_sweeps_mean}, {"max_depth", s.max_depth},
+                      {"contact_force_max", s.contact_force_max}, {"bvh_refits", s.bvh_refits},
+                      {"bvh_rebuilds", s.bvh_rebuilds}};
   j["cut_frames"] = pct(s.cut_frames);
   j["cut_frames"]["count"] = s.cut_frames.count;
   j["cut_frames"]["prepared_ahead"] = s.cut_ahead;

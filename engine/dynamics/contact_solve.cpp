@@ -13,6 +13,7 @@ namespace incise {
 
 void begin_contacts(const Model& m, Workspace& ws) {
   ContactRows& c = ws.contacts;
+  ws.contact_frame = -1;  // new rows: Y and W are computed afresh
   if (c.nrow() == 0) {
     ws.contact_force.clear();
     c.lambda.clear();
@@ -123,16 +124,22 @@ void polish_active_set(const ContactRows& c, const std::vector<double>& W, const
 
 }  // namespace
 
-void solve_contacts(const Model& m, State& /*s*/, Workspace& ws) {
+void solve_contacts(const Model& m, State& s, Workspace& ws) {
   ContactRows& c = ws.contacts;
   const int r = c.nrow(), n = m.ndof();
   if (r == 0) return;
   if (c.lambda.size() != static_cast<size_t>(r)) c.lambda.assign(r, 0.0);
   // Y = A^-1 H^T, one column per row (constrained DOFs: no force, no motion),
   // and one more column as the right-hand side's scratch.
+  // Later Newton iterations of the frame keep the first one's Y and W under
+  // the iterative policies (their preconditioner is an approximate inverse
+  // anyway; H Y dlambda = W dlambda still meets the rows exactly): one
+  // substitution per row and frame. exact recomputes them with each factor.
+  const bool reuse = m.solver.policy != SolverPolicy::Exact && ws.contact_frame == s.frame &&
+                     ws.contact_W.size() == static_cast<size_t>(r) * r;
   resize_with_headroom(ws.contact_work, static_cast<size_t>(r + 1) * n);
   double* rhs = ws.contact_work.data() + static_cast<size_t>(r) * n;
-  for (int i = 0; i < r; ++i) {
+  for (int i = 0; i < r && !reuse; ++i) {
     std::fill(rhs, rhs + n, 0.0);
     for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
       if (!m.constrained[c.dof[k]]) rhs[c.dof[k]] += c.coef[k];
@@ -143,16 +150,17 @@ void solve_contacts(const Model& m, State& /*s*/, Workspace& ws) {
   }
   // W = H Y (symmetrised: the lagged preconditioner is symmetric up to roundoff).
   std::vector<double>& W = ws.contact_W;
-  W.assign(static_cast<size_t>(r) * r, 0.0);
+  if (!reuse) W.assign(static_cast<size_t>(r) * r, 0.0);
+  ws.contact_frame = s.frame;
   std::vector<double> b(r), lambda = c.lambda;
-  for (int i = 0; i < r; ++i)
+  for (int i = 0; i < r && !reuse; ++i)
     for (int j = 0; j < r; ++j) {
       const double* y = ws.contact_work.data() + static_cast<size_t>(j) * n;
       double w = 0.0;
       for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) w += c.coef[k] * y[c.dof[k]];
       W[static_cast<size_t>(i) * r + j] = w;
     }
-  for (int i = 0; i < r; ++i)
+  for (int i = 0; i < r && !reuse; ++i)
     for (int j = 0; j < i; ++j) {
       const double w = 0.5 * (W[static_cast<size_t>(i) * r + j] + W[static_cast<size_t>(j) * r + i]);
       W[static_cast<size_t>(i) * r + j] = W[static_cast<size_t>(j) * r + i] = w;

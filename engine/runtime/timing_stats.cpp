@@ -44,6 +44,20 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
     s.newton_max = std::max(s.newton_max, t.newton);
   }
   if (!frames.empty()) s.newton_mean /= frames.size();
+  for (const auto& t : frames) {
+    const bool rows = t.contacts + t.grasp_rows > 0;
+    s.contact_frames += rows;
+    s.contacts_mean += t.contacts;
+    s.contacts_max = std::max(s.contacts_max, t.contacts);
+    s.grasp_rows_max = std::max(s.grasp_rows_max, t.grasp_rows);
+    s.contact_sweeps_mean += rows ? t.contact_sweeps : 0;
+    s.max_depth = std::max(s.max_depth, t.max_depth);
+    s.contact_force_max = std::max(s.contact_force_max, t.contact_force);
+    s.bvh_refits += t.bvh_refits;
+    s.bvh_rebuilds += t.bvh_rebuilds;
+  }
+  if (!frames.empty()) s.contacts_mean /= frames.size();
+  if (s.contact_frames > 0) s.contact_sweeps_mean /= s.contact_frames;
   s.frame = percentiles(f);
   s.cut_frames = percentiles(cut);
   s.plain_frames = percentiles(plain);
@@ -55,7 +69,7 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
 
 std::string format_summary(const TimingSummary& s) {
   std::string out;
-  char line[160];
+  char line[480];
   std::snprintf(line, sizeof line, "%-16s %10s %10s %10s %10s %8s\n", "stage (ms)", "median", "p95", "p99", "max", "runs");
   out += line;
   auto row = [&](const char* name, const Percentiles& p, long long runs = -1) {
@@ -84,6 +98,15 @@ std::string format_summary(const TimingSummary& s) {
   std::snprintf(line, sizeof line, "frames over the %.1f ms budget: %.1f%% of %d (%d cut frames)\n", s.budget_ms,
                 100.0 * s.over_budget, s.frame.count, s.cut_frames.count);
   out += line;
+  if (s.runs[kStageCollision] > 0) {
+    std::snprintf(line, sizeof line,
+                  "instruments: %d frames with contacts or grasps; contact rows per frame mean %.1f, max %d; grasp rows "
+                  "max %d;\n  PGS sweeps per such frame %.0f; deepest penetration found at a frame's start %.3g; "
+                  "largest total force %.3g N;\n  collision tree refitted %lld times, rebuilt %lld (topology changes)\n",
+                  s.contact_frames, s.contacts_mean, s.contacts_max, s.grasp_rows_max, s.contact_sweeps_mean,
+                  s.max_depth, s.contact_force_max, s.bvh_refits, s.bvh_rebuilds);
+    out += line;
+  }
   if (s.cut_frames.count > 0) {
     std::snprintf(line, sizeof line,
                   "cut frames whose layout and model were built during the previous frame's step: %d of %d\n",

@@ -26,6 +26,15 @@ struct TimingSummary {
   double newton_mean = 0;    // linearised solves per frame
   int newton_max = 0;
   double budget_ms = 1000.0 / 30.0;
+  // Instruments (frames where the collision stage ran).
+  int contact_frames = 0;       // frames with contact or grasp rows
+  double contacts_mean = 0;     // contact rows per frame (over all frames)
+  int contacts_max = 0;
+  int grasp_rows_max = 0;
+  double contact_sweeps_mean = 0;  // PGS sweeps per frame with rows
+  double max_depth = 0;         // deepest penetration collision found at a frame's start
+  double contact_force_max = 0; // largest |total contact and grasp force| (N)
+  long long bvh_refits = 0, bvh_rebuilds = 0;
 };
 TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms = 1000.0 / 30.0);
 // A fixed-width table: stage, median, p95, p99, max (ms), runs.

@@ -44,6 +44,7 @@ struct Workspace {
   std::vector<double> contact_force;
   std::vector<double> contact_work;  // (nrow + 1, ndof) A^-1 H^T columns (and a scratch column), reused
   std::vector<double> contact_W;     // (nrow, nrow) the compliance H A^-1 H^T of the last solve
+  int contact_frame = -1;            // State::frame contact_W and contact_work were computed in
 
   FrameTiming timing;           // the last (or current) frame
   int refactorizations = 0;     // numeric factorizations so far
