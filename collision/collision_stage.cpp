@@ -159,7 +159,8 @@ void install_collision_stage(Simulation& sim) {
     const ToolPose pose = i < sim.tools.size() ? sim.tools[i].after : ToolPose{};
     cd->shapes.push_back(make_tool_shape(inflated(s, cd->margin[i]), pose));
   }
-  cd->request.max_contacts = std::max(sim.scene.contact.max_rows, 1);
+  // Several triangles per face: enough candidates for max_rows faces.
+  cd->request.max_contacts = 8 * std::max(sim.scene.contact.max_rows, 1);
   sim.module_data[kStageCollision] = cd;
   sim.pipeline.set(kStageCollision, collision_stage);
 }

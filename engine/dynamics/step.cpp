@@ -165,7 +165,10 @@ void step_stages(const Model& m, State& s, Workspace& ws) {
       if (factorization_due(m, ws)) run_stage(ws.timing, kStageFactorization, [&] { factorize_system(m, s, ws); });
       run_stage(ws.timing, kStageSolve, [&] { solve_system(m, s, ws); });
     } while (ws.rescue_pending);
-    if (contacts) run_stage(ws.timing, kStageContact, [&] { solve_contacts(m, s, ws); });
+    if (contacts) run_stage(ws.timing, kStageContact, [&] {
+        solve_contacts(m, s, ws);
+        decide_newton(m, s, ws);  // on the corrected increment
+      });
   }
   run_stage(ws.timing, kStageIntegration, [&] { integrate(m, s, ws); });
   ws.timing.newton = ws.newton_iterations_done;
@@ -247,9 +250,17 @@ void solve_system(const Model& m, State& s, Workspace& ws) {
   if (ws.rescue_pending) return;  // the factorization stage runs again first
   check_finite(ws.du, "displacement increment", s);
   for (int d = 0; d < n; ++d) ws.delta[d] += ws.du[d];
-  const int it = ws.newton_iterations_done++;
+  ++ws.newton_iterations_done;
+  // With contact rows the contact stage corrects Delta first and decides.
+  if (ws.contacts.nrow() == 0) decide_newton(m, s, ws);
+}
+
+void decide_newton(const Model& m, State& s, Workspace& ws) {
+  const int n = m.ndof();
+  const int it = ws.newton_iterations_done - 1;
   const bool linear = m.material.model == MaterialModel::Linear;
   const bool adaptive = !linear && m.rotation_tolerance > 0 && m.max_newton_iterations > m.newton_iterations;
+  ws.newton_done = false;
   if (it + 1 >= m.max_newton_iterations) {
     ws.newton_done = true;
     return;

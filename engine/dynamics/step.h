@@ -47,6 +47,10 @@ void assemble_system(const Model& model, State& state, Workspace& ws);
 void factorize_system(const Model& model, State& state, Workspace& ws);
 void solve_system(const Model& model, State& state, Workspace& ws);
 void integrate(const Model& model, State& state, Workspace& ws);
+// Whether the Newton loop goes on (ws.newton_done): the iteration count, and
+// the rotation check on Delta (the solve stage calls it; with contact rows
+// the contact stage does, on the corrected increment).
+void decide_newton(const Model& model, State& state, Workspace& ws);
 
 // ws.f_int = internal force at displacement x (rotations into state.R), and
 // the tangent into ws.K when asked. Returns the tangent's values: the rest
