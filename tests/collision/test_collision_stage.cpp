@@ -70,6 +70,28 @@ ToolPose at(double x, double y, double z) {
   return p;
 }
 
+TEST(CollisionStage, AScalpelOrNoInstrumentBuildsNoCollisionModel) {
+  const Mesh mesh = make_beam(0.1, 0.1, 0.05, 2, 2, 1, 1);
+  Scene scene = tissue_block();
+  for (int with_scalpel = 0; with_scalpel < 2; ++with_scalpel) {
+    if (with_scalpel) {
+      InstrumentSpec s;
+      s.kind = InstrumentSpec::Kind::Scalpel;
+      s.blade = {0.02, 0.001, 0.01};
+      s.edge = {Vec3{-0.01, 0, 0}, Vec3{0.01, 0, 0}};
+      s.contact = false;
+      s.json_path = "instruments[0]";
+      scene.instruments.push_back(s);
+    }
+    auto sim = make_probe_sim(mesh, scene, [](double) { return at(1, 1, 1); });
+    EXPECT_FALSE(sim->pipeline.has(kStageCollision));
+    EXPECT_EQ(sim->module_data[kStageCollision], nullptr);
+    const FrameTiming t = advance_frame(*sim);
+    EXPECT_EQ(t.runs[kStageCollision], 0);
+    EXPECT_EQ(t.runs[kStageContact], 0);
+  }
+}
+
 TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
   const Mesh mesh = make_beam(0.1, 0.1, 0.05, 4, 4, 2, 1);
   Scene scene = tissue_block();
