@@ -139,6 +139,23 @@ TEST_F(Cli, BenchJsonHasTheDocumentedFields) {
   EXPECT_EQ(j["stages"]["render"]["max_ms"].get<double>(), 0.0) << "no --render: nothing is drawn";
 }
 
+// A probe pressing the cantilever's free end: the frame has the tool-poses,
+// collision and contact stages, and the JSON their statistics.
+TEST_F(Cli, BenchWithAProbeReportsTheInstruments) {
+  write("press.csv", "t,x,y,z,qw,qx,qy,qz\n0, 3.5, 0.5, 1.3, 1, 0, 0, 0\n0.2, 3.5, 0.5, 1.1, 1, 0, 0, 0\n");
+  cantilever_scene(R"(, "instruments": [{"type": "probe", "radius": 0.2, "trajectory": "press.csv"}])");
+  const Result r = incise("bench " + path("scene.json") + " --frames 8 --json " + path("b.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("instruments: "), std::string::npos) << r.out;
+  std::ifstream js(path("b.json"));
+  const auto j = nlohmann::json::parse(js);
+  for (const char* s : {"tool_poses", "collision"}) EXPECT_EQ(j["stages"][s]["runs"].get<int>(), 8) << s;
+  EXPECT_GT(j["stages"]["contact"]["runs"].get<int>(), 0);
+  EXPECT_GT(j["instruments"]["contacts_max"].get<int>(), 0);
+  EXPECT_EQ(j["instruments"]["bvh_rebuilds"].get<int>(), 1) << "no cut: built once";
+  EXPECT_EQ(j["instruments"]["bvh_refits"].get<int>(), 7);
+}
+
 // --pace 30 starts a frame every 1/30 s, as the real-time loop does: 6 frames
 // (1 warm-up) take at least 5 periods of wall time, and the JSON says so.
 TEST_F(Cli, BenchPaceStartsFramesAtTheGivenRate) {
