@@ -106,15 +106,28 @@ void polish_active_set(const ContactRows& c, const std::vector<double>& W, const
       if (!in[j]) ba[a] -= W[static_cast<size_t>(i) * r + j] * lambda[j];
     for (int q = 0; q < k; ++q) Wa(a, q) = W[static_cast<size_t>(i) * r + act[q]];
   }
+  // Near-redundant rows (neighbouring faces under one tool) can make W_AA
+  // singular to roundoff; its exact solution would then balance huge
+  // opposing multipliers (measured with a least-norm solve: 60-150 N on a
+  // probe that needs 3 N). PGS's bounded answer is kept instead.
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(Wa);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return;
   const Eigen::VectorXd x = ldlt.solve(ba);
-  if (!x.allFinite() || (Wa * x - ba).norm() > 1e-9 * (ba.norm() + 1e-300)) return;  // redundant rows: keep PGS's
+  if (!x.allFinite() || (Wa * x - ba).norm() > 1e-9 * (ba.norm() + 1e-300)) return;
   std::vector<double> trial = lambda;
   for (int a = 0; a < k; ++a) trial[act[a]] = x[a];
   for (int i : act) {
     if (c.kind[i] == RowKind::Contact && trial[i] < 0.0) return;
     if (c.kind[i] == RowKind::Friction && std::abs(trial[i]) > c.friction * trial[c.normal_row[i]]) return;
+  }
+  // The inactive contacts must stay satisfied (W lambda >= b) by the new forces.
+  double bmax = 0.0;
+  for (int i = 0; i < r; ++i) bmax = std::max(bmax, std::abs(b[i]));
+  for (int i = 0; i < r; ++i) {
+    if (in[i] || c.kind[i] != RowKind::Contact || !(W[static_cast<size_t>(i) * r + i] > 0.0)) continue;
+    double wl = 0.0;
+    for (int j = 0; j < r; ++j) wl += W[static_cast<size_t>(i) * r + j] * trial[j];
+    if (wl < b[i] - 1e-9 * bmax) return;
   }
   for (int i = 0; i < r; ++i)  // sliding rows stay on the cone of the polished normal force
     if (c.kind[i] == RowKind::Friction && !in[i] && lambda[c.normal_row[i]] > 0.0)
