@@ -19,7 +19,8 @@ void write_frame_trace(const std::string& path, const std::vector<FrameTiming>& 
       for (char& c : p) c = c == ' ' ? '_' : c;
       os << ",cut_" << p << "_ms";
     }
-    os << ",newton,cg_iterations,substitutions,rescues,converged,factor_age,patch_dofs,tangent_updates,cg_start_residual,cpu_ms,substitution_ms,takeovers\n";
+    os << ",newton,cg_iterations,substitutions,rescues,converged,factor_age,patch_dofs,tangent_updates,cg_start_residual,cpu_ms,substitution_ms,takeovers,"
+          "contacts,grasp_rows,pgs_sweeps,max_depth,contact_force,bvh_rebuilds\n";
     char buf[32];
     const auto num = [&](double v) {
       std::snprintf(buf, sizeof buf, "%.3f", v);
@@ -32,7 +33,9 @@ void write_frame_trace(const std::string& path, const std::vector<FrameTiming>& 
       for (double v : t.cut_ms) os << ',' << num(v);
       os << ',' << t.newton << ',' << t.iterations << ',' << t.solves << ',' << t.rescues << ','
          << (t.converged ? 1 : 0) << ',' << t.factor_age << ',' << t.patch_dofs << ',' << t.tangent_updates << ',' << t.start_residual << ','
-         << num(t.cpu_ms) << ',' << num(t.solve_kernel_ms) << ',' << t.takeovers << '\n';
+         << num(t.cpu_ms) << ',' << num(t.solve_kernel_ms) << ',' << t.takeovers << ',' << t.contacts << ','
+         << t.grasp_rows << ',' << t.contact_sweeps << ',' << t.max_depth << ',' << t.contact_force << ','
+         << t.bvh_rebuilds << '\n';
     }
     if (!os) {
       std::remove(tmp.c_str());

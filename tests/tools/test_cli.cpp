@@ -144,9 +144,14 @@ TEST_F(Cli, BenchJsonHasTheDocumentedFields) {
 TEST_F(Cli, BenchWithAProbeReportsTheInstruments) {
   write("press.csv", "t,x,y,z,qw,qx,qy,qz\n0, 3.5, 0.5, 1.3, 1, 0, 0, 0\n0.2, 3.5, 0.5, 1.1, 1, 0, 0, 0\n");
   cantilever_scene(R"(, "instruments": [{"type": "probe", "radius": 0.2, "trajectory": "press.csv"}])");
-  const Result r = incise("bench " + path("scene.json") + " --frames 8 --json " + path("b.json"));
+  const Result r = incise("bench " + path("scene.json") + " --frames 8 --json " + path("b.json") + " --trace " + path("t.csv"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("instruments: "), std::string::npos) << r.out;
+  std::ifstream trace(path("t.csv"));
+  std::string header;
+  std::getline(trace, header);
+  EXPECT_NE(header.find(",contact_ms,"), std::string::npos) << header;
+  EXPECT_NE(header.find(",contacts,grasp_rows,pgs_sweeps,max_depth,contact_force,bvh_rebuilds"), std::string::npos) << header;
   std::ifstream js(path("b.json"));
   const auto j = nlohmann::json::parse(js);
   for (const char* s : {"tool_poses", "collision"}) EXPECT_EQ(j["stages"][s]["runs"].get<int>(), 8) << s;
