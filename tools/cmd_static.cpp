@@ -51,6 +51,10 @@ std::vector<std::array<double, 3>> read_probe_points(const std::string& path) {
 
 void run_static(const StaticOptions& o) {
   auto sim = load_checked_simulation(o.scene, o.patches);
+  if (!sim->scene.instruments.empty())
+    std::fprintf(stderr,
+                 "note: static ignores the scene's %zu instrument(s): they act through the frames of run and bench\n",
+                 sim->scene.instruments.size());
   if (!sim->scene.cuts.empty()) {
     const CutUpdate cut = apply_all_cuts(*sim);  // static: every cut at once
     std::printf("cuts: %d elements split into %d pieces, %d separated faces, %d enriched DOF nodes, %d bodies (%.1f ms)\n",
