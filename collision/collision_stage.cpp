@@ -92,11 +92,8 @@ void collision_stage(Simulation& sim) {
   rows.friction = sim.scene.contact.friction;
   rows.max_sweeps = sim.scene.contact.pgs_iterations;
   // Grasps first: they are what the user asked for, and not subject to max_rows.
-  struct Candidate {
-    double depth;
-    int tool, index;
-  };
-  std::vector<Candidate> candidates;
+  auto& candidates = cd.candidates;
+  candidates.clear();
   for (size_t i = 0; i < sim.scene.instruments.size(); ++i) {
     const InstrumentSpec& spec = sim.scene.instruments[i];
     if (!touches(spec)) continue;
@@ -126,11 +123,13 @@ void collision_stage(Simulation& sim) {
   ft.grasp_rows = rows.nrow();
   // The deepest contacts, up to contact.max_rows rows (a contact and its two
   // friction rows count three).
-  std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) { return a.depth > b.depth; });
+  std::sort(candidates.begin(), candidates.end(), [](const CollisionData::Candidate& a, const CollisionData::Candidate& b) {
+    return a.depth != b.depth ? a.depth > b.depth : (a.tool != b.tool ? a.tool < b.tool : a.index < b.index);
+  });
   const bool friction = rows.friction > 0.0;
   int budget = sim.scene.contact.max_rows;
   double deepest = 0.0;
-  for (const Candidate& c : candidates) {
+  for (const CollisionData::Candidate& c : candidates) {
     if (budget < (friction ? 3 : 1)) break;
     const TissueContact& tc = cd.results[c.tool].contacts[c.index];
     const int normal_row = rows.nrow();

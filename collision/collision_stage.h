@@ -34,6 +34,11 @@ struct CollisionData {
   std::vector<Grasp> grasps;             // (instruments) held points of graspers
   ContactRequest request;
   std::vector<unsigned char> face_seen;  // (surface faces) tool parts with a row on the face this frame
+  struct Candidate {
+    double depth;     // penetration of the real (not inflated) tool; < 0 within the margin
+    int tool, index;  // instrument, contact in results[tool]
+  };
+  std::vector<Candidate> candidates;     // this frame's, deepest first (kept: no allocation per frame)
 };
 
 // Fraction of an instrument's smallest dimension used as detection margin.

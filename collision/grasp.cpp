@@ -1,6 +1,7 @@
 #include "collision/grasp.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "collision/tool_shape.h"
@@ -27,31 +28,37 @@ void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFram
   // frame's start (where the tissue is).
   const double gap = jaw_gap(spec, tool.before.jaw);
   const double hx = 0.5 * spec.jaw_size[0], hy = 0.5 * gap + spec.jaw_size[1], hz = 0.5 * spec.jaw_size[2];
-  std::vector<std::pair<double, int>> inside;
+  struct Candidate {
+    double d2;                 // squared distance from the tool's origin
+    int v;                     // surface vertex
+    std::array<double, 3> l;   // its place in the tool frame
+  };
+  std::vector<Candidate> inside;
   for (int v = 0; v < surface.nvert(); ++v) {
     const std::array<double, 3> l =
         world_to_tool(tool.before, {surface.x[3 * v], surface.x[3 * v + 1], surface.x[3 * v + 2]});
     if (std::abs(l[0]) <= hx && std::abs(l[1]) <= hy && std::abs(l[2]) <= hz)
-      inside.emplace_back(l[0] * l[0] + l[1] * l[1] + l[2] * l[2], v);
+      inside.push_back({l[0] * l[0] + l[1] * l[1] + l[2] * l[2], v, l});
   }
   if (inside.empty()) return;  // closed on nothing: nothing held until it opens and closes again
-  std::sort(inside.begin(), inside.end());
+  std::sort(inside.begin(), inside.end(), [](const Candidate& a, const Candidate& b) {
+    return a.d2 != b.d2 ? a.d2 < b.d2 : a.v < b.v;
+  });
   // A vertex appears once per face it lies on: keep distinct material positions.
   grasp.held.clear();
-  for (const auto& [d2, v] : inside) {
+  for (const Candidate& cand : inside) {
     if (static_cast<int>(grasp.held.size()) == kMaxHeldPoints) break;
-    const std::array<double, 3> l =
-        world_to_tool(tool.before, {surface.x[3 * v], surface.x[3 * v + 1], surface.x[3 * v + 2]});
+    const std::array<double, 3>& l = cand.l;
     bool dup = false;
     for (const HeldPoint& h : grasp.held)
       dup = dup || (std::abs(h.local[0] - l[0]) + std::abs(h.local[1] - l[1]) + std::abs(h.local[2] - l[2]) <
                     1e-9 * (spec.opening + spec.jaw_size[0]));
     if (dup) continue;
     HeldPoint h;
-    h.elem = surface.vert_elem[v];
-    h.piece = surface.vert_piece[v];
+    h.elem = surface.vert_elem[cand.v];
+    h.piece = surface.vert_piece[cand.v];
     for (int d = 0; d < 3; ++d) {
-      h.rst[d] = surface.vert_rst[3 * v + d];
+      h.rst[d] = surface.vert_rst[3 * cand.v + d];
       h.local[d] = l[d];
     }
     grasp.held.push_back(h);

@@ -71,17 +71,14 @@ struct PreparedCut {
   double layout_ms = 0.0, model_ms = 0.0;
 };
 
-// The instruments' swept triangles a cut update includes (a copy: the
-// cut-ahead helper must not read the State the stages change).
-struct SweptCuts {
-  std::vector<double> tris, tool;  // State::swept, swept_tool
-};
-
+// swept, swept_tool: the instruments' swept triangles the update includes
+// (State::swept, swept_tool; the cut-ahead helper passes its own copy: it
+// must not read the State the stages change).
 PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progress, double t_sweep,
-                        const SweptCuts& swept) {
+                        const std::vector<double>& swept, const std::vector<double>& swept_tool) {
   PreparedCut p;
   p.progress = progress;
-  p.swept = swept.tool.size();
+  p.swept = swept_tool.size();
   p.t_sweep = t_sweep;
   p.base_version = sim.model_version;
   std::vector<std::unique_ptr<CutSurface>> owned;
@@ -94,7 +91,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     owned.push_back(std::move(s));
   }
   for (size_t i = 0; i < sim.scene.instruments.size(); ++i) {
-    auto s = make_swept_surface(swept.tris, swept.tool, static_cast<int>(i), sim.scene.instruments[i].json_path);
+    auto s = make_swept_surface(swept, swept_tool, static_cast<int>(i), sim.scene.instruments[i].json_path);
     if (!s) continue;
     surfaces.push_back(s.get());
     owned.push_back(std::move(s));
@@ -155,7 +152,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
 struct CutAhead {
   PreparedCut result;
   std::exception_ptr error;
-  SweptCuts swept;
+  std::vector<double> swept, swept_tool;  // copies of the State's, for the helper
   std::vector<double> progress;
   double t_sweep = 0.0;
   int base_version = -1;
@@ -206,7 +203,8 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
   if (!changed) return;
   auto ahead = std::make_shared<CutAhead>();
-  ahead->swept = {sim.state.swept, sim.state.swept_tool};
+  ahead->swept = sim.state.swept;
+  ahead->swept_tool = sim.state.swept_tool;
   ahead->progress = progress;
   ahead->t_sweep = t_sweep;
   ahead->base_version = sim.model_version;
@@ -219,7 +217,7 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   sim.cut_helper->run([ahead, a, s, retired]() mutable {  // (ahead: the task keeps its result alive)
     retired.reset();  // the model the last cut replaced (0.2-0.4 ms of frees)
     try {
-      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept);
+      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept, a->swept_tool);
     } catch (...) {
       a->error = std::current_exception();
     }
@@ -303,7 +301,7 @@ CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_chan
   PreparedCut p;
   const bool ahead = take_ahead(sim, progress, t_sweep, sim.state.swept_tool.size(), &p);
   if (!changed && !swept_changed) return {};
-  if (!ahead) p = prepare_cut(sim, progress, t_sweep, {sim.state.swept, sim.state.swept_tool});
+  if (!ahead) p = prepare_cut(sim, progress, t_sweep, sim.state.swept, sim.state.swept_tool);
   CutUpdate up = commit_cut(sim, std::move(p), clock);
   up.ahead = ahead;
   return up;
@@ -316,7 +314,7 @@ CutUpdate apply_all_cuts(Simulation& sim) {
   PreparedCut dropped;
   take_ahead(sim, {}, 0.0, 0, &dropped);
   Stopwatch clock;
-  return commit_cut(sim, prepare_cut(sim, progress, t_end, {sim.state.swept, sim.state.swept_tool}), clock);
+  return commit_cut(sim, prepare_cut(sim, progress, t_end, sim.state.swept, sim.state.swept_tool), clock);
 }
 
 }  // namespace incise

@@ -8,6 +8,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <Eigen/Geometry>
+
 #include "engine/util/error.h"
 
 namespace incise {
@@ -113,36 +115,12 @@ Trajectory Trajectory::parse(const std::string& text, const std::string& path) {
   return tr;
 }
 
-std::array<double, 4> slerp(const std::array<double, 4>& a, const std::array<double, 4>& b_in, double u) {
-  std::array<double, 4> b = b_in;
-  double dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
-  if (dot < 0.0) {  // q and -q are the same rotation: take the shorter arc
-    for (double& c : b) c = -c;
-    dot = -dot;
-  }
-  // The angle between them from |b - a| and |b + a|: accurate at any angle,
-  // unlike acos(dot) near 0.
-  double dm = 0.0, dp = 0.0;
-  for (int k = 0; k < 4; ++k) {
-    dm += (b[k] - a[k]) * (b[k] - a[k]);
-    dp += (b[k] + a[k]) * (b[k] + a[k]);
-  }
-  const double theta = 2.0 * std::atan2(std::sqrt(dm), std::sqrt(dp));
-  double wa = 1.0 - u, wb = u;  // nearly parallel: normalised lerp (error ~ theta^3)
-  if (theta > 1e-6) {
-    const double s = std::sin(theta);
-    wa = std::sin((1.0 - u) * theta) / s;
-    wb = std::sin(u * theta) / s;
-  }
-  std::array<double, 4> q{};
-  double n = 0.0;
-  for (int k = 0; k < 4; ++k) {
-    q[k] = wa * a[k] + wb * b[k];
-    n += q[k] * q[k];
-  }
-  n = std::sqrt(n);
-  for (double& c : q) c /= n;
-  return q;
+std::array<double, 4> slerp(const std::array<double, 4>& a, const std::array<double, 4>& b, double u) {
+  // Eigen's slerp takes the shorter arc (q and -q are the same rotation) and
+  // falls back to linear weights for nearly parallel quaternions.
+  const Eigen::Quaterniond qa(a[0], a[1], a[2], a[3]), qb(b[0], b[1], b[2], b[3]);
+  const Eigen::Quaterniond q = qa.slerp(u, qb).normalized();
+  return {q.w(), q.x(), q.y(), q.z()};
 }
 
 ToolPose Trajectory::sample(double t) const {

@@ -39,8 +39,8 @@ class Trajectory {
   std::vector<double> jaw_;  // (nkey), empty without the jaw column
 };
 
-// Slerp from a to b (unit quaternions) at u in [0, 1] along the shorter arc;
-// normalised lerp where they are nearly parallel.
+// Slerp from a to b (unit quaternions) at u in [0, 1] along the shorter arc
+// (Eigen's Quaternion::slerp; linear weights where they are nearly parallel).
 std::array<double, 4> slerp(const std::array<double, 4>& a, const std::array<double, 4>& b, double u);
 
 }  // namespace incise

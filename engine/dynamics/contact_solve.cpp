@@ -213,15 +213,21 @@ void project_contact_kinematics(const Model& m, State& s, Workspace& ws) {
   const std::vector<int> act = active_rows(c, ws.contact_W, c.lambda);
   if (act.empty()) return;
   const int k = static_cast<int>(act.size());
-  // Z's columns: M^-1 h_i (lumped), else the stage's A^-1 h_i.
-  std::vector<double> Z(static_cast<size_t>(k) * n), h(n), z;
+  // Z's columns: M^-1 h_i (lumped), else the stage's A^-1 h_i. They take the
+  // place of the stage's Y in ws.contact_work (column a <= act[a], so a
+  // column is read before it is overwritten): no allocation per frame.
+  double* Z = ws.contact_work.data();
+  std::vector<double>& h = ws.contact_h;
+  std::vector<double>& z = ws.contact_z;
+  h.resize(n);
   for (int a = 0; a < k; ++a) {
     const int i = act[a];
+    double* za = Z + static_cast<size_t>(a) * n;
     std::fill(h.begin(), h.end(), 0.0);
     for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e)
       if (!m.constrained[c.dof[e]]) h[c.dof[e]] += c.coef[e];
-    if (lumped_mass_solve(m, h, z)) std::copy(z.begin(), z.end(), Z.begin() + static_cast<size_t>(a) * n);
-    else std::copy_n(ws.contact_work.begin() + static_cast<size_t>(i) * n, n, Z.begin() + static_cast<size_t>(a) * n);
+    if (lumped_mass_solve(m, h, z)) std::copy(z.begin(), z.end(), za);
+    else if (a != i) std::copy_n(Z + static_cast<size_t>(i) * n, n, za);
   }
   Eigen::MatrixXd G = Eigen::MatrixXd::Zero(k, k);
   Eigen::VectorXd bv(k), ba(k);
@@ -242,7 +248,7 @@ void project_contact_kinematics(const Model& m, State& s, Workspace& ws) {
   const Eigen::VectorXd mv = cod.solve(bv), ma = cod.solve(ba);
   if (!mv.allFinite() || !ma.allFinite()) return;
   for (int a = 0; a < k; ++a) {
-    const double* za = Z.data() + static_cast<size_t>(a) * n;
+    const double* za = Z + static_cast<size_t>(a) * n;
     for (int d = 0; d < n; ++d) {
       s.v[d] += mv[a] * za[d];
       s.a[d] += ma[a] * za[d];

@@ -339,15 +339,8 @@ void consistent_acceleration(const Model& m, State& s, Workspace& ws) {
                                   m.material.rayleigh_stiffness * Kv[d];
     diag[d] = m.mass_csc.empty() ? m.mass_lumped[d] : m.mass_csc[m.diag[d]];
   }
+  if (lumped_mass_solve(m, r, s.a)) return;  // with enrichment too: a direct solve
   std::fill(s.a.begin(), s.a.end(), 0.0);
-  if (m.mass_csc.empty()) {
-    for (int d = 0; d < n; ++d) s.a[d] = r[d] / diag[d];
-    return;
-  }
-  if (m.mass_kind == MassKind::Lumped) {  // with enrichment: a direct solve
-    lumped_xfem_acceleration(m, r, nullptr, s.a);
-    return;
-  }
   // PCG on the free DOFs (constrained rows of r and of every iterate stay 0).
   double rz = 0, r0 = 0;
   for (int d = 0; d < n; ++d) {

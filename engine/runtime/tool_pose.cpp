@@ -1,12 +1,12 @@
 #include "engine/runtime/tool_pose.h"
 
+#include <Eigen/Geometry>
+
 namespace incise {
 
 std::array<double, 9> rotation_matrix(const std::array<double, 4>& q) {
-  const double w = q[0], x = q[1], y = q[2], z = q[3];
-  return {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
-          2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-          2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
+  const Eigen::Matrix3d R = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix();
+  return {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
 }
 
 std::array<double, 3> tool_to_world(const ToolPose& pose, const std::array<double, 3>& a) {

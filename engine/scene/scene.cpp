@@ -204,6 +204,21 @@ class Parser {
     return n;
   }
 
+  // Two points [[x, y, z], [x, y, z]]: a blade edge (swept cuts, scalpels).
+  std::array<Vec3, 2> segment(const json& v, const std::string& where) const {
+    if (!v.is_array() || v.size() != 2) fail(where, " must be two points [[x, y, z], [x, y, z]], got " + describe(v));
+    return {vec3(v[0], index(where, 0)), vec3(v[1], index(where, 1))};
+  }
+  // A file named relative to the scene's folder that must exist (cut
+  // surfaces, trajectories): its resolved path.
+  std::string existing_file(const json& v, const std::string& where) const {
+    const std::string f = resolve(nonempty_string(v, where));
+    std::error_code ec;
+    const auto st = fs::status(f, ec);
+    if (ec || !fs::exists(st)) fail(where, ": file not found: " + f);
+    if (!fs::is_regular_file(st)) fail(where, ": is not a regular file: " + f);
+    return f;
+  }
   Vec3 vec3(const json& v, const std::string& where) const {
     if (!v.is_array() || v.size() != 3) {
       std::string got = v.is_array() ? "array of " + std::to_string(v.size()) + " values"
@@ -560,17 +575,12 @@ void parse_cuts(const Parser& p, const json& v, Scene& s) {
     } else if (type == 2) {
       c.type = CutSpec::Type::Mesh;
       p.allowed_keys(e, at, {"type", "at_time", "file"});
-      c.file = p.resolve(p.nonempty_string(p.required(e, at, "file", "a triangle surface .obj or .stl"), at + ".file"));
-      std::error_code ec;
-      if (!fs::is_regular_file(c.file, ec)) p.fail(at + ".file", ": file not found: " + c.file);
+      c.file = p.existing_file(p.required(e, at, "file", "a triangle surface .obj or .stl"), at + ".file");
     } else {
       c.type = CutSpec::Type::Swept;
       p.allowed_keys(e, at, {"type", "at_time", "edge_start", "edge_end", "duration"});
       auto edge = [&](const char* k) {
-        const std::string ep = Parser::key(at, k);
-        const json& ev = p.required(e, at, k, "[[x, y, z], [x, y, z]], the blade edge's two ends");
-        if (!ev.is_array() || ev.size() != 2) p.fail(ep, " must be two points [[x, y, z], [x, y, z]], got " + describe(ev));
-        return std::array<Vec3, 2>{p.vec3(ev[0], Parser::index(ep, 0)), p.vec3(ev[1], Parser::index(ep, 1))};
+        return p.segment(p.required(e, at, k, "[[x, y, z], [x, y, z]], the blade edge's two ends"), Parser::key(at, k));
       };
       c.edge_start = edge("edge_start");
       c.edge_end = edge("edge_end");
@@ -624,12 +634,7 @@ void parse_instruments(const Parser& p, const json& v, Scene& s) {
     t.kind = static_cast<InstrumentSpec::Kind>(type);
     if (auto it = e.find("name"); it != e.end()) t.name = p.nonempty_string(*it, at + ".name");
     if (auto it = e.find("trajectory"); it != e.end()) {
-      const std::string tp = at + ".trajectory";
-      t.trajectory = p.resolve(p.nonempty_string(*it, tp));
-      std::error_code ec;
-      auto st = fs::status(t.trajectory, ec);
-      if (ec || !fs::exists(st)) p.fail(tp, ": file not found: " + t.trajectory);
-      if (!fs::is_regular_file(st)) p.fail(tp, ": is not a regular file: " + t.trajectory);
+      t.trajectory = p.existing_file(*it, at + ".trajectory");
       if (e.contains("pose"))
         p.fail(at + ".pose", ": give either pose or trajectory (the trajectory sets the pose of every frame), not both");
     }
@@ -647,11 +652,8 @@ void parse_instruments(const Parser& p, const json& v, Scene& s) {
       t.blade = positive_vec3(p, p.required(e, at, "blade", "[L, T, H], each > 0"), at + ".blade");
       t.edge = {Vec3{-0.5 * t.blade[0], 0.0, 0.0}, Vec3{0.5 * t.blade[0], 0.0, 0.0}};
       if (auto it = e.find("edge"); it != e.end()) {
-        const std::string ep = at + ".edge";
-        if (!it->is_array() || it->size() != 2)
-          p.fail(ep, " must be two points [[x, y, z], [x, y, z]], got " + describe(*it));
-        t.edge = {p.vec3((*it)[0], Parser::index(ep, 0)), p.vec3((*it)[1], Parser::index(ep, 1))};
-        if (t.edge[0] == t.edge[1]) p.fail(ep, " must have nonzero length (two distinct points), got " + show(*it));
+        t.edge = p.segment(*it, at + ".edge");
+        if (t.edge[0] == t.edge[1]) p.fail(at + ".edge", " must have nonzero length (two distinct points), got " + show(*it));
       }
     } else {
       if (auto it = e.find("jaw"); it != e.end()) {

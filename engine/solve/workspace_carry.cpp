@@ -237,24 +237,21 @@ void carry_contact_rows(const Model& from, const std::vector<int>& dofnode_map, 
   std::vector<int> to_new(from.ndofnode, -1);
   for (int q = static_cast<int>(dofnode_map.size()) - 1; q >= 0; --q)
     if (dofnode_map[q] >= 0) to_new[dofnode_map[q]] = q;
-  for (int& d : rows.dof) {
-    const int node = d / 3 < from.ndofnode ? to_new[d / 3] : -1;
-    d = node >= 0 ? 3 * node + d % 3 : -1;
-  }
-  // Entries whose DOF node vanished are dropped.
-  ContactRows kept = rows;
-  kept.dof.clear();
-  kept.coef.clear();
-  kept.ptr.assign(1, 0);
+  // Entries whose DOF node vanished are dropped, compacting in place.
+  int w = 0;
   for (int i = 0; i < rows.nrow(); ++i) {
-    for (int k = rows.ptr[i]; k < rows.ptr[i + 1]; ++k)
-      if (rows.dof[k] >= 0) {
-        kept.dof.push_back(rows.dof[k]);
-        kept.coef.push_back(rows.coef[k]);
-      }
-    kept.ptr.push_back(static_cast<int>(kept.dof.size()));
+    const int begin = rows.ptr[i], end = rows.ptr[i + 1];
+    rows.ptr[i] = w;
+    for (int k = begin; k < end; ++k) {
+      const int d = rows.dof[k], node = d / 3 < from.ndofnode ? to_new[d / 3] : -1;
+      if (node < 0) continue;
+      rows.dof[w] = 3 * node + d % 3;
+      rows.coef[w++] = rows.coef[k];
+    }
   }
-  rows = std::move(kept);
+  rows.ptr[rows.nrow()] = w;
+  rows.dof.resize(w);
+  rows.coef.resize(w);
 }
 
 }  // namespace incise

@@ -20,6 +20,22 @@
 
 namespace incise::test {
 
+// A block 0.1 x 0.1 x 0.05 m (4x4x2 cells, raised to tet10 by the scene) of
+// soft tissue (nu = 0.45, rho = 1000) fixed at its base, damped (Rayleigh
+// mass `rayleigh_mass`, stiffness 0.01 s) so that it settles: the
+// instruments' tests press, grasp and cut it.
+inline Mesh tissue_block_mesh() { return make_beam(0.1, 0.1, 0.05, 4, 4, 2, 1); }
+inline Scene tissue_block_scene(double young, double rayleigh_mass) {
+  Scene s = block_scene(2);
+  s.material.young = young;
+  s.material.poisson = 0.45;
+  s.material.density = 1000;
+  s.material.rayleigh_mass = rayleigh_mass;
+  s.material.rayleigh_stiffness = 0.01;
+  s.fixed.push_back(box({-1, -1, -1}, {1, 1, 0}));
+  return s;
+}
+
 // Straight-sided block [0,2]x[0,1]x[0,1] (4x2x2 cells, 6 tetrahedra each).
 inline Mesh collision_block() { return make_beam(2, 1, 1, 4, 2, 2, 1); }
 

@@ -12,25 +12,15 @@
 #include "cutting/cut_stage.h"
 #include "engine/dynamics/step.h"
 #include "engine/output/display_mesh.h"
-#include "tests/cutting/test_util.h"
+#include "tests/collision/collision_test_util.h"
 
 namespace incise {
 namespace {
 
 using PoseAt = std::function<ToolPose(double t)>;
 
-// A block 0.1 x 0.1 x 0.05 m of soft tissue (E = 30 kPa, nu = 0.45,
-// rho = 1000), fixed at its base, heavily damped so it settles.
-Scene tissue_block() {
-  Scene s = test::block_scene(2);
-  s.material.young = 3e4;
-  s.material.poisson = 0.45;
-  s.material.density = 1000;
-  s.material.rayleigh_mass = 8.0;
-  s.material.rayleigh_stiffness = 0.01;
-  s.fixed.push_back(test::box({-1, -1, -1}, {1, 1, 0}));
-  return s;
-}
+// The tissue block of the instrument tests (E = 30 kPa), heavily damped.
+Scene tissue_block() { return test::tissue_block_scene(3e4, 8.0); }
 
 InstrumentSpec probe(double radius) {
   InstrumentSpec p;
@@ -93,7 +83,7 @@ TEST(CollisionStage, AScalpelOrNoInstrumentBuildsNoCollisionModel) {
 }
 
 TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
-  const Mesh mesh = make_beam(0.1, 0.1, 0.05, 4, 4, 2, 1);
+  const Mesh mesh = test::tissue_block_mesh();
   Scene scene = tissue_block();
   const double r = 0.015, top = 0.05, indent = 0.006;
   scene.instruments.push_back(probe(r));
@@ -139,7 +129,7 @@ TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
 // the cut. Every display point of the right half moves exactly as it does
 // without the probe.
 TEST(CollisionStage, AProbeOnOneSideOfACutLeavesTheOtherAlone) {
-  const Mesh mesh = make_beam(0.1, 0.1, 0.05, 4, 4, 2, 1);
+  const Mesh mesh = test::tissue_block_mesh();
   Scene scene = tissue_block();
   scene.cuts = {test::plane_cut({0.0475, 0, 0}, {1, 0, 0})};
   // One Newton iteration per frame in both runs: the adaptive count is a

@@ -7,7 +7,7 @@
 
 #include "collision/collision_stage.h"
 #include "engine/dynamics/step.h"
-#include "tests/cutting/test_util.h"
+#include "tests/collision/collision_test_util.h"
 
 namespace incise {
 namespace {
@@ -36,14 +36,8 @@ double flap_end_lift(const Simulation& sim) {
 }
 
 std::unique_ptr<Simulation> flap_sim(bool close) {
-  const Mesh mesh = make_beam(0.1, 0.1, 0.05, 4, 4, 2, 1);
-  Scene scene = test::block_scene(2);
-  scene.material.young = 3e5;
-  scene.material.poisson = 0.45;
-  scene.material.density = 1000;
-  scene.material.rayleigh_mass = 4.0;
-  scene.material.rayleigh_stiffness = 0.01;
-  scene.fixed.push_back(test::box({-1, -1, -1}, {1, 1, 0}));
+  const Mesh mesh = test::tissue_block_mesh();
+  Scene scene = test::tissue_block_scene(3e5, 4.0);
   // The flap: 2 cm thick, a horizontal cut at z = 0.03 under x > 0.03 (hinged at x = 0.03).
   CutSpec cut;
   cut.type = CutSpec::Type::Polygon;

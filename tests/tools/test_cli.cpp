@@ -10,6 +10,8 @@
 #include <string>
 
 #include <gtest/gtest.h>
+
+#include "tests/tools/temp_dir_test.h"
 #include <nlohmann/json.hpp>
 
 #include "engine/mesh/mesh_io.h"
@@ -34,17 +36,8 @@ Result incise(const std::string& args) {
   return {WEXITSTATUS(status), ss.str()};
 }
 
-class Cli : public ::testing::Test {
+class Cli : public incise::test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("incise_cli_" + std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  void write(const std::string& name, const std::string& text) const { std::ofstream(dir_ / name) << text; }
   // A linear cantilever (L = 4, 1 x 1) fixed at x = 0, under gravity.
   void cantilever_scene(const std::string& extra = "") const {
     ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 8 2 2 --out " + path("beam.vtu")).code, 0);
@@ -53,7 +46,6 @@ class Cli : public ::testing::Test {
       "mass": "consistent", "gravity": [0, 0, -1],
       "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}])" + extra + "}");
   }
-  fs::path dir_;
 };
 
 TEST_F(Cli, MeshBeamWritesAReadableMesh) {

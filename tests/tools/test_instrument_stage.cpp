@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/tools/temp_dir_test.h"
+
 #include <unistd.h>
 
 #include <cmath>
@@ -26,17 +28,8 @@ std::array<double, 4> about_z(double angle) { return {std::cos(angle / 2), 0.0, 
 
 // A folder with a scene on the 2 x 1 x 0.5 box (bounding-box diagonal
 // sqrt(5.25)) fixed at x = 0, plus its instruments and trajectory files.
-class InstrumentStage : public ::testing::Test {
+class InstrumentStage : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("incise_instr_" + std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  void write(const std::string& name, const std::string& text) const { std::ofstream(dir_ / name) << text; }
   // scene.json with `instruments` as the value of the "instruments" key (empty: no key).
   std::string scene(const std::string& instruments) const {
     std::string text = R"({"mesh": {"file": ")" + std::string(INCISE_SOURCE_DIR) + R"(/assets/meshes/box_tet10.vtu"},
@@ -55,7 +48,6 @@ class InstrumentStage : public ::testing::Test {
     ADD_FAILURE() << "no error";
     return "";
   }
-  fs::path dir_;
 };
 
 void expect_pose(const ToolPose& got, const std::array<double, 3>& p, const std::array<double, 4>& q, double jaw,

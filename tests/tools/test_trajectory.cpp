@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/tools/temp_dir_test.h"
+
 #include <unistd.h>
 
 #include <cmath>
@@ -22,19 +24,11 @@ namespace {
 const double kPi = 3.14159265358979323846;
 const std::string kHeader = "t,x,y,z,qw,qx,qy,qz\n";
 
-class TrajectoryTest : public ::testing::Test {
+class TrajectoryTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("incise_traj_" + std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string write(const std::string& text) const {
-    const std::string p = (dir_ / "traj.csv").string();
-    std::ofstream(p) << text;
-    return p;
+    TempDirTest::write("traj.csv", text);
+    return path("traj.csv");
   }
   Trajectory read(const std::string& text) const { return Trajectory::read(write(text)); }
   // The message read throws for `text`; must be "PATH:LINE: " + rest.
@@ -47,7 +41,6 @@ class TrajectoryTest : public ::testing::Test {
       EXPECT_EQ(std::string(e.what()), path + ":" + std::to_string(line) + ": " + rest);
     }
   }
-  fs::path dir_;
 };
 
 // Rotation by `angle` about z as (w, x, y, z).
