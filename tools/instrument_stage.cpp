@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "engine/util/error.h"
-#include "tools/trajectory.h"
+#include "engine/runtime/trajectory.h"
 
 namespace incise {
 namespace {

@@ -2,7 +2,7 @@
 // The tool-poses stage plugged into the frame's pipeline
 // (engine/runtime/pipeline.h, kStageToolPoses): each instrument of the scene
 // (scene.instruments) posed at the start and end of the coming frame from its
-// keyframe trajectory (tools/trajectory.h) or its fixed pose, into
+// keyframe trajectory (engine/runtime/trajectory.h) or its fixed pose, into
 // Simulation::tools for collision and cutting. Installed only when the scene
 // has instruments.
 #include "engine/runtime/simulation.h"

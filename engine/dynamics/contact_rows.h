@@ -33,8 +33,19 @@ struct ContactRows {
   double friction = 0.0;         // Coulomb coefficient of the friction rows
   int max_sweeps = 200;          // projected Gauss-Seidel sweeps at most (scene contact.pgs_iterations)
   std::vector<double> lambda;    // (nrow) result: force along dir on the tissue (N)
+  // (ntool, or empty) per instrument: 0 for a tool that is where its pose
+  // says, c > 0 for one held through a spring of stiffness 1/c (a haptic
+  // device's virtual coupling, haptics/haptic_stage.h). The rows of such a
+  // tool get the spring's compliance c (d_i . d_j) added to W: the tool
+  // yields by c * (its contact force) and the tissue stops short of the
+  // pose by as much. Set once; clear() keeps it.
+  std::vector<double> compliance;
 
   int nrow() const { return static_cast<int>(target.size()); }
+  double tool_compliance(int row) const {
+    const int t = tool[row];
+    return t >= 0 && t < static_cast<int>(compliance.size()) ? compliance[t] : 0.0;
+  }
   void clear() {
     ptr.assign(1, 0);
     for (auto* v : {&coef, &target, &point, &dir, &depth, &velocity, &lambda}) v->clear();

@@ -186,8 +186,27 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
     b[i] = c.target[i] - hd + wl;
     bmax = std::max(bmax, std::abs(b[i]));
   }
-  const int sweeps = projected_gauss_seidel(c, W, b, lambda, c.max_sweeps, 1e-12 * bmax);
-  polish_active_set(c, W, b, lambda);
+  // A tool held through a spring yields: W_c = W + c_t d_i . d_j between
+  // its rows (b keeps the tissue's W: it is the tissue that moved by
+  // W lambda_old).
+  const std::vector<double>* Wsolve = &W;
+  bool coupled = false;
+  for (int i = 0; i < r && !coupled; ++i) coupled = c.tool_compliance(i) > 0.0;
+  if (coupled) {
+    std::vector<double>& Wc = ws.contact_Wc;
+    Wc = W;
+    for (int i = 0; i < r; ++i) {
+      const double ci = c.tool_compliance(i);
+      if (ci <= 0.0) continue;
+      for (int j = 0; j < r; ++j)
+        if (c.tool[j] == c.tool[i])
+          Wc[static_cast<size_t>(i) * r + j] += ci * (c.dir[3 * i] * c.dir[3 * j] + c.dir[3 * i + 1] * c.dir[3 * j + 1] +
+                                                      c.dir[3 * i + 2] * c.dir[3 * j + 2]);
+    }
+    Wsolve = &Wc;
+  }
+  const int sweeps = projected_gauss_seidel(c, *Wsolve, b, lambda, c.max_sweeps, 1e-12 * bmax);
+  polish_active_set(c, *Wsolve, b, lambda);
   // Delta += Y (lambda - lambda_old); the force H^T lambda for later iterations.
   for (int i = 0; i < r; ++i) {
     const double dl = lambda[i] - c.lambda[i];

@@ -24,6 +24,13 @@ TextFile::TextFile(std::string path) : path_(std::move(path)) {
   text_ = std::move(ss).str();
 }
 
+TextFile TextFile::from_text(std::string path, std::string text) {
+  TextFile f;
+  f.path_ = std::move(path);
+  f.text_ = std::move(text);
+  return f;
+}
+
 bool TextFile::next(std::string_view& line) {
   if (pos_ >= text_.size()) return false;
   size_t end = text_.find('\n', pos_);

@@ -15,6 +15,8 @@ namespace incise::meshio {
 class TextFile {
  public:
   explicit TextFile(std::string path);
+  // Text already in memory (`path` names it in messages).
+  static TextFile from_text(std::string path, std::string text);
   const std::string& path() const { return path_; }
   const std::string& text() const { return text_; }
   // Next line without its end of line ("\n" or "\r\n"); false at end of file.
@@ -24,6 +26,7 @@ class TextFile {
   [[noreturn]] void fail_at(int line, const std::string& msg) const;
 
  private:
+  TextFile() = default;
   std::string path_, text_;
   size_t pos_ = 0;
   int line_ = 0;

@@ -34,6 +34,9 @@ class Pipeline {
   // dynamics stage: those are the step's (engine/dynamics/step.h).
   void set(Stage stage, StageFn fn);
   bool has(Stage stage) const;
+  // What the slot holds (empty when absent): a module wraps another's stage
+  // (haptics/ replaces the haptic instrument's pose after the tool-poses stage).
+  const StageFn& get(Stage stage) const { return slots_[stage]; }
   // One frame: the stages in loop order. Returns the frame's timing (also
   // left in sim.ws.timing): each stage's time and runs, the frame's wall and
   // CPU time, and the details the stages recorded.

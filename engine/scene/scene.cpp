@@ -688,6 +688,72 @@ void parse_contact(const Parser& p, const json& v, Scene& s) {
     s.contact.pgs_iterations = p.at_least_one(*it, at + ".pgs_iterations");
 }
 
+void parse_haptics(const Parser& p, const json& v, Scene& s) {
+  const std::string at = "haptics";
+  HapticsSpec& h = s.haptics;
+  p.object(v, at);
+  const size_t type = p.choice(p.required(v, at, "device", "\"scripted\", \"replay\" or \"openigtlink\""),
+                               at + ".device", {"scripted", "replay", "openigtlink"});
+  const std::vector<std::string> own[3] = {{"trajectory"}, {"stream"}, {"port"}};
+  std::vector<std::string> allowed{"device", "instrument", "rate_hz", "max_force", "scale", "offset", "coupling", "guard", "realtime"};
+  allowed.insert(allowed.end(), own[type].begin(), own[type].end());
+  p.allowed_keys(v, at, allowed);
+  h.device = static_cast<HapticsSpec::Device>(type + 1);
+  if (s.instruments.empty())
+    p.fail(at, ": a haptic device drives an instrument, and the scene declares none (add one under \"instruments\")");
+  if (auto it = v.find("instrument"); it != v.end()) {
+    const std::string name = p.nonempty_string(*it, at + ".instrument");
+    std::vector<std::string> names;
+    h.instrument = -1;
+    for (size_t i = 0; i < s.instruments.size(); ++i) {
+      names.push_back("\"" + s.instruments[i].name + "\"");
+      if (s.instruments[i].name == name && h.instrument < 0) h.instrument = static_cast<int>(i);
+    }
+    if (h.instrument < 0) p.fail(at + ".instrument", " must name an instrument (" + join(names) + "), got " + show(*it));
+  }
+  const InstrumentSpec& tool = s.instruments[static_cast<size_t>(h.instrument)];
+  if (h.device == HapticsSpec::Device::Scripted) {
+    if (auto it = v.find("trajectory"); it != v.end()) h.trajectory = p.existing_file(*it, at + ".trajectory");
+    else h.trajectory = tool.trajectory;
+    if (h.trajectory.empty())
+      p.fail(at + ".trajectory", ": required key is missing (a scripted device follows a keyframe CSV; " + tool.json_path +
+                                     " has no trajectory to take)");
+  }
+  if (h.device == HapticsSpec::Device::Replay)
+    h.stream = p.existing_file(p.required(v, at, "stream", "a recorded device stream (CSV)"), at + ".stream");
+  if (h.device == HapticsSpec::Device::OpenIGTLink) {
+    h.scale = 0.001;
+    if (auto it = v.find("port"); it != v.end()) {
+      h.port = p.integer(*it, at + ".port");
+      if (h.port < 0 || h.port > 65535) p.fail(at + ".port", " must be a TCP port in [0, 65535] (0: any free one), got " + show(*it));
+    }
+  }
+  if (auto it = v.find("rate_hz"); it != v.end()) {
+    h.rate_hz = p.number(*it, at + ".rate_hz");
+    if (!(h.rate_hz >= 100.0 && h.rate_hz <= 10000.0)) p.fail(at + ".rate_hz", " must be in [100, 10000] Hz, got " + show(*it));
+  }
+  if (auto it = v.find("max_force"); it != v.end()) h.max_force = p.positive(*it, at + ".max_force");
+  if (auto it = v.find("scale"); it != v.end()) h.scale = p.positive(*it, at + ".scale");
+  if (auto it = v.find("offset"); it != v.end()) h.offset = p.vec3(*it, at + ".offset");
+  if (auto it = v.find("realtime"); it != v.end()) h.realtime = p.boolean(*it, at + ".realtime");
+  if (auto it = v.find("coupling"); it != v.end()) {
+    const std::string cp = at + ".coupling";
+    p.object(*it, cp);
+    p.allowed_keys(*it, cp, {"stiffness", "damping"});
+    if (auto c = it->find("stiffness"); c != it->end()) h.stiffness = p.positive(*c, cp + ".stiffness");
+    if (auto c = it->find("damping"); c != it->end()) h.damping = p.nonnegative(*c, cp + ".damping");
+  }
+  if (auto it = v.find("guard"); it != v.end()) {
+    const std::string gp = at + ".guard";
+    p.object(*it, gp);
+    p.allowed_keys(*it, gp, {"center", "workspace_radius", "max_speed", "reacquire"});
+    if (auto c = it->find("center"); c != it->end()) h.center = p.vec3(*c, gp + ".center");
+    if (auto c = it->find("workspace_radius"); c != it->end()) h.workspace_radius = p.positive(*c, gp + ".workspace_radius");
+    if (auto c = it->find("max_speed"); c != it->end()) h.max_speed = p.positive(*c, gp + ".max_speed");
+    if (auto c = it->find("reacquire"); c != it->end()) h.reacquire = p.nonnegative(*c, gp + ".reacquire");
+  }
+}
+
 void parse_render(const Parser& p, const json& v, Scene& s) {
   const std::string at = "render";
   RenderSettings& r = s.render;
@@ -827,7 +893,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   Parser p(path, &applied);
   p.allowed_keys(root, "",
                  {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
-                  "solver", "static", "run", "output", "cuts", "render", "instruments", "contact"});
+                  "solver", "static", "run", "output", "cuts", "render", "instruments", "contact", "haptics"});
 
   Scene s;
   s.path = path;
@@ -870,6 +936,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   if (auto it = root.find("render"); it != root.end()) parse_render(p, *it, s);
   if (auto it = root.find("instruments"); it != root.end()) parse_instruments(p, *it, s);
   if (auto it = root.find("contact"); it != root.end()) parse_contact(p, *it, s);
+  if (auto it = root.find("haptics"); it != root.end()) parse_haptics(p, *it, s);
   return s;
 }
 

@@ -102,6 +102,31 @@ struct ContactSettings {
   int pgs_iterations = 200;     // projected Gauss-Seidel sweeps, >= 1
 };
 
+// A haptic device driving one instrument from a 1 kHz thread (scene key
+// "haptics"; docs/haptics.md). Only `incise run --haptics` (or an embedding
+// application, haptics/haptic_stage.h) starts the thread; otherwise the
+// instrument follows its own trajectory or pose. Lengths in the scene's
+// unit (metres in the bundled scenes), forces in newtons.
+struct HapticsSpec {
+  enum class Device { None, Scripted, Replay, OpenIGTLink };
+  Device device = Device::None;   // None: no "haptics" key
+  int instrument = 0;             // scene.instruments index (the key gives its name; default the first)
+  std::string trajectory;         // scripted: keyframe CSV (default: the instrument's trajectory)
+  std::string stream;             // replay: a recorded device stream (haptics/replay_device.h)
+  int port = 18944;               // openigtlink: TCP port to listen on (0: any free one)
+  double rate_hz = 1000.0;        // ticks per second, [100, 10000]
+  double max_force = 3.3;         // N: the device's limit; the force is clamped to it
+  double scale = 1.0;             // device units -> scene units (openigtlink default 0.001: mm -> m)
+  Vec3 offset{};                  // added after scaling (device origin in the scene)
+  double stiffness = 1000.0;      // coupling.stiffness: virtual coupling spring (N per scene unit), > 0
+  double damping = 0.5;           // coupling.damping: on the device-proxy velocity (N s per unit), >= 0
+  std::optional<Vec3> center;     // guard.center: workspace centre (default: the mesh's bounding-box centre)
+  double workspace_radius = 1.0;  // guard.workspace_radius: farther readings are rejected, > 0
+  double max_speed = 2.0;         // guard.max_speed: faster readings are a jump (units per second), > 0
+  double reacquire = 0.2;         // guard.reacquire: s of agreeing readings before a jump is taken back, >= 0
+  bool realtime = true;           // ask for SCHED_FIFO (falls back, and says so, without the right)
+};
+
 // Linear-solver policy of the dynamics (issue 4). Every policy is measured
 // against `exact` by `incise compare`; none is applied silently.
 enum class SolverPolicy {
@@ -225,6 +250,7 @@ struct Scene {
   std::vector<CutSpec> cuts;
   std::vector<InstrumentSpec> instruments;
   ContactSettings contact;
+  HapticsSpec haptics;
   RenderSettings render;
 };
 

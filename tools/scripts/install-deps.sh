@@ -7,6 +7,7 @@ packages=(
   nlohmann-json3-dev libcli11-dev libgtest-dev libbenchmark-dev
   libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0 libpng-dev
   libfcl-dev libccd-dev
+  libboost-dev libopenigtlink-dev
 )
 missing=()
 for p in "${packages[@]}"; do

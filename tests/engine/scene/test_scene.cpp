@@ -375,7 +375,7 @@ TEST_F(SceneTest, SolverSettingsChecked) {
 TEST_F(SceneTest, UnknownTopLevelKey) {
   expect_error(minimal(R"("materal": {})"),
                "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
-               "prescribed, integrator, solver, static, run, output, cuts, render, instruments, contact; did you mean "
+               "prescribed, integrator, solver, static, run, output, cuts, render, instruments, contact, haptics; did you mean "
                "\"material\"?");
 }
 

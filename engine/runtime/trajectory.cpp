@@ -1,4 +1,4 @@
-#include "tools/trajectory.h"
+#include "engine/runtime/trajectory.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // Keyframe trajectories: slerp against the analytic rotation, linear
 // position and jaw, clamping, the shorter arc, and each malformed file with
 // the line its message names.
-#include "tools/trajectory.h"
+#include "engine/runtime/trajectory.h"
 
 #include <gtest/gtest.h>
 
