@@ -67,6 +67,7 @@ const ToolPose& InputGuard::filter(double t, const ToolPose& r, bool fresh, Hapt
     return good_;
   }
   if (!valid) return good_;
+  if (jumped_ && distance(r.p, good_.p) <= step) jumped_ = false;  // back where it held: a glitch
   if (jumped_) {
     // Readings that move on like a hand from where the jump landed count
     // toward reacquiring; one that jumps again starts the count over.

@@ -24,6 +24,7 @@
 #include <igtl_header.h>
 
 #include "engine/util/error.h"
+#include "haptics/haptic_loop.h"
 #include "haptics/igtl_device.h"
 
 namespace incise {
@@ -380,6 +381,56 @@ TEST(IgtlDevice, RejectsBadArgumentsAndABusyPort) {
               std::string::npos)
         << e.what();
   }
+}
+
+// The device in the haptic loop: a tracker streams 1,000 transforms (mm)
+// pushing the tool 2 mm into a rigid floor (a one-row contact model, the
+// coupling spring k in series); the tool follows every transform, scaled to
+// metres, and the client gets the coupling force k * depth back.
+TEST(IgtlDevice, DrivesTheHapticLoopAndGetsItsForces) {
+  auto owned = std::make_unique<IgtlDevice>(0, 5.0);
+  IgtlDevice& device = *owned;
+  HapticSettings hs;
+  hs.scale = 0.001;
+  hs.damping = 0.0;
+  ToolPose start;
+  start.p = {0.0, 0.0, 0.005};
+  HapticLoop loop(std::move(owned), hs, start);
+  device.start();
+  HapticContactModel& floor = loop.model_buffer();  // gap = z + lambda / k (a rigid floor at z = 0)
+  floor.frame = 0;
+  floor.rows = 1;
+  floor.D[2] = -1.0;
+  floor.Wc[0] = 1.0 / hs.stiffness;
+  loop.publish_model();
+  Client client(device.port());
+  ASSERT_TRUE(client.connected());
+  const int n = 1000;
+  auto z_mm = [&](int i) { return 5.0 - 7.0 * i / (n - 1); };  // 5 mm above to 2 mm below
+  auto expected = [&](int i) { return std::max(0.0, -z_mm(i) * 1e-3) * hs.stiffness; };
+  double t = 0.0;
+  for (int i = 0; i < n; ++i) {
+    igtl::Matrix4x4 m;
+    make_matrix(0.0, Eigen::Vector3d(1.0, 2.0, z_mm(i)), m);
+    ASSERT_TRUE(client.send_transform(m));
+    ASSERT_TRUE(eventually([&] {
+      t += 1e-3;
+      loop.tick(t, t);
+      const auto& p = loop.device_pose().p;
+      return p[0] == 1e-3 && p[1] == 2e-3 && std::abs(p[2] - 1e-3 * static_cast<float>(z_mm(i))) < 1e-12;
+    })) << "transform " << i;
+    Force f;
+    ASSERT_TRUE(client.receive_force(f));
+    const double before = i > 0 ? expected(i - 1) : 0.0;  // the reply carries the force of the tick before, or this one
+    EXPECT_TRUE(std::abs(f[2] - before) < 1e-4 || std::abs(f[2] - expected(i)) < 1e-4) << i << ": " << f[2];
+  }
+  std::vector<TickRecord> records;
+  std::vector<HapticEvent> events;
+  loop.drain(records, events);
+  EXPECT_TRUE(events.empty()) << event_name(events.front().kind);
+  EXPECT_NEAR(records.back().force[2], 2.0, 1e-4) << "k * 2 mm";
+  EXPECT_EQ(device.transforms_received(), n);
+  loop.stop();
 }
 
 }  // namespace

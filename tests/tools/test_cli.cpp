@@ -514,3 +514,45 @@ TEST_F(Cli, CompareLeavesOutFlagsAPolicyDoesNotUse) {
 }
 
 }  // namespace
+
+namespace {
+
+// --haptics: the scene's scripted device on its thread, frames paced at 1/dt;
+// the force log, device stream, events and figures written, the tick
+// statistics printed. A scene without a device starts no haptic thread.
+TEST_F(Cli, RunHapticsWritesTheForceLogAndTickStatistics) {
+  write("press.csv", "t,x,y,z,qw,qx,qy,qz\n0, 3.5, 0.5, 1.3, 1, 0, 0, 0\n0.2, 3.5, 0.5, 1.1, 1, 0, 0, 0\n");
+  cantilever_scene(R"(, "instruments": [{"type": "probe", "name": "probe", "radius": 0.2, "trajectory": "press.csv"}],
+      "haptics": {"device": "scripted", "realtime": false, "guard": {"workspace_radius": 10}})");
+  const Result r = incise("run " + path("scene.json") + " --frames 9 --haptics --haptics-dir " + path("h"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("haptics: scripted (" + path("press.csv") + ") drives probe at 1000 Hz; SCHED_OTHER"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("frames started at 30 Hz"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("haptics: tick compute median"), std::string::npos) << r.out;
+  std::ifstream log(path("h/haptics_force.csv"));
+  std::string header, line;
+  std::getline(log, header);
+  EXPECT_EQ(header, "t,fx,fy,fz,tick_us,late_us");
+  int rows = 0;
+  while (std::getline(log, line)) ++rows;
+  EXPECT_GT(rows, 200) << "9 frames at 30 Hz are 0.3 s of 1 kHz ticks";
+  std::ifstream js(path("h/haptics.json"));
+  const auto j = nlohmann::json::parse(js);
+  EXPECT_EQ(j["ticks"].get<int>(), rows);
+  EXPECT_EQ(j["allocations"].get<int>(), 0);
+  EXPECT_LE(j["force_max_n"].get<double>(), 3.3 * (1 + 1e-12)) << "clamped to haptics.max_force";
+  EXPECT_TRUE(fs::exists(path("h/haptics_device.csv")));
+  EXPECT_TRUE(fs::exists(path("h/haptics_events.csv")));
+  EXPECT_NE(r.out.find("contact_publish"), std::string::npos);
+}
+
+TEST_F(Cli, RunHapticsWithoutADeviceStartsNoThread) {
+  cantilever_scene();
+  const Result r = incise("run " + path("scene.json") + " --frames 2 --haptics --haptics-dir " + path("h"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("declares no haptic device (\"haptics\"): no haptic thread"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(path("h/haptics_force.csv")));
+  EXPECT_EQ(r.out.find("frames started at"), std::string::npos) << "not paced without a device";
+}
+
+}  // namespace

@@ -832,3 +832,77 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
   expect_error(minimal(R"("solver": {"background_priority": "normal"})"),
                R"(solver.background_priority: only used by solver.policy "lagged"; solver.policy is "exact")");
 }
+
+// --- haptics -------------------------------------------------------------------
+
+TEST_F(SceneTest, HapticsParseWithDefaults) {
+  std::ofstream(root_ / "scenes" / "p.csv") << "t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n";
+  std::ofstream(root_ / "scenes" / "rec.csv") << "t,x,y,z,qw,qx,qy,qz,jaw,buttons\n0.001,0,0,0,1,0,0,0,0,0\n";
+  const std::string tools = R"("instruments": [{"type": "probe", "radius": 0.01},
+      {"type": "probe", "name": "tip", "radius": 0.01, "trajectory": "p.csv"}], )";
+  Scene none = parse_scene(minimal(tools.substr(0, tools.size() - 2)), scene_path_);
+  EXPECT_EQ(none.haptics.device, incise::HapticsSpec::Device::None) << "no key, no device";
+  const Scene s = parse_scene(minimal(tools + R"("haptics": {"device": "scripted", "instrument": "tip"})"), scene_path_);
+  EXPECT_EQ(s.haptics.device, incise::HapticsSpec::Device::Scripted);
+  EXPECT_EQ(s.haptics.instrument, 1);
+  EXPECT_EQ(s.haptics.trajectory, resolved(root_ / "scenes" / "p.csv")) << "the instrument's own trajectory";
+  EXPECT_EQ(s.haptics.rate_hz, 1000.0);
+  EXPECT_EQ(s.haptics.max_force, 3.3);
+  EXPECT_EQ(s.haptics.stiffness, 1000.0);
+  EXPECT_EQ(s.haptics.damping, 0.5);
+  EXPECT_EQ(s.haptics.scale, 1.0);
+  EXPECT_FALSE(s.haptics.center.has_value());
+  EXPECT_TRUE(s.haptics.realtime);
+  const Scene r = parse_scene(minimal(tools + R"("haptics": {"device": "replay", "stream": "rec.csv", "max_force": 8,
+      "coupling": {"stiffness": 500, "damping": 0}, "guard": {"center": [0, 0, 0.1], "workspace_radius": 0.3,
+      "max_speed": 1, "reacquire": 0.5}, "rate_hz": 2000, "realtime": false, "offset": [0, 0, 0.2], "scale": 2})"),
+                              scene_path_);
+  EXPECT_EQ(r.haptics.device, incise::HapticsSpec::Device::Replay);
+  EXPECT_EQ(r.haptics.instrument, 0) << "default: the first instrument";
+  EXPECT_EQ(r.haptics.stream, resolved(root_ / "scenes" / "rec.csv"));
+  EXPECT_EQ(r.haptics.max_force, 8.0);
+  EXPECT_EQ(r.haptics.stiffness, 500.0);
+  EXPECT_EQ(r.haptics.damping, 0.0);
+  EXPECT_EQ(*r.haptics.center, (incise::Vec3{0, 0, 0.1}));
+  EXPECT_EQ(r.haptics.workspace_radius, 0.3);
+  EXPECT_EQ(r.haptics.max_speed, 1.0);
+  EXPECT_EQ(r.haptics.reacquire, 0.5);
+  EXPECT_EQ(r.haptics.rate_hz, 2000.0);
+  EXPECT_FALSE(r.haptics.realtime);
+  EXPECT_EQ(r.haptics.offset, (incise::Vec3{0, 0, 0.2}));
+  EXPECT_EQ(r.haptics.scale, 2.0);
+  const Scene o = parse_scene(minimal(tools + R"("haptics": {"device": "openigtlink", "port": 0})"), scene_path_);
+  EXPECT_EQ(o.haptics.device, incise::HapticsSpec::Device::OpenIGTLink);
+  EXPECT_EQ(o.haptics.port, 0);
+  EXPECT_EQ(o.haptics.scale, 0.001) << "trackers send millimetres";
+}
+
+TEST_F(SceneTest, HapticsErrorsNameTheKeyAndWhatIsAllowed) {
+  const std::string probe = R"("instruments": [{"type": "probe", "name": "probe", "radius": 0.01}], )";
+  expect_error(minimal(R"("haptics": {"device": "scripted"})"),
+               "haptics: a haptic device drives an instrument, and the scene declares none (add one under \"instruments\")");
+  expect_error(minimal(probe + R"("haptics": {})"),
+               R"(haptics.device: required key is missing (expected "scripted", "replay" or "openigtlink"))");
+  expect_error(minimal(probe + R"("haptics": {"device": "phantom"})"),
+               R"(haptics.device must be one of "scripted", "replay", "openigtlink", got "phantom")");
+  expect_error(minimal(probe + R"("haptics": {"device": "scripted"})"),
+               "haptics.trajectory: required key is missing (a scripted device follows a keyframe CSV; instruments[0] has no "
+               "trajectory to take)");
+  expect_error(minimal(probe + R"("haptics": {"device": "scripted", "trajectory": "x.csv", "instrument": "knife"})"),
+               R"(haptics.instrument must name an instrument ("probe"), got "knife")");
+  expect_error(minimal(probe + R"("haptics": {"device": "replay"})"),
+               "haptics.stream: required key is missing (expected a recorded device stream (CSV))");
+  expect_error(minimal(probe + R"("haptics": {"device": "replay", "port": 1})"),
+               "haptics.port: unknown key; allowed: device, instrument, rate_hz, max_force, scale, offset, coupling, guard, "
+               "realtime, stream");
+  expect_error(minimal(probe + R"("haptics": {"device": "openigtlink", "port": 70000})"),
+               "haptics.port must be a TCP port in [0, 65535] (0: any free one), got 70000");
+  expect_error(minimal(probe + R"("haptics": {"device": "openigtlink", "rate_hz": 50})"),
+               "haptics.rate_hz must be in [100, 10000] Hz, got 50");
+  expect_error(minimal(probe + R"("haptics": {"device": "openigtlink", "max_force": 0})"), "haptics.max_force must be > 0, got 0");
+  expect_error(minimal(probe + R"("haptics": {"device": "openigtlink", "coupling": {"stiffness": -1}})"),
+               "haptics.coupling.stiffness must be > 0, got -1");
+  expect_error(minimal(probe + R"("haptics": {"device": "openigtlink", "guard": {"max_sped": 1}})"),
+               "haptics.guard.max_sped: unknown key; allowed: center, workspace_radius, max_speed, reacquire; did you mean "
+               "\"max_speed\"?");
+}
