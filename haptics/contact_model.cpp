@@ -4,6 +4,11 @@
 #include <cmath>
 
 namespace incise {
+namespace {
+// Per solve: a tick's warm start (the last tick's lambda) leaves little to
+// do; the cap bounds a tick at 48 rows to about 2 x 50 x 48^2 multiply-adds.
+constexpr int kMaxSweeps = 50;
+}  // namespace
 
 void fill_contact_model(const Simulation& sim, int tool, double k, HapticContactModel& out) {
   const ContactRows& c = sim.ws.contacts;
@@ -23,7 +28,8 @@ void fill_contact_model(const Simulation& sim, int tool, double k, HapticContact
   for (int pass = 0; pass < 2 && n < kMaxHapticRows; ++pass)
     for (int i = 0; i < r && n < kMaxHapticRows; ++i) {
       if (c.tool[i] != tool || c.kind[i] == RowKind::Friction) continue;
-      if (!(sim.ws.contact_W[static_cast<size_t>(i) * r + i] > 0.0)) continue;  // on constrained DOFs only
+      // A row on constrained DOFs only (a fixed face) still pushes through the spring.
+      if (!(sim.ws.contact_W[static_cast<size_t>(i) * r + i] + 1.0 / k > 0.0)) continue;
       const bool active = c.kind[i] == RowKind::Grasp || c.lambda[i] > 0.0;
       if (active == (pass == 0)) pick[n++] = i;
     }
@@ -38,7 +44,16 @@ void fill_contact_model(const Simulation& sim, int tool, double k, HapticContact
     out.lambda0[a] = c.lambda[i];
     double wl = 0.0;
     for (int b = 0; b < n; ++b) wl += sim.ws.contact_W[static_cast<size_t>(i) * r + pick[b]] * c.lambda[pick[b]];
-    out.q0[a] = s + d[0] * out.x0[0] + d[1] * out.x0[1] + d[2] * out.x0[2] - wl;
+    // The tool's rows left out (friction, beyond kMaxHapticRows) keep their
+    // lambda0; through the spring they still move this row's gap.
+    double held = 0.0;
+    for (int j = 0; j < r; ++j) {
+      if (c.tool[j] != tool) continue;
+      bool picked = false;
+      for (int b = 0; b < n && !picked; ++b) picked = pick[b] == j;
+      if (!picked) held += (d[0] * c.dir[3 * j] + d[1] * c.dir[3 * j + 1] + d[2] * c.dir[3 * j + 2]) * c.lambda[j] / k;
+    }
+    out.q0[a] = s + d[0] * out.x0[0] + d[1] * out.x0[1] + d[2] * out.x0[2] - wl + held;
     for (int q = 0; q < 3; ++q) {
       out.D[3 * a + q] = d[q];
       out.sim_force[q] -= c.lambda[i] * d[q];
@@ -62,7 +77,7 @@ std::array<double, 3> coupling_force(const HapticContactModel& m, const std::arr
   }
   const double tol = 1e-9 * qmax;
   int sweep = 0;
-  while (n > 0 && sweep < 200) {
+  while (n > 0 && sweep < kMaxSweeps) {
     ++sweep;
     double moved = 0.0;
     for (int i = 0; i < n; ++i) {

@@ -51,14 +51,15 @@ struct HapticContactModel {
 
 // Fills `out` from the frame just stepped (sim.ws.contacts, contact_W,
 // delta) for instrument `tool`, coupling stiffness k (> 0; the one the
-// simulation's rows were solved with). Keeps the
-// tool's contact and grasp rows (friction rows are left out: the hand feels
-// no friction), active ones first, at most kMaxHapticRows. Allocates nothing.
+// simulation's rows were solved with). Keeps the tool's contact and grasp
+// rows, active ones first, at most kMaxHapticRows; the rows left out
+// (friction: the hand feels no friction; beyond the cap) keep their
+// lambda0, and their pull through the spring enters q0. Allocates nothing.
 void fill_contact_model(const Simulation& sim, int tool, double k, HapticContactModel& out);
 
 // The tick's solve: lambda (warm start in, result out; rows entries) by
 // projected Gauss-Seidel until no row's gap moves by more than 1e-9 of the
-// largest |q| (or 200 sweeps); returns the force on the hand
+// largest |q| (or 50 sweeps: the next tick goes on from here); returns the force on the hand
 // f = -D^T lambda. Allocates nothing.
 std::array<double, 3> coupling_force(const HapticContactModel& m, const std::array<double, 3>& x_device, double* lambda,
                                      int* sweeps = nullptr);

@@ -2,6 +2,7 @@
 
 #include <pthread.h>
 #include <sched.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <time.h>
 
@@ -53,8 +54,9 @@ std::string take_realtime_policy(bool wanted) {
 HapticLoop::HapticLoop(std::unique_ptr<HapticDevice> device, const HapticSettings& s, const ToolPose& start)
     : device_(std::move(device)), s_(s), guard_(s.guard, start) {
   if (!device_) throw Error("haptics: no device");
-  if (!(s_.rate_hz > 0.0) || !(s_.stiffness > 0.0) || !(s_.frame_dt > 0.0))
-    throw Error("haptics: rate_hz, stiffness and the frame's dt must be > 0");
+  if (!(s_.rate_hz > 0.0)) throw Error("haptics: rate_hz must be > 0, got " + std::to_string(s_.rate_hz));
+  if (!(s_.stiffness > 0.0)) throw Error("haptics: coupling.stiffness must be > 0, got " + std::to_string(s_.stiffness));
+  if (!(s_.frame_dt > 0.0)) throw Error("haptics: the frame's dt must be > 0, got " + std::to_string(s_.frame_dt));
   force_limit_ = std::min(s_.max_force, device_->max_force());
   if (!(force_limit_ > 0.0)) throw Error("haptics: the device's force limit must be > 0, got " + std::to_string(force_limit_));
   blend_ticks_ = std::max(1, static_cast<int>(std::lround(s_.rate_hz * s_.frame_dt)));
@@ -95,10 +97,14 @@ void HapticLoop::drain(std::vector<TickRecord>& records, std::vector<HapticEvent
 
 void HapticLoop::run() {
   std::string where;
-  if (stepping_cpu() >= 0 && set_thread_role(ThreadRole::Helper))
+  if (stepping_cpu() < 0)
+    where = ", CPU chosen by the kernel (one CPU: the stepping thread has none of its own)";
+  else if (set_thread_role(ThreadRole::Helper))
     where = ", off the stepping thread's CPU " + std::to_string(stepping_cpu());
   else
-    where = ", CPU chosen by the kernel (one CPU, or the stepping thread not pinned)";
+    where = ", on the stepping thread's CPU " + std::to_string(stepping_cpu()) + " (the kernel refused to move it)";
+  // The default 50 us timer slack would make every wake-up that late.
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   scheduling_ = take_realtime_policy(s_.realtime) + where;
   scheduled_.store(true, std::memory_order_release);
   const long long period = static_cast<long long>(std::llround(1e9 / s_.rate_hz));
@@ -139,9 +145,11 @@ void HapticLoop::tick(double t, double deadline) {
   if (has_event && !events_.push(ev)) dropped_.fetch_add(1, std::memory_order_relaxed);
 
   // A new model only after the last blend ended: blending from a blend would jump.
-  if (blend_left_ == 0 && models_.update()) {
+  if (blend_left_ == 0 && models_.fresh()) {
+    // Copied before the swap: update() hands the current buffer back to the writer.
     previous_ = *current_;
     lambda_previous_ = lambda_current_;
+    models_.update();
     current_ = &models_.read_buffer();
     std::copy_n(current_->lambda0.begin(), current_->rows, lambda_current_.begin());
     blend_left_ = blend_ticks_;
@@ -185,6 +193,7 @@ void HapticLoop::tick(double t, double deadline) {
     if (!events_.push(e)) dropped_.fetch_add(1, std::memory_order_relaxed);
     force = spring = spring_prev_ = rel_velocity_ = {0.0, 0.0, 0.0};
     std::copy_n(current_->lambda0.begin(), current_->rows, lambda_current_.begin());
+    std::copy_n(previous_.lambda0.begin(), previous_.rows, lambda_previous_.begin());
   }
   const double fn = std::sqrt(force[0] * force[0] + force[1] * force[1] + force[2] * force[2]);
   if (fn > force_limit_) {

@@ -4,8 +4,8 @@
 // does not push the later ones back), reads the device, checks the reading
 // (haptics/input_guard.h), solves the virtual coupling against the contact
 // model the simulation last published (haptics/contact_model.h), clamps the
-// force to the device's limit, writes it, and hands the proxy pose back to
-// the simulation. The tick allocates nothing and takes no lock: models and
+// force to the device's limit, writes it, and hands the checked device pose
+// to the simulation (which holds the tool there through the same spring). The tick allocates nothing and takes no lock: models and
 // poses cross between the threads through triple buffers, the force log and
 // events through single-producer queues the main thread drains.
 //

@@ -31,11 +31,11 @@ std::unique_ptr<HapticDevice> make_haptic_device(const Scene& scene) {
       try {
         return std::make_unique<ReplayDevice>(ReplayDevice::read_file(h.stream, h.max_force));
       } catch (const Error& e) {
-        throw Error(at + "stream: " + e.what());
+        throw Error(at + "stream: " + e.what());  // the force limit is the parser's, > 0: only the file can fail
       }
     case HapticsSpec::Device::OpenIGTLink:
 #ifdef INCISE_WITH_OPENIGTLINK
-      return std::make_unique<IgtlDevice>(h.port, h.max_force);
+      return std::make_unique<IgtlDevice>(h.port, h.max_force);  // start() names the port when it cannot listen
 #else
       throw Error(at + "device: \"openigtlink\" needs a build with OpenIGTLink (apt-get install libopenigtlink-dev, "
                        "then configure again)");
@@ -59,6 +59,8 @@ HapticSettings haptic_settings(const Simulation& sim) {
   s.guard.radius = h.workspace_radius;
   s.guard.max_speed = h.max_speed;
   s.guard.reacquire = h.reacquire;
+  s.guard.max_turn = h.max_turn;
+  s.guard.glide_speed = h.glide_speed;
   if (h.center) {
     s.guard.center = *h.center;
   } else if (sim.mesh.nnode() > 0) {
@@ -77,8 +79,11 @@ HapticSettings haptic_settings(const Simulation& sim) {
 std::shared_ptr<HapticLoop> install_haptics(Simulation& sim, std::unique_ptr<HapticDevice> device) {
   if (sim.scene.haptics.device == HapticsSpec::Device::None && !device) return nullptr;
   const int h = sim.scene.haptics.instrument;
-  if (h < 0 || static_cast<size_t>(h) >= sim.tools.size() || !sim.pipeline.has(kStageToolPoses))
+  if (!sim.pipeline.has(kStageToolPoses) || sim.tools.size() != sim.scene.instruments.size())
     throw Error(sim.scene.path + ": haptics: the instrument stage is not installed (install_instrument_stage first)");
+  if (h < 0 || static_cast<size_t>(h) >= sim.tools.size())
+    throw Error(sim.scene.path + ": haptics.instrument: index " + std::to_string(h) + " is not one of the scene's " +
+                std::to_string(sim.tools.size()) + " instruments");
   if (!device) device = make_haptic_device(sim.scene);
   auto loop = std::make_shared<HapticLoop>(std::move(device), haptic_settings(sim), sim.tools[static_cast<size_t>(h)].after);
   const StageFn inner = sim.pipeline.get(kStageToolPoses);

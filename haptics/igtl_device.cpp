@@ -30,6 +30,7 @@ namespace {
 
 constexpr int kPollMs = 100;      // how soon the network thread notices stop(), and the send limit
 constexpr int kStallPolls = 10;   // a message stuck halfway this many polls (1 s) drops the client
+constexpr int kMaxSkippedBody = 16 << 20;  // bytes of another message type skipped at most (an image is larger: drop)
 
 // The descriptor of an igtl socket, which the library keeps protected: a
 // pointer to member formed through a derived class may name it.
@@ -242,6 +243,10 @@ IgtlDevice::Io IgtlDevice::serve_message(igtl::Socket& client, Messages& m) {
     rejected_.fetch_add(1);
     return Io::dropped;
   }
+  if (body > kMaxSkippedBody) {  // a tracker sends transforms, not volumes: a client announcing this much is lost
+    rejected_.fetch_add(1);
+    return Io::dropped;
+  }
   if (std::strcmp(m.header->GetDeviceType(), "TRANSFORM") != 0) return skip(client, body);
   if (body != IGTL_TRANSFORM_SIZE) {  // 1.11's TransformMessage reads 48 bytes whatever the size
     rejected_.fetch_add(1);
@@ -269,6 +274,7 @@ IgtlDevice::Io IgtlDevice::receive(igtl::Socket& client, void* data, int size, b
   char* bytes = static_cast<char*>(data);
   int got = 0, stalls = 0;
   while (got < size) {
+    if (!running_.load()) return Io::dropped;  // a client that keeps dribbling bytes must not hold stop() up
     errno = 0;
     const int n = client.Receive(bytes + got, size - got, /*readFully=*/0);
     if (n > 0) {

@@ -1,5 +1,7 @@
 #include "haptics/input_guard.h"
 
+#include "engine/runtime/trajectory.h"  // slerp
+
 #include <algorithm>
 #include <cmath>
 
@@ -9,6 +11,7 @@ const char* event_name(HapticEventKind k) {
   switch (k) {
     case HapticEventKind::NotFinite: return "not_finite";
     case HapticEventKind::NotRotation: return "not_rotation";
+    case HapticEventKind::JawRange: return "jaw_range";
     case HapticEventKind::Workspace: return "workspace";
     case HapticEventKind::Jump: return "jump";
     case HapticEventKind::Reacquired: return "reacquired";
@@ -23,19 +26,22 @@ namespace {
 double distance(const std::array<double, 3>& a, const std::array<double, 3>& b) {
   return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
 }
+double rotation_angle(const std::array<double, 4>& a, const std::array<double, 4>& b) {
+  const double dot = std::abs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]);
+  return 2.0 * std::acos(std::min(1.0, dot));
+}
+
 }  // namespace
 
 const ToolPose& InputGuard::filter(double t, const ToolPose& r, bool fresh, HapticEvent* event, bool* has_event) {
   *has_event = false;
-  const double dt = std::max(0.0, t - t_last_);
+  const double tick_dt = std::max(0.0, t - t_last_);
   t_last_ = t;
-  // Half again the step max_speed allows, for jitter in when a reading was taken.
-  const double step = 1.5 * s_.max_speed * dt + 1e-9 * s_.radius;
-  auto report = [&](HapticEventKind k) {
+  auto report = [&](HapticEventKind k, const std::array<double, 3>& value) {
     *has_event = true;
     event->t = t;
     event->kind = k;
-    event->value = r.p;
+    event->value = value;
   };
   // A reading that fails a check is reported and treated as no reading.
   bool valid = fresh;
@@ -45,52 +51,59 @@ const ToolPose& InputGuard::filter(double t, const ToolPose& r, bool fresh, Hapt
     for (double x : r.p) finite = finite && std::isfinite(x);
     for (double x : r.q) finite = finite && std::isfinite(x);
     if (finite) qn = std::sqrt(r.q[0] * r.q[0] + r.q[1] * r.q[1] + r.q[2] * r.q[2] + r.q[3] * r.q[3]);
-    if (!finite) report(HapticEventKind::NotFinite);
-    else if (!(std::abs(qn - 1.0) <= 1e-3)) report(HapticEventKind::NotRotation);
-    else if (!(distance(r.p, s_.center) <= s_.radius)) report(HapticEventKind::Workspace);
+    if (!finite) report(HapticEventKind::NotFinite, r.p);
+    else if (!(std::abs(qn - 1.0) <= 1e-3)) report(HapticEventKind::NotRotation, {qn, 0.0, 0.0});
+    else if (!(r.jaw >= 0.0 && r.jaw <= 1.0)) report(HapticEventKind::JawRange, {r.jaw, 0.0, 0.0});
+    else if (!(distance(r.p, s_.center) <= s_.radius)) report(HapticEventKind::Workspace, r.p);
     valid = !*has_event;
   }
-  if (gliding_) {  // toward the reacquired reading, max_speed per second
-    if (valid) {
-      target_ = r;
-      for (double& x : target_.q) x /= qn;
-    }
-    const double d = distance(good_.p, target_.p), lim = s_.max_speed * dt;
-    if (d <= lim) {
-      good_ = target_;
-      gliding_ = false;
-    } else {
+  ToolPose unit = r;
+  for (double& x : unit.q) x /= qn;
+  if (gliding_) {  // toward the reacquired reading, at glide_speed and max_turn
+    if (valid) target_ = unit;
+    const double d = distance(good_.p, target_.p), lim = s_.glide_speed * tick_dt;
+    const double ang = rotation_angle(good_.q, target_.q), turn = s_.max_turn * tick_dt;
+    if (d > lim)
       for (int k = 0; k < 3; ++k) good_.p[k] += (target_.p[k] - good_.p[k]) * (lim / d);
-    }
-    good_.q = target_.q;
+    else
+      good_.p = target_.p;
+    good_.q = ang > turn ? slerp(good_.q, target_.q, turn / ang) : target_.q;
     good_.jaw = target_.jaw;
+    gliding_ = d > lim || ang > turn;
+    if (valid) t_fresh_ = t;
     return good_;
   }
   if (!valid) return good_;
-  if (jumped_ && distance(r.p, good_.p) <= step) jumped_ = false;  // back where it held: a glitch
+  // Speeds between fresh readings (capped, so that a device back after a
+  // long silence is not allowed an arbitrary step); half again for jitter.
+  const double dt = std::min(t - t_fresh_, 0.05);
+  t_fresh_ = t;
+  const double step = 1.5 * s_.max_speed * dt + 1e-9 * s_.radius, turn = 1.5 * s_.max_turn * dt + 1e-9;
+  if (jumped_ && distance(unit.p, good_.p) <= step && rotation_angle(unit.q, good_.q) <= turn)
+    jumped_ = false;  // back where it held: a glitch
   if (jumped_) {
     // Readings that move on like a hand from where the jump landed count
     // toward reacquiring; one that jumps again starts the count over.
-    if (distance(r.p, candidate_) > step) candidate_since_ = t;
-    candidate_ = r.p;
+    const double since = std::min(t - candidate_t_, 0.05);
+    if (distance(unit.p, candidate_) > 1.5 * s_.max_speed * since + 1e-9 * s_.radius) candidate_since_ = t;
+    candidate_ = unit.p;
+    candidate_t_ = t;
     if (t - candidate_since_ >= s_.reacquire) {
       jumped_ = false;
       gliding_ = true;
-      target_ = r;
-      for (double& x : target_.q) x /= qn;
-      report(HapticEventKind::Reacquired);
+      target_ = unit;
+      report(HapticEventKind::Reacquired, unit.p);
     }
     return good_;
   }
-  if (distance(r.p, good_.p) > step) {
+  if (distance(unit.p, good_.p) > step || rotation_angle(unit.q, good_.q) > turn) {
     jumped_ = true;
-    candidate_ = r.p;
-    candidate_since_ = t;
-    report(HapticEventKind::Jump);
+    candidate_ = unit.p;
+    candidate_since_ = candidate_t_ = t;
+    report(HapticEventKind::Jump, unit.p);
     return good_;
   }
-  good_ = r;
-  for (double& x : good_.q) x /= qn;
+  good_ = unit;
   return good_;
 }
 

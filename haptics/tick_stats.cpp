@@ -89,11 +89,52 @@ void write_device_stream(const std::string& path, const std::vector<TickRecord>&
   for (const TickRecord& r : records) {
     if (!r.have_reading || !r.raw.fresh) continue;
     const ToolPose& p = r.raw.pose;
-    std::snprintf(line, sizeof line, "%.6f,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%u\n", r.t, p.p[0], p.p[1],
+    std::snprintf(line, sizeof line, "%.9f,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%u\n", r.t, p.p[0], p.p[1],
                   p.p[2], p.q[0], p.q[1], p.q[2], p.q[3], p.jaw, r.raw.buttons);
     out += line;
   }
   meshio::write_atomic(path, out);
+}
+
+std::string format_event(const HapticEvent& e) {
+  char buf[256];
+  const double* v = e.value.data();
+  const double f = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  switch (e.kind) {
+    case HapticEventKind::NotFinite:
+      std::snprintf(buf, sizeof buf, "rejected a reading that is not finite; the last good pose holds");
+      break;
+    case HapticEventKind::NotRotation:
+      std::snprintf(buf, sizeof buf, "rejected a reading whose quaternion has length %.6g (not 1); the last good pose holds",
+                    v[0]);
+      break;
+    case HapticEventKind::JawRange:
+      std::snprintf(buf, sizeof buf, "rejected a reading with jaw %.6g (allowed: [0, 1]); the last good pose holds", v[0]);
+      break;
+    case HapticEventKind::Workspace:
+      std::snprintf(buf, sizeof buf, "rejected a reading at (%.4g, %.4g, %.4g), outside the workspace (guard.workspace_radius)",
+                    v[0], v[1], v[2]);
+      break;
+    case HapticEventKind::Jump:
+      std::snprintf(buf, sizeof buf, "rejected a jump to (%.4g, %.4g, %.4g), faster than guard.max_speed", v[0], v[1], v[2]);
+      break;
+    case HapticEventKind::Reacquired:
+      std::snprintf(buf, sizeof buf, "readings at (%.4g, %.4g, %.4g) agreed for guard.reacquire: gliding there at "
+                    "guard.glide_speed", v[0], v[1], v[2]);
+      break;
+    case HapticEventKind::ForceClamped:
+      std::snprintf(buf, sizeof buf, "force %.3g N clamped to the device's limit", f);
+      break;
+    case HapticEventKind::ForceNotFinite:
+      std::snprintf(buf, sizeof buf, "the coupling solve gave a non-finite force: zero sent");
+      break;
+    case HapticEventKind::Overrun:
+      std::snprintf(buf, sizeof buf, "woke %.3g ms late: %.0f tick(s) skipped", v[0], v[1]);
+      break;
+  }
+  char head[48];
+  std::snprintf(head, sizeof head, "t = %.3f s: ", e.t);
+  return head + std::string(buf);
 }
 
 void write_event_log(const std::string& path, const std::vector<HapticEvent>& events) {

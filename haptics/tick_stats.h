@@ -31,6 +31,8 @@ std::string format_tick_stats(const TickStats& s);
 // each through a temporary file renamed into place. Throws incise::Error.
 void write_force_log(const std::string& path, const std::vector<TickRecord>& records);
 void write_device_stream(const std::string& path, const std::vector<TickRecord>& records);
+// One event in words: "t = 0.302 s: rejected a reading 10 m away from the workspace centre ...".
+std::string format_event(const HapticEvent& e);
 // "t,event,x,y,z".
 void write_event_log(const std::string& path, const std::vector<HapticEvent>& events);
 

@@ -22,6 +22,8 @@ class TripleBuffer {
   // Reader: true when a buffer was published since the last update();
   // read_buffer() then holds the newest one. read_buffer() is the reader's
   // own until its next update().
+  // Whether update() would find a newer buffer (only the reader clears it).
+  bool fresh() const { return middle_.load(std::memory_order_acquire) & kFresh; }
   bool update() {
     if (!(middle_.load(std::memory_order_acquire) & kFresh)) return false;
     front_ = middle_.exchange(front_, std::memory_order_acq_rel) & kIndex;

@@ -21,6 +21,7 @@
 #include "tools/timing_json.h"
 #include "haptics/haptic_stage.h"
 #include "haptics/tick_stats.h"
+#include "engine/mesh/mesh_text.h"  // write_atomic
 
 namespace incise {
 
@@ -69,7 +70,7 @@ void finish_haptics(HapticLoop& loop, std::vector<TickRecord>& records, std::vec
                             {"clamped_ticks", st.clamped},
                             {"events", counts},
                             {"dropped", loop.dropped()}};
-  std::ofstream(file("haptics.json")) << j.dump(2) << "\n";
+  meshio::write_atomic(file("haptics.json"), j.dump(2) + "\n");
   std::printf("wrote %s, haptics_device.csv, haptics_events.csv, haptics.json\n", file("haptics_force.csv").c_str());
 }
 
@@ -124,16 +125,22 @@ void run(const RunOptions& o) {
   std::vector<FrameTiming> timings;
   timings.reserve(frames);
   Stopwatch wall, progress;
+  const std::string haptics_dir = !o.haptics_dir.empty() ? o.haptics_dir : out;
   for (int k = 0; k < frames; ++k) {
     if (pace > 0.0) std::this_thread::sleep_until(next);
-    FrameTiming t = advance_frame(*sim);
+    FrameTiming t;
+    try {
+      t = advance_frame(*sim);
+    } catch (...) {  // the hand's record of a run that failed is worth keeping
+      if (haptic) finish_haptics(*haptic, records, events, haptics_dir);
+      throw;
+    }
     next = std::max(next + period, clock::now());
     if (haptic) {
       haptic->drain(records, events);
       for (; events_shown < events.size() && events_shown < 20; ++events_shown)
-        std::fprintf(stderr, "haptics: t = %.3f s: %s at (%.4g, %.4g, %.4g)\n", events[events_shown].t,
-                     event_name(events[events_shown].kind), events[events_shown].value[0], events[events_shown].value[1],
-                     events[events_shown].value[2]);
+        std::fprintf(stderr, "haptics: %s%s\n", format_event(events[events_shown]).c_str(),
+                     events_shown == 19 ? " (further events: haptics_events.csv)" : "");
     }
     if (renderer) write_png(image, frame_png(o.render_dir, s.frame));
     timings.push_back(t);
@@ -145,7 +152,7 @@ void run(const RunOptions& o) {
     }
   }
   const double run_ms = wall.ms();
-  if (haptic) finish_haptics(*haptic, records, events, !o.haptics_dir.empty() ? o.haptics_dir : out);
+  if (haptic) finish_haptics(*haptic, records, events, haptics_dir);
   const TimingSummary summary = summarize(timings);
   std::printf("%d frames in %.1f ms (%.2fx real time); %d numeric factorizations\n", frames, run_ms,
               frames * sim->model.dt * 1000.0 / run_ms, sim->ws.refactorizations);

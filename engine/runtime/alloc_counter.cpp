@@ -1,5 +1,6 @@
 #include "engine/runtime/alloc_counter.h"
 
+#include <cstdint>
 #include <cstdlib>
 #include <new>
 
@@ -18,6 +19,7 @@ void* allocate(std::size_t size) {
 void* allocate_aligned(std::size_t size, std::align_val_t align) {
   ++t_allocations;
   const std::size_t a = static_cast<std::size_t>(align);
+  if (size > SIZE_MAX - a) throw std::bad_alloc();
   const std::size_t rounded = (size + a - 1) / a * a;  // aligned_alloc wants a multiple of the alignment
   if (void* p = std::aligned_alloc(a, rounded ? rounded : a)) return p;
   throw std::bad_alloc();

@@ -746,11 +746,13 @@ void parse_haptics(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("guard"); it != v.end()) {
     const std::string gp = at + ".guard";
     p.object(*it, gp);
-    p.allowed_keys(*it, gp, {"center", "workspace_radius", "max_speed", "reacquire"});
+    p.allowed_keys(*it, gp, {"center", "workspace_radius", "max_speed", "max_turn", "reacquire", "glide_speed"});
     if (auto c = it->find("center"); c != it->end()) h.center = p.vec3(*c, gp + ".center");
     if (auto c = it->find("workspace_radius"); c != it->end()) h.workspace_radius = p.positive(*c, gp + ".workspace_radius");
     if (auto c = it->find("max_speed"); c != it->end()) h.max_speed = p.positive(*c, gp + ".max_speed");
     if (auto c = it->find("reacquire"); c != it->end()) h.reacquire = p.nonnegative(*c, gp + ".reacquire");
+    if (auto c = it->find("max_turn"); c != it->end()) h.max_turn = p.positive(*c, gp + ".max_turn");
+    if (auto c = it->find("glide_speed"); c != it->end()) h.glide_speed = p.positive(*c, gp + ".glide_speed");
   }
 }
 

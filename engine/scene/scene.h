@@ -123,7 +123,9 @@ struct HapticsSpec {
   std::optional<Vec3> center;     // guard.center: workspace centre (default: the mesh's bounding-box centre)
   double workspace_radius = 1.0;  // guard.workspace_radius: farther readings are rejected, > 0
   double max_speed = 2.0;         // guard.max_speed: faster readings are a jump (units per second), > 0
+  double max_turn = 20.0;         // guard.max_turn: faster turns are a jump (rad/s), > 0
   double reacquire = 0.2;         // guard.reacquire: s of agreeing readings before a jump is taken back, >= 0
+  double glide_speed = 0.05;      // guard.glide_speed: how fast the tool goes to a reacquired reading (units/s), > 0
   bool realtime = true;           // ask for SCHED_FIFO (falls back, and says so, without the right)
 };
 

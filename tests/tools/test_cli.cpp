@@ -540,6 +540,7 @@ TEST_F(Cli, RunHapticsWritesTheForceLogAndTickStatistics) {
   const auto j = nlohmann::json::parse(js);
   EXPECT_EQ(j["ticks"].get<int>(), rows);
   EXPECT_EQ(j["allocations"].get<int>(), 0);
+  EXPECT_GT(j["force_max_n"].get<double>(), 0.1) << "the probe pressed the beam";
   EXPECT_LE(j["force_max_n"].get<double>(), 3.3 * (1 + 1e-12)) << "clamped to haptics.max_force";
   EXPECT_TRUE(fs::exists(path("h/haptics_device.csv")));
   EXPECT_TRUE(fs::exists(path("h/haptics_events.csv")));

@@ -903,6 +903,6 @@ TEST_F(SceneTest, HapticsErrorsNameTheKeyAndWhatIsAllowed) {
   expect_error(minimal(probe + R"("haptics": {"device": "openigtlink", "coupling": {"stiffness": -1}})"),
                "haptics.coupling.stiffness must be > 0, got -1");
   expect_error(minimal(probe + R"("haptics": {"device": "openigtlink", "guard": {"max_sped": 1}})"),
-               "haptics.guard.max_sped: unknown key; allowed: center, workspace_radius, max_speed, reacquire; did you mean "
-               "\"max_speed\"?");
+               "haptics.guard.max_sped: unknown key; allowed: center, workspace_radius, max_speed, max_turn, reacquire, "
+               "glide_speed; did you mean \"max_speed\"?");
 }
