@@ -95,6 +95,14 @@ void HapticLoop::drain(std::vector<TickRecord>& records, std::vector<HapticEvent
   events_.consume_all([&](const HapticEvent& e) { events.push_back(e); });
 }
 
+void HapticLoop::log_event(double t, HapticEventKind kind, const std::array<double, 3>& value) {
+  HapticEvent e;
+  e.t = t;
+  e.kind = kind;
+  e.value = value;
+  if (!events_.push(e)) dropped_.fetch_add(1, std::memory_order_relaxed);
+}
+
 void HapticLoop::run() {
   std::string where;
   if (stepping_cpu() < 0)
@@ -118,11 +126,8 @@ void HapticLoop::run() {
     // dropped (a force is only worth sending now) and the event logged.
     const long long behind = (woke - next) / period;
     if (behind >= 1) {
-      HapticEvent e;
-      e.t = 1e-9 * static_cast<double>(woke - t0_ns_);
-      e.kind = HapticEventKind::Overrun;
-      e.value = {1e-6 * static_cast<double>(woke - next), static_cast<double>(behind), 0.0};
-      if (!events_.push(e)) dropped_.fetch_add(1, std::memory_order_relaxed);
+      log_event(1e-9 * static_cast<double>(woke - t0_ns_), HapticEventKind::Overrun,
+                {1e-6 * static_cast<double>(woke - next), static_cast<double>(behind), 0.0});
       next += behind * period;
     }
     tick(1e-9 * static_cast<double>(woke - t0_ns_), 1e-9 * static_cast<double>(next - t0_ns_));
@@ -186,24 +191,14 @@ void HapticLoop::tick(double t, double deadline) {
   bool finite = true;
   for (double f : force) finite = finite && std::isfinite(f);
   if (!finite) {
-    HapticEvent e;
-    e.t = t;
-    e.kind = HapticEventKind::ForceNotFinite;
-    e.value = force;
-    if (!events_.push(e)) dropped_.fetch_add(1, std::memory_order_relaxed);
+    log_event(t, HapticEventKind::ForceNotFinite, force);
     force = spring = spring_prev_ = rel_velocity_ = {0.0, 0.0, 0.0};
     std::copy_n(current_->lambda0.begin(), current_->rows, lambda_current_.begin());
     std::copy_n(previous_.lambda0.begin(), previous_.rows, lambda_previous_.begin());
   }
   const double fn = std::sqrt(force[0] * force[0] + force[1] * force[1] + force[2] * force[2]);
   if (fn > force_limit_) {
-    if (!clamped_) {
-      HapticEvent e;
-      e.t = t;
-      e.kind = HapticEventKind::ForceClamped;
-      e.value = force;
-      if (!events_.push(e)) dropped_.fetch_add(1, std::memory_order_relaxed);
-    }
+    if (!clamped_) log_event(t, HapticEventKind::ForceClamped, force);
     for (double& f : force) f *= force_limit_ / fn;
   }
   clamped_ = fn > force_limit_;

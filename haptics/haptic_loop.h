@@ -114,6 +114,8 @@ class HapticLoop {
 
  private:
   void run();
+  // To the events queue, or counted as dropped when it is full.
+  void log_event(double t, HapticEventKind kind, const std::array<double, 3>& value);
   void refresh_poses() {
     if (poses_.update()) poses_read_ = poses_.read_buffer();
   }
