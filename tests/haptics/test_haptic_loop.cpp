@@ -116,7 +116,9 @@ TEST(HapticLoop, DeadlinesStayWholePeriodsFromTheStartAfterAStall) {
     if (prev > 0.0) skipped += static_cast<int>(std::lround((r.deadline - prev) * 1000.0)) - 1;
     prev = r.deadline;
   }
-  EXPECT_GE(skipped, 3) << "the stall's missed deadlines were skipped";
+  // The stalled tick ends 3.5 ms after its deadline D: D + 1 and D + 2 are
+  // past, D + 3 is not yet (the loop wakes at once and runs it 0.5 ms late).
+  EXPECT_GE(skipped, 2) << "the stall's missed deadlines were skipped";
   int overruns = 0;
   for (const HapticEvent& e : b.events) overruns += e.kind == HapticEventKind::Overrun;
   EXPECT_GE(overruns, 1);
