@@ -45,14 +45,16 @@ void fill_contact_model(const Simulation& sim, int tool, double k, HapticContact
     double wl = 0.0;
     for (int b = 0; b < n; ++b) wl += sim.ws.contact_W[static_cast<size_t>(i) * r + pick[b]] * c.lambda[pick[b]];
     // The tool's rows left out (friction, beyond kMaxHapticRows) keep their
-    // lambda0; through the spring they still move this row's gap.
+    // lambda0; through the spring they still move this row's gap: the pull
+    // of all the tool's rows less that of the picked ones.
     double held = 0.0;
-    for (int j = 0; j < r; ++j) {
-      if (c.tool[j] != tool) continue;
-      bool picked = false;
-      for (int b = 0; b < n && !picked; ++b) picked = pick[b] == j;
-      if (!picked) held += (d[0] * c.dir[3 * j] + d[1] * c.dir[3 * j + 1] + d[2] * c.dir[3 * j + 2]) * c.lambda[j] / k;
+    for (int j = 0; j < r; ++j)
+      if (c.tool[j] == tool) held += (d[0] * c.dir[3 * j] + d[1] * c.dir[3 * j + 1] + d[2] * c.dir[3 * j + 2]) * c.lambda[j];
+    for (int b = 0; b < n; ++b) {
+      const int j = pick[b];
+      held -= (d[0] * c.dir[3 * j] + d[1] * c.dir[3 * j + 1] + d[2] * c.dir[3 * j + 2]) * c.lambda[j];
     }
+    held /= k;
     out.q0[a] = s + d[0] * out.x0[0] + d[1] * out.x0[1] + d[2] * out.x0[2] - wl + held;
     for (int q = 0; q < 3; ++q) {
       out.D[3 * a + q] = d[q];

@@ -147,7 +147,7 @@ void HapticLoop::tick(double t, double deadline) {
   HapticEvent ev;
   bool has_event = false;
   const ToolPose& pose = guard_.filter(t, mapped, rec.have_reading && rec.raw.fresh, &ev, &has_event);
-  if (has_event && !events_.push(ev)) dropped_.fetch_add(1, std::memory_order_relaxed);
+  if (has_event) log_event(ev.t, ev.kind, ev.value);
 
   // A new model only after the last blend ended: blending from a blend would jump.
   if (blend_left_ == 0 && models_.fresh()) {
