@@ -9,12 +9,16 @@ namespace incise {
 
 std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path,
                                                     const std::vector<ScenePatch>& patches) {
-  auto sim = load_simulation(scene_path, patches);
+  return load_checked_simulation(load_scene(scene_path, patches));
+}
+
+std::unique_ptr<Simulation> load_checked_simulation(Scene scene) {
+  auto sim = load_simulation(std::move(scene));
   for (const CutSpec& c : sim->scene.cuts) {
     try {
       make_cut_surface(c, c.at_time + c.duration);
     } catch (const Error& e) {
-      throw Error(scene_path + ": " + e.what());
+      throw Error(sim->scene.path + ": " + e.what());
     }
   }
   install_instrument_stage(*sim);  // before collision and cutting: they read sim.tools

@@ -22,6 +22,9 @@
 #include "haptics/haptic_stage.h"
 #include "haptics/tick_stats.h"
 #include "engine/mesh/mesh_text.h"  // write_atomic
+#include "tools/frame_outputs.h"
+#include "tools/progress_bar.h"
+#include "tools/record_stage.h"
 
 namespace incise {
 
@@ -35,6 +38,8 @@ struct RunOptions {
   bool haptics = false;              // --haptics: the scene's device on its 1 kHz thread
   std::string haptics_dir;           // where the haptic logs go (default: --out, output.dir, else .)
   double pace_hz = -1.0;             // frames started at this rate; < 0: 1/dt with --haptics, else back to back
+  std::string record;                // --record F: a replay file (docs/replay.md)
+  int record_states = 30;            // --record-states N: a State snapshot every N frames
 };
 
 // The haptic run's logs and figures (haptics/tick_stats.h), into `dir`.
@@ -74,43 +79,30 @@ void finish_haptics(HapticLoop& loop, std::vector<TickRecord>& records, std::vec
   std::printf("wrote %s, haptics_device.csv, haptics_events.csv, haptics.json\n", file("haptics_force.csv").c_str());
 }
 
-
-std::string frame_png(const std::string& dir, int frame) {
-  char name[32];
-  std::snprintf(name, sizeof name, "frame_%05d.png", frame);
-  return (std::filesystem::path(dir) / name).string();
-}
-
 void run(const RunOptions& o) {
   auto sim = load_checked_simulation(o.scene, o.patches);
   const State& s = sim->state;
   print_model_summary(*sim);
   const int frames = o.frames > 0 ? o.frames : sim->scene.frames;
   const std::string out = !o.out.empty() ? o.out : sim->scene.output.dir;
-  std::unique_ptr<PvdSeries> series;
-  if (!out.empty() && sim->scene.output.write_vtu) {
-    std::filesystem::create_directories(out);
-    const std::string stem = std::filesystem::path(o.scene).stem().string();
-    series = std::make_unique<PvdSeries>((std::filesystem::path(out) / (stem + ".pvd")).string());
-    series->add(0.0, result_grid(sim->model, s));
-  }
-  std::unique_ptr<Renderer> renderer;
-  Image image;
-  if (!o.render_dir.empty()) {
-    std::filesystem::create_directories(o.render_dir);
-    renderer = make_renderer(sim->scene.render, o.platform);
-    write_png(render_frame(*renderer, *sim), frame_png(o.render_dir, 0));
-    install_render_stage(*sim, *renderer, &image);
-  }
+  FrameOutputs outputs(*sim, std::filesystem::path(o.scene).stem().string(), out, o.render_dir, o.platform);
   std::shared_ptr<HapticLoop> haptic;
   if (o.haptics) {
     haptic = install_haptics(*sim);
     if (!haptic) std::printf("haptics: %s declares no haptic device (\"haptics\"): no haptic thread\n", o.scene.c_str());
   }
+  // After the haptics: the replay keeps the coupling compliance they set.
+  std::shared_ptr<ReplayWriter> record;
+  if (!o.record.empty()) record = install_record_stage(*sim, o.record, o.patches, o.record_states, frames);
   const double pace = o.pace_hz >= 0.0 ? o.pace_hz : haptic ? 1.0 / sim->model.dt : 0.0;
   std::vector<TickRecord> records;
   std::vector<HapticEvent> events;
   size_t events_shown = 0;
+  size_t ticks_recorded = 0;
+  const auto record_drained_ticks = [&] {
+    if (record) record_ticks(*record, records, ticks_recorded, s.frame);
+    ticks_recorded = records.size();
+  };
   if (haptic) {
     records.reserve(static_cast<size_t>(frames * sim->model.dt * haptic->settings().rate_hz * 1.1) + 64);
     haptic->start();
@@ -124,50 +116,55 @@ void run(const RunOptions& o) {
   auto next = clock::now();
   std::vector<FrameTiming> timings;
   timings.reserve(frames);
-  Stopwatch wall, progress;
+  Stopwatch wall;
+  ProgressBar progress(frames, sim->model.dt);
   const std::string haptics_dir = !o.haptics_dir.empty() ? o.haptics_dir : out;
   for (int k = 0; k < frames; ++k) {
     if (pace > 0.0) std::this_thread::sleep_until(next);
     FrameTiming t;
     try {
       t = advance_frame(*sim);
-    } catch (...) {  // the hand's record of a run that failed is worth keeping
+    } catch (const std::exception& e) {  // the hand's record and the replay of a run that failed are worth keeping
+      progress.finish();
       if (haptic) finish_haptics(*haptic, records, events, haptics_dir);
+      if (record) {
+        record_drained_ticks();
+        record->finish("failed in frame " + std::to_string(s.frame + 1) + ": " + e.what());
+        std::printf("wrote %s (%d frames, up to the failure)\n", record->path().c_str(), record->frames());
+      }
       throw;
     }
     next = std::max(next + period, clock::now());
     if (haptic) {
       haptic->drain(records, events);
+      record_drained_ticks();
       for (; events_shown < events.size() && events_shown < 20; ++events_shown)
         std::fprintf(stderr, "haptics: %s%s\n", format_event(events[events_shown]).c_str(),
                      events_shown == 19 ? " (further events: haptics_events.csv)" : "");
     }
-    if (renderer) write_png(image, frame_png(o.render_dir, s.frame));
+    outputs.after_frame(*sim);
     timings.push_back(t);
-    if (series && s.frame % sim->scene.output.every == 0) series->add(s.time, result_grid(sim->model, s));
-    if (progress.ms() > 1000.0 || k + 1 == frames) {
-      std::fprintf(stderr, "frame %d/%d  t = %.3f s  %.2f ms/frame  %d DOF\n", k + 1, frames, s.time,
-                   timings.back().frame_ms, sim->model.ndof());
-      progress.lap();
-    }
+    progress.update(k + 1);
   }
+  progress.finish();
   const double run_ms = wall.ms();
   if (haptic) finish_haptics(*haptic, records, events, haptics_dir);
+  if (record) {
+    record_drained_ticks();
+    record->finish("");
+    std::printf("wrote %s: %d frames, %.1f KB (%.2f KB per frame)\n", record->path().c_str(), record->frames(),
+                record->bytes() / 1024.0, record->bytes() / 1024.0 / std::max(1, record->frames()));
+  }
   const TimingSummary summary = summarize(timings);
   std::printf("%d frames in %.1f ms (%.2fx real time); %d numeric factorizations\n", frames, run_ms,
               frames * sim->model.dt * 1000.0 / run_ms, sim->ws.refactorizations);
   std::printf("%s", format_summary(summary).c_str());
-  if (renderer) {
-    std::printf("wrote %d frames %s\n", frames + 1, frame_png(o.render_dir, 0).c_str());
-    const std::string video = encode_mp4(o.render_dir, 1.0 / sim->model.dt);
-    std::printf("%s\n", video.empty() ? "no ffmpeg on PATH: no video (PNG frames only)" : ("wrote " + video).c_str());
-  }
+  outputs.finish(frames, 1.0 / sim->model.dt);
   if (!out.empty()) {
     std::filesystem::create_directories(out);
     const std::string json = (std::filesystem::path(out) / "timing.json").string();
     write_timing_json(json, *sim, summary, &timings);
-    std::printf("wrote %s%s\n", series ? (series->files().size() ? (out + "/*.vtu + .pvd, ").c_str() : "") : "",
-                json.c_str());
+    std::printf("wrote %s%s\n", outputs.writes_series() ? (out + "/*.vtu + .pvd, ").c_str() : "", json.c_str());
   }
 }
 }  // namespace
@@ -186,6 +183,13 @@ void add_run_command(CLI::App& app) {
                 "haptics_force.csv (t,fx,fy,fz,tick_us,late_us), haptics_device.csv, haptics_events.csv, haptics.json");
   cmd->add_option("--haptics-dir", opts->haptics_dir, "Folder for the haptic logs (default: --out, else output.dir, else .)");
   cmd->add_option("--pace", opts->pace_hz, "Start frames at this rate in Hz (default: 1/dt with --haptics, else back to back; 0: back to back)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--record", opts->record,
+                  "Record the run to a replay file F (the scene, every instrument pose and device sample, the "
+                  "clock's solver choices, the State's hash after every frame): incise replay F --verify");
+  cmd->add_option("--record-states", opts->record_states,
+                  "With --record: a full State snapshot every N frames (default 30; 0: only the last), for "
+                  "replay --tolerance and for naming the largest difference")
       ->check(CLI::NonNegativeNumber);
   add_set_option(*cmd, opts->patches);
   cmd->callback([opts] { run(*opts); });

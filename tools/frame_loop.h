@@ -19,5 +19,7 @@ namespace incise {
 // `patches`: command-line overrides of scene keys (load_scene).
 std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path,
                                                     const std::vector<ScenePatch>& patches = {});
+// The same from a scene already parsed (parse_scene).
+std::unique_ptr<Simulation> load_checked_simulation(Scene scene);
 
 }  // namespace incise

@@ -9,18 +9,13 @@
 #include "engine/model/model.h"
 #include "engine/fem/polar.h"
 #include "engine/util/error.h"
+#include "engine/util/fnv.h"
 
 namespace incise {
 
 namespace {
 
-constexpr std::uint64_t kFnvOffset = 1469598103934665603ULL, kFnvPrime = 1099511628211ULL;
-
-std::uint64_t fnv(const void* data, size_t bytes, std::uint64_t h = kFnvOffset) {
-  const unsigned char* p = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * kFnvPrime;
-  return h;
-}
+std::uint64_t fnv(const void* data, size_t bytes, std::uint64_t h = kFnvOffset) { return fnv1a(data, bytes, h); }
 
 std::uint64_t fnv(const std::vector<double>& x, std::uint64_t h = kFnvOffset) {
   const std::uint64_t n = x.size();

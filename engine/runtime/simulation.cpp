@@ -8,9 +8,13 @@
 namespace incise {
 
 std::unique_ptr<Simulation> load_simulation(const std::string& scene_path, const std::vector<ScenePatch>& patches) {
+  return load_simulation(load_scene(scene_path, patches));
+}
+
+std::unique_ptr<Simulation> load_simulation(Scene scene) {
   Stopwatch clock;
   auto sim = std::make_unique<Simulation>();
-  sim->scene = load_scene(scene_path, patches);
+  sim->scene = std::move(scene);
   sim->mesh = read_mesh(sim->scene.mesh_file);
   sim->model = build_model(sim->mesh, sim->scene);
   sim->ws.runtime = sim->scene.runtime;

@@ -46,6 +46,8 @@ struct Simulation {
 // pipeline holds the dynamics stages only (modules plug in theirs). Throws
 // incise::Error with the file (or patch) and field at fault.
 std::unique_ptr<Simulation> load_simulation(const std::string& scene_path, const std::vector<ScenePatch>& patches = {});
+// The same from a scene already parsed (a replay's embedded scene: parse_scene).
+std::unique_ptr<Simulation> load_simulation(Scene scene);
 
 // One frame through sim.pipeline.
 inline FrameTiming advance_frame(Simulation& sim) { return sim.pipeline.run_frame(sim); }

@@ -58,6 +58,7 @@ struct FrameTiming {
   bool converged = true;      // CG reached solver.tolerance within solver.max_iterations
   int rescues = 0;            // lagged: synchronous refactorizations after solver.rescue_after CG iterations
   int factor_age = 0;         // lagged: frames since the matrix of the preconditioning factor (last Newton iteration)
+  int late_factor_call = -1;  // late_factor "skip": the lagged refresh call (0, 1, ...) that took a finished background factor; -1 none (Workspace::imposed_late_factor_call)
   int patch_dofs = 0;         // lagged after cuts: DOFs of the exactly solved patch (0: none)
   int tangent_updates = 0;    // elements whose tangent blocks were (re)computed (all but the kept ones: integrator.tangent_reuse)
   // Instruments (collision/, engine/dynamics/contact_solve.h).

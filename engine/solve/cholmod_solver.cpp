@@ -401,6 +401,7 @@ void CholmodSolver::release() {
   work_y_.clear();
   work_w_.clear();
   work_y2_.clear();
+  work_y3_.clear();
   split_ = SubstitutionSplit{};
 }
 
@@ -576,6 +577,7 @@ void CholmodSolver::prepare_workspace() {
   }
   if (substitutes_on_two_threads() && work_y2_.size() != static_cast<size_t>(n_)) {
     work_y2_.assign(n_, 0.0);
+    work_y3_.assign(n_, 0.0);
     work_w2_.assign(work_w_.size(), 0.0);
     work_top_.assign(split_.top_cols.size(), 0.0);
   }
@@ -586,17 +588,15 @@ void CholmodSolver::prepare_workspace() {
 // alone. Forward: the worker's bin updates its copy y2, whose bin columns are
 // copied back and whose top rows are merged as y += y2 - y0; then the top.
 // Backward: the top first, then both bins. When the worker makes no progress
-// for kWorkerStallMs this thread does the worker's bin on y itself (the
-// one-thread result to roundoff: the top rows get bin 0's updates, then bin
-// 1's); while a bin it gave up on still runs, substitutions stay on this thread.
+// for kWorkerStallMs this thread does the worker's bin itself, and while a
+// bin it gave up on still runs, all of them: on its own copy y3, from the
+// same start values and merged the same way, so the result is the same to
+// the bit whoever did the bin (a replay depends on it: docs/replay.md).
 template <class T>
 void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x) {
   SubstitutionWorker& worker = *worker_;
-  if (worker.busy()) {  // a bin given up on still runs on y2
-    supernodal_substitute(L_, Lx, inv_scale, n_, b, x, work_y_.data(), work_w_.data());
-    return;
-  }
-  left_running_ = false;
+  const bool worker_free = !worker.busy();  // else a bin given up on still runs on y2
+  if (worker_free) left_running_ = false;
   ++stats_.split_substitutions;
   const SubstitutionSplit& sp = split_;
   const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
@@ -605,24 +605,35 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   for (int k = 0; k < n_; ++k) y[k] = b[Perm[k]];
   const size_t ntop = sp.top_cols.size();
   for (size_t i = 0; i < ntop; ++i) y0_top[i] = y[sp.top_cols[i]];
-  std::memcpy(y2, y, sizeof(double) * n_);
-  job_.L = L_;
-  job_.Lx = Lx;
-  job_.inv_scale = inv_scale;
-  job_.sp = &sp;
-  job_.y2 = y2;
-  job_.w2 = work_w2_.data();
-  job_.progress.store(0, std::memory_order_relaxed);
-  bool started = worker.try_start(&worker_forward<T>, &job_);
-  forward_bin(F, sp, 0, y, w);
-  if (started && worker.await(job_.progress, kWorkerStallMs)) {
-    copy_bin_columns(L_, sp, 1, y2, y);
-    for (size_t i = 0; i < ntop; ++i) y[sp.top_cols[i]] += y2[sp.top_cols[i]] - y0_top[i];
-  } else {
-    ++stats_.takeovers;
-    left_running_ = worker.busy();
-    forward_bin(F, sp, 1, y, w);  // the top rows gain bin 1's updates directly
+  bool started = false;
+  if (worker_free) {
+    std::memcpy(y2, y, sizeof(double) * n_);
+    job_.L = L_;
+    job_.Lx = Lx;
+    job_.inv_scale = inv_scale;
+    job_.sp = &sp;
+    job_.y2 = y2;
+    job_.w2 = work_w2_.data();
+    job_.progress.store(0, std::memory_order_relaxed);
+    started = worker.try_start(&worker_forward<T>, &job_);
   }
+  forward_bin(F, sp, 0, y, w);
+  const double* y1 = y2;  // where bin 1's forward result is
+  if (!(started && worker.await(job_.progress, kWorkerStallMs))) {
+    if (started) {
+      ++stats_.takeovers;
+      left_running_ = worker.busy();
+    }
+    // Bin 1 on y3 from the worker's start values: its own columns (bin 0 left
+    // them untouched in y) and the top rows as they were.
+    double* y3 = work_y3_.data();
+    copy_bin_columns(L_, sp, 1, y, y3);
+    for (size_t i = 0; i < ntop; ++i) y3[sp.top_cols[i]] = y0_top[i];
+    forward_bin(F, sp, 1, y3, w);
+    y1 = y3;
+  }
+  copy_bin_columns(L_, sp, 1, y1, y);
+  for (size_t i = 0; i < ntop; ++i) y[sp.top_cols[i]] += y1[sp.top_cols[i]] - y0_top[i];
   for (int sn : sp.top) forward_supernode(F, sn, y, w);
   for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
   started = false;

@@ -136,11 +136,12 @@ class CholmodSolver {
   // worker (not owned; null = one thread), over the split of the current
   // analysis (engine/solve/split_substitution.h). Results equal the one-thread
   // substitution's to roundoff (the top rows add the two bins' updates in
-  // another order). A factor whose tree does not split stays on one thread.
+  // another order), and are the same to the bit whichever thread did which
+  // bin. A factor whose tree does not split stays on one thread.
   // This thread never waits for a worker that makes no progress: after
   // kWorkerStallMs without any it does the worker's bin itself (counted in
   // FactorStats::takeovers), and while a bin it gave up on still runs on
-  // the worker, its substitutions stay on one thread; this object waits for
+  // the worker, it does both bins itself; this object waits for
   // it before its factor, copies or buffers change, and in its destructor.
   // So a worker must outlive the solvers it was given to, or be taken from
   // them first (set_substitution_worker(nullptr)).
@@ -172,6 +173,7 @@ class CholmodSolver {
   SubstitutionWorker* worker_ = nullptr;   // set_substitution_worker
   SubstitutionSplit split_;                // of the current analysis
   std::vector<double> work_y2_, work_w2_, work_top_;  // the worker's y copy and gather, the top rows' start values
+  std::vector<double> work_y3_;  // (n) this thread's copy for the worker's bin when it does it itself
   // What the worker's bin reads (here, not on the caller's stack: a bin
   // given up on may run after the call returned).
   SplitJob job_;

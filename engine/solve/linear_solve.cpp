@@ -253,6 +253,8 @@ void launch_job(const Model& m, Workspace& ws, int frame) {
 void lagged_refresh(const Model& m, Workspace& ws, int frame) {
   auto& w = ws.work;
   const int f = frame, k = m.solver.refresh_every;
+  const int call = ws.refresh_frame == f ? ++ws.refresh_calls : (ws.refresh_calls = 0);
+  ws.refresh_frame = f;
   if (!ws.factor_current) {  // first frame, or the factor was invalidated
     w.wait_job();
     w.job_running = false;
@@ -270,8 +272,17 @@ void lagged_refresh(const Model& m, Workspace& ws, int frame) {
     // late_factor "wait" (deterministic): a job started k frames ago is taken
     // now, waiting if it is late, so replays give the same states. "skip":
     // a late job is taken in the first frame it has finished in; no stall,
-    // but the trajectory then depends on the machine's speed.
-    if (w.job_running && f - w.job_frame >= k && (!m.solver.skip_late_factor || w.job_done)) take_job(ws);
+    // but the trajectory then depends on the machine's speed, so the choice
+    // is reported (timing.late_factor_call) and a replay imposes it.
+    if (w.job_running && f - w.job_frame >= k) {
+      bool take = true;
+      if (m.solver.skip_late_factor) {
+        const int imposed = ws.imposed_late_factor_call;
+        take = imposed == Workspace::kClockDecides ? w.job_done.load() : imposed == call;
+        if (take) ws.timing.late_factor_call = call;
+      }
+      if (take) take_job(ws);
+    }
     if (!w.job_running && f - w.last_launch >= k) launch_job(m, ws, f);
   }
 }

@@ -49,6 +49,14 @@ struct Workspace {
   std::vector<double> contact_h, contact_z;  // (ndof) scratch of the contact kinematics (project_contact_kinematics)
 
   FrameTiming timing;           // the last (or current) frame
+  // late_factor "skip": whether a finished background factor is taken is the
+  // clock's choice (engine/solve/linear_solve.cpp, lagged_refresh), recorded
+  // in timing.late_factor_call. A replay (tools/cmd_replay.cpp) imposes the
+  // recorded choice before each frame instead: the lagged refresh call of the
+  // frame (0, 1, ...) that takes it, -1 none; kClockDecides: the clock.
+  static constexpr int kClockDecides = -2;
+  int imposed_late_factor_call = kClockDecides;
+  int refresh_frame = -1, refresh_calls = 0;  // lagged refresh calls in frame refresh_frame
   int refactorizations = 0;     // numeric factorizations so far
   int rotation_fallbacks = 0;   // SVD fallbacks in the last frame (inverted points)
   double last_residual = 0.0;      // relative residual of the last Newton iteration

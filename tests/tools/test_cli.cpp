@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/tools/cli_test_util.h"
 #include "tests/tools/temp_dir_test.h"
 #include <nlohmann/json.hpp>
 
@@ -20,21 +21,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int code;
-  std::string out;
-};
-
-Result incise(const std::string& args) {
-  const fs::path log = fs::temp_directory_path() / ("incise_cli_" + std::to_string(::getpid()) + ".log");
-  const std::string cmd = std::string(INCISE_BINARY) + " " + args + " > " + log.string() + " 2>&1";
-  const int status = std::system(cmd.c_str());
-  std::ifstream is(log);
-  std::stringstream ss;
-  ss << is.rdbuf();
-  fs::remove(log);
-  return {WEXITSTATUS(status), ss.str()};
-}
+using incise::test::incise;
+using incise::test::Result;
 
 class Cli : public incise::test::TempDirTest {
  protected:
