@@ -4,7 +4,18 @@
 #include <cstdio>
 #include <thread>
 
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+
 #include "engine/runtime/simulation.h"
+#include "engine/util/error.h"
+#include "haptics/haptic_stage.h"
+#include "tools/haptics_report.h"
+#include "tools/record_stage.h"
 #include "render/render_stage.h"
 #include "engine/runtime/timing_stats.h"
 #include "tools/commands.h"
@@ -18,13 +29,39 @@ namespace incise {
 namespace {
 struct BenchOptions {
   std::string scene, json, trace;
+  std::string plot;    // --plot F.png: tools/scripts/plot-budget.py over the JSON
+  std::string record;  // --record F: the record stage timed, the replay written
+  bool haptics = false;
   int frames = 100, warmup = 0;
   double bandwidth_gbs = 11.0;
-  double pace_hz = 0.0;  // start frames at this rate (a real-time loop); 0 = back to back
+  double pace_hz = -1.0;  // start frames at this rate (a real-time loop); 0 = back to back; < 0: 1/dt with --haptics, else 0
   std::vector<ScenePatch> patches;  // --set and the solver flags, in order
   bool render = false;  // the render stage is 0 unless asked for
   std::string platform;
 };
+
+// The plot script: INCISE_PLOT_SCRIPT, else the source tree's.
+std::string plot_script() {
+  const char* env = std::getenv("INCISE_PLOT_SCRIPT");
+  return env && *env ? env : INCISE_SCRIPTS_DIR "/plot-budget.py";
+}
+
+void draw_plot(const std::string& json, const std::string& png) {
+  const std::string script = plot_script();
+  if (!std::filesystem::is_regular_file(script))
+    throw Error("--plot: the plot script " + script + " is missing (set INCISE_PLOT_SCRIPT); " + json + " was written");
+  // Debian's python3 (where python3-matplotlib lives) before another on PATH; INCISE_PYTHON overrides.
+  const char* py_env = std::getenv("INCISE_PYTHON");
+  const std::string python = py_env && *py_env                                   ? py_env
+                             : std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3"
+                                                                                 : "python3";
+  const std::string cmd = python + " '" + script + "' '" + json + "' '" + png + "'";
+  const int rc = std::system(cmd.c_str());
+  if (rc != 0)
+    throw Error("--plot: " + cmd + " failed (exit " + std::to_string(WEXITSTATUS(rc)) +
+                "; it needs python3 and matplotlib: apt-get install python3-matplotlib); " + json + " was written");
+  std::printf("wrote %s\n", png.c_str());
+}
 
 void bench(const BenchOptions& o) {
   auto sim = load_checked_simulation(o.scene, o.patches);
@@ -32,6 +69,20 @@ void bench(const BenchOptions& o) {
   std::unique_ptr<Renderer> renderer = o.render ? make_renderer(sim->scene.render, o.platform) : nullptr;
   Image image;
   if (renderer) install_render_stage(*sim, *renderer, &image);
+  std::shared_ptr<HapticLoop> haptic;
+  if (o.haptics) {
+    haptic = install_haptics(*sim);
+    if (!haptic) std::printf("haptics: %s declares no haptic device (\"haptics\"): no haptic thread\n", o.scene.c_str());
+  }
+  std::shared_ptr<ReplayWriter> record;
+  if (!o.record.empty()) record = install_record_stage(*sim, o.record, o.patches, 30, o.warmup + o.frames);
+  const double pace_hz = o.pace_hz >= 0.0 ? o.pace_hz : haptic ? 1.0 / sim->model.dt : 0.0;
+  std::vector<TickRecord> records;
+  std::vector<HapticEvent> events;
+  if (haptic) {
+    records.reserve(static_cast<size_t>((o.warmup + o.frames) * sim->model.dt * haptic->settings().rate_hz * 1.5) + 64);
+    haptic->start();
+  }
   std::vector<FrameTiming> timings;
   timings.reserve(o.frames);
   // Paced: a frame starts every 1/pace_hz s, or at once after one that ran
@@ -40,22 +91,51 @@ void bench(const BenchOptions& o) {
   // preparation) then has the rest of each period, as it would in the loop.
   using clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<clock::duration>(
-      std::chrono::duration<double>(o.pace_hz > 0 ? 1.0 / o.pace_hz : 0.0));
+      std::chrono::duration<double>(pace_hz > 0 ? 1.0 / pace_hz : 0.0));
   auto next = clock::now();
-  if (o.pace_hz > 0) std::printf("frames started at %.4g Hz (the rest of each period is idle for background work)\n", o.pace_hz);
+  if (pace_hz > 0) std::printf("frames started at %.4g Hz (the rest of each period is idle for background work)\n", pace_hz);
+  size_t ticks_recorded = 0;
   for (int k = 0; k < o.warmup + o.frames; ++k) {
-    if (o.pace_hz > 0) std::this_thread::sleep_until(next);
+    if (pace_hz > 0) std::this_thread::sleep_until(next);
     FrameTiming t = advance_frame(*sim);
     next = std::max(next + period, clock::now());
     if (k >= o.warmup) timings.push_back(t);
+    if (haptic) {
+      if (k < o.warmup) records.clear();  // the ticks of timed frames only
+      haptic->drain(records, events);
+      if (record) record_ticks(*record, records, ticks_recorded, sim->state.frame);
+      ticks_recorded = records.size();
+    }
+  }
+  nlohmann::json extra = nlohmann::json::object();
+  if (haptic) {
+    extra["haptics"] = finish_haptic_loop(*haptic, records, events);
+    nlohmann::json& ticks = extra["haptic_ticks"];  // the plot's second panel
+    ticks["t"] = nlohmann::json::array();
+    ticks["period_ms"] = nlohmann::json::array();
+    for (size_t i = 1; i < records.size(); ++i) {
+      ticks["t"].push_back(records[i].t);
+      ticks["period_ms"].push_back(1e3 * (records[i].t - records[i - 1].t));
+    }
+  }
+  if (record) {
+    if (haptic) record_ticks(*record, records, ticks_recorded, sim->state.frame);
+    record->finish("");
+    std::printf("wrote %s (%d frames, %.2f KB per frame)\n", record->path().c_str(), record->frames(),
+                record->bytes() / 1024.0 / std::max(1, record->frames()));
   }
   const TimingSummary s = summarize(timings);
   std::printf("%s", format_summary(s).c_str());
   std::printf("%s", format_solver_report(solver_report(*sim, timings, s, o.bandwidth_gbs)).c_str());
-  if (!o.json.empty()) {
-    write_timing_json(o.json, *sim, s, &timings, o.bandwidth_gbs, o.pace_hz);
-    std::printf("wrote %s\n", o.json.c_str());
+  std::printf("peak resident memory %.0f MB\n", peak_rss_mb());
+  const std::string json = !o.json.empty() ? o.json
+                           : !o.plot.empty() ? std::filesystem::path(o.plot).replace_extension(".json").string()
+                                             : std::string();
+  if (!json.empty()) {
+    write_timing_json(json, *sim, s, &timings, o.bandwidth_gbs, pace_hz, extra);
+    std::printf("wrote %s\n", json.c_str());
   }
+  if (!o.plot.empty()) draw_plot(json, o.plot);
   if (!o.trace.empty()) {
     write_frame_trace(o.trace, timings, o.warmup + 1);
     std::printf("wrote %s\n", o.trace.c_str());
@@ -74,9 +154,15 @@ void add_bench_command(CLI::App& app) {
                   "Memory bandwidth (GB/s) for the one-substitution limit the frame time is compared with")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--pace", opts->pace_hz,
-                  "Start frames at this rate in Hz, as the 30 Hz loop does (0: back to back, the default); background "
-                  "work gets the rest of each period")
+                  "Start frames at this rate in Hz, as the 30 Hz loop does (0: back to back; default: 1/dt with "
+                  "--haptics, else 0); background work gets the rest of each period")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--plot", opts->plot,
+                  "Draw the frame budget to F.png (stages stacked per frame, the 33.3 ms line, cut frames, the haptic "
+                  "tick period) with tools/scripts/plot-budget.py (python3-matplotlib); the JSON goes to --json or F.json");
+  cmd->add_flag("--haptics", opts->haptics,
+                "Run the scene's haptic device on its 1 kHz thread (frames paced at 1/dt) and report its tick statistics");
+  cmd->add_option("--record", opts->record, "Record the run to a replay file F, timing the record stage (incise replay F)");
   cmd->add_option("--trace", opts->trace, "Write one CSV row per timed frame: stages, cutting parts, CG iterations");
   add_set_option(*cmd, opts->patches);
   add_solver_aliases(*cmd, opts->patches);

@@ -23,6 +23,7 @@
 #include "haptics/tick_stats.h"
 #include "engine/mesh/mesh_text.h"  // write_atomic
 #include "tools/frame_outputs.h"
+#include "tools/haptics_report.h"
 #include "tools/progress_bar.h"
 #include "tools/record_stage.h"
 
@@ -45,36 +46,12 @@ struct RunOptions {
 // The haptic run's logs and figures (haptics/tick_stats.h), into `dir`.
 void finish_haptics(HapticLoop& loop, std::vector<TickRecord>& records, std::vector<HapticEvent>& events,
                     const std::string& dir) {
-  loop.stop();
-  loop.drain(records, events);
-  const TickStats st = summarize_ticks(records, loop.force_limit());
-  std::printf("%s", format_tick_stats(st).c_str());
-  if (loop.dropped() > 0)
-    std::printf("haptics: %llu records or events dropped (the main loop drained too late)\n",
-                static_cast<unsigned long long>(loop.dropped()));
-  std::map<std::string, int> counts;
-  for (const HapticEvent& e : events) ++counts[event_name(e.kind)];
-  for (const auto& [name, n] : counts) std::printf("haptics: %d %s event%s\n", n, name.c_str(), n == 1 ? "" : "s");
+  const nlohmann::json j = finish_haptic_loop(loop, records, events);
   if (!dir.empty()) std::filesystem::create_directories(dir);
   const auto file = [&](const char* name) { return (std::filesystem::path(dir.empty() ? "." : dir) / name).string(); };
   write_force_log(file("haptics_force.csv"), records);
   write_device_stream(file("haptics_device.csv"), records);
   write_event_log(file("haptics_events.csv"), events);
-  const nlohmann::json j = {{"device", loop.device().describe()},
-                            {"scheduling", loop.scheduling()},
-                            {"rate_hz", loop.settings().rate_hz},
-                            {"force_limit_n", loop.force_limit()},
-                            {"ticks", st.ticks},
-                            {"period_ms", {{"median", st.period_median_ms}, {"p99", st.period_p99_ms}, {"max", st.period_max_ms}}},
-                            {"late_us", {{"median", st.late_median_us}, {"p99", st.late_p99_us}, {"max", st.late_max_us}}},
-                            {"late_over_0_5_ms", st.late_over_half_ms},
-                            {"compute_us", {{"median", st.compute_median_us}, {"p99", st.compute_p99_us}, {"max", st.compute_max_us}}},
-                            {"allocations", st.allocations},
-                            {"force_max_n", st.force_max},
-                            {"force_jump_max_n", st.jump_max},
-                            {"clamped_ticks", st.clamped},
-                            {"events", counts},
-                            {"dropped", loop.dropped()}};
   meshio::write_atomic(file("haptics.json"), j.dump(2) + "\n");
   std::printf("wrote %s, haptics_device.csv, haptics_events.csv, haptics.json\n", file("haptics_force.csv").c_str());
 }

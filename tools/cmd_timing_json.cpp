@@ -1,3 +1,5 @@
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
@@ -10,8 +12,15 @@
 
 namespace incise {
 
+double peak_rss_mb() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return ru.ru_maxrss / 1024.0;  // Linux: KB
+}
+
 void write_timing_json(const std::string& path, const Simulation& sim, const TimingSummary& s,
-                       const std::vector<FrameTiming>* frames, double bandwidth_gbs, double pace_hz) {
+                       const std::vector<FrameTiming>* frames, double bandwidth_gbs, double pace_hz,
+                       const nlohmann::json& extra) {
   auto pct = [](const Percentiles& p) {
     return nlohmann::json{{"median_ms", p.median_ms}, {"p95_ms", p.p95_ms}, {"p99_ms", p.p99_ms}, {"max_ms", p.max_ms}};
   };
@@ -64,11 +73,28 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
                   {"substitutions_per_frame", r.substitutions_per_frame}};
     j["frame"]["bandwidth_limit_ms"] = r.bandwidth_limit_ms;
     j["frame"]["bandwidth_multiple"] = r.frame_multiple;
+    nlohmann::json& pf = j["per_frame"];
+    pf["frame_ms"] = nlohmann::json::array();
+    pf["cut"] = nlohmann::json::array();
+    for (const FrameTiming& t : *frames) {
+      pf["frame_ms"].push_back(t.frame_ms);
+      pf["cut"].push_back(t.cut_frame ? 1 : 0);
+    }
+    for (int k = 0; k < kNumStages; ++k) {
+      if (s.runs[k] == 0) continue;
+      nlohmann::json& col = pf["stages"][kStageNames[k]];
+      col = nlohmann::json::array();
+      for (const FrameTiming& t : *frames) col.push_back(t.ms[k]);
+    }
   } else {
     j["solver"] = {{"policy", policy_name(m.solver.policy)}, {"threads", sim.ws.runtime.threads}};
   }
   j["refactorizations"] = sim.ws.refactorizations;
   j["setup_ms"] = sim.setup_ms;
+  j["peak_rss_mb"] = peak_rss_mb();
+  j["plain_frames"] = pct(s.plain_frames);
+  j["plain_frames"]["count"] = s.plain_frames.count;
+  j.update(extra);
   const std::string tmp = path + ".tmp";
   {
     std::ofstream os(tmp);

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "engine/runtime/replay_file.h"
 #include "tests/tools/cli_test_util.h"
@@ -133,6 +134,64 @@ TEST_F(Replay, ADamagedReplayIsAClearError) {
   EXPECT_EQ(v.code, 1) << v.out;
   EXPECT_NE(v.out.find("incise: error: " + path("cut.replay") + ": truncated at offset"), std::string::npos) << v.out;
   EXPECT_NE(v.out.find("after frame 3"), std::string::npos) << v.out;
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+using Budget = Replay;  // the same scene
+
+// bench's budget report: every stage of a frame with instruments, a cut, the
+// haptic thread, render and record, with percentiles, per-frame columns, tick
+// statistics and memory; and a plot drawn by tools/scripts/plot-budget.py.
+TEST_F(Budget, BenchReportAndPlotWithEveryStage) {
+  scene();
+  const test::Result r = test::incise("bench " + path("scene.json") + " --frames 20 --haptics --render --record " +
+                                      path("b.replay") + " --json " + path("b.json") + " --plot " + path("b.png"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream js(path("b.json"));
+  const auto j = nlohmann::json::parse(js);
+  for (const char* s : {"tool_poses", "collision", "cutting", "integration", "contact_publish", "render", "record"})
+    EXPECT_EQ(j["stages"][s]["runs"].get<int>(), 20) << s;
+  for (const char* s : {"assembly", "factorization", "solve", "contact"}) EXPECT_GE(j["stages"][s]["runs"].get<int>(), 1) << s;
+  for (const char* k : {"median_ms", "p95_ms", "p99_ms", "max_ms"}) {
+    EXPECT_GT(j["frame"][k].get<double>(), 0.0) << k;
+    EXPECT_LE(j["stages"]["record"][k].get<double>(), j["frame"][k].get<double>()) << k;
+  }
+  EXPECT_TRUE(j["frame"].contains("over_budget"));
+  EXPECT_GE(j["cut_frames"]["count"].get<int>(), 1);
+  EXPECT_EQ(j["cut_frames"]["count"].get<int>() + j["plain_frames"]["count"].get<int>(), 20);
+  EXPECT_GT(j["haptics"]["ticks"].get<int>(), 400);
+  EXPECT_EQ(j["haptic_ticks"]["period_ms"].size() + 1, j["haptics"]["ticks"].get<size_t>());
+  EXPECT_GT(j["peak_rss_mb"].get<double>(), 1.0);
+  ASSERT_EQ(j["per_frame"]["frame_ms"].size(), 20u);
+  EXPECT_EQ(j["per_frame"]["stages"]["record"].size(), 20u);
+  EXPECT_EQ(read_replay(path("b.replay")).frames.size(), 20u);
+  ASSERT_TRUE(std::filesystem::exists(path("b.png")));
+  EXPECT_GT(std::filesystem::file_size(path("b.png")), 10000u);
+}
+
+// A scene with no instrument, cut, device, render or record: those stages
+// are listed with 0 runs, and the plot says there was no haptic thread.
+TEST_F(Budget, BenchReportOfAMinimalSceneListsAbsentStagesWithZeroRuns) {
+  ASSERT_EQ(test::incise("mesh beam --size 4 1 1 --cells 4 1 1 --out " + path("beam.vtu")).code, 0);
+  write("scene.json", R"({"mesh": {"file": "beam.vtu", "order": 2},
+      "material": {"model": "linear", "young": 1e5, "poisson": 0.3, "density": 1},
+      "gravity": [0, 0, -1], "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}]})");
+  const test::Result r = test::incise("bench " + path("scene.json") + " --frames 5 --plot " + path("m.png"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream js(path("m.json"));  // beside the plot when --json is not given
+  const auto j = nlohmann::json::parse(js);
+  for (const char* s : {"tool_poses", "collision", "cutting", "contact", "contact_publish", "render", "record"}) {
+    EXPECT_EQ(j["stages"][s]["runs"].get<int>(), 0) << s;
+    EXPECT_FALSE(j["per_frame"]["stages"].contains(s)) << s;
+  }
+  EXPECT_EQ(j["stages"]["integration"]["runs"].get<int>(), 5);
+  EXPECT_FALSE(j.contains("haptics"));
+  EXPECT_TRUE(std::filesystem::exists(path("m.png")));
 }
 
 }  // namespace

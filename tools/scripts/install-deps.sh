@@ -8,6 +8,7 @@ packages=(
   libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0 libpng-dev
   libfcl-dev libccd-dev
   libboost-dev libopenigtlink-dev
+  clang-15 python3-matplotlib
 )
 missing=()
 for p in "${packages[@]}"; do
