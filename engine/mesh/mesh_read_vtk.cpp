@@ -27,9 +27,12 @@ struct Cells {
 // Adds the tetrahedral cells to raw; f is only used for its path in messages.
 void add_cells(RawMesh& raw, const Cells& c, TextFile& f) {
   const size_t ncell = c.types.size();
-  if (c.start.size() != ncell + 1)
+  if (c.start.size() != ncell + 1 || c.line.size() != ncell)
     f.fail("CELLS has " + std::to_string(c.start.size() - 1) + " cells but CELL_TYPES has " +
            std::to_string(ncell));
+  for (size_t e = 0; e < ncell; ++e)  // (checked by the readers; here so that no reader can skip it)
+    if (c.start[e] < 0 || c.start[e] > c.start[e + 1] || c.start[e + 1] > static_cast<long long>(c.conn.size()))
+      f.fail("cell " + std::to_string(e) + "'s offsets fall outside the connectivity");
   for (size_t e = 0; e < ncell; ++e) {
     const int n = tet_nodes(c.types[e]);
     if (!n) continue;
@@ -106,6 +109,7 @@ Mesh read_legacy(const std::string& path) {
       }
       have_points = true;
     } else if (key == "CELLS") {
+      if (have_cells) f.fail("a second CELLS section; a legacy .vtk file has one");
       long long a = t.need_long("the number of cells");
       long long b = t.need_long("the size of the cell list");
       if (a < 0 || b < 0) f.fail("CELLS sizes must not be negative");
@@ -139,6 +143,7 @@ Mesh read_legacy(const std::string& path) {
       }
       have_cells = true;
     } else if (key == "CELL_TYPES") {
+      if (have_types) f.fail("a second CELL_TYPES section; a legacy .vtk file has one");
       long long n = t.need_long("the number of cell types");
       for (long long c = 0; c < n; ++c) cells.types.push_back(t.need_long("a cell type"));
       have_types = true;

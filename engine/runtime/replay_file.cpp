@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 
 #include <nlohmann/json.hpp>
 
@@ -117,6 +118,13 @@ ReplayMeta parse_meta(const Cursor& c, const std::string& text) {
   ReplayMeta m;
   try {
     const nlohmann::json j = nlohmann::json::parse(text);
+    // nlohmann converts a double to an integer without a range check (undefined behaviour out of range).
+    for (const char* key : {"mesh_hash", "snapshot_every"})
+      if (!j.is_object() || !j.contains(key) || !j[key].is_number_integer())
+        c.fail(std::string("META ") + key + " must be an integer");
+    if (!j["mesh_hash"].is_number_unsigned()) c.fail("META mesh_hash must be an unsigned integer");
+    const auto every = j["snapshot_every"].get<std::int64_t>();
+    if (every < 0 || every > std::numeric_limits<int>::max()) c.fail("META snapshot_every must be in [0, 2^31)");
     m.engine_version = j.at("engine_version").get<std::string>();
     m.build = j.at("build").get<std::string>();
     m.scene_path = j.at("scene_path").get<std::string>();

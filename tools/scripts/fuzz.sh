@@ -68,10 +68,10 @@ if [[ " ${targets[*]} " == *" fuzz_replay "* ]]; then
   if [ -d fuzz/seeds ]; then
     find fuzz/seeds -name '*.replay' -exec cp {} "$replays/" \;
   fi
-  if [ -x build/incise ]; then  # a real recording, when the engine is built
-    timeout 120 build/incise run assets/scenes/swing_beam.json --frames 3 --record-states 2 \
+  if [ -x build/tools/incise ]; then  # a real recording, when the engine is built
+    timeout 120 build/tools/incise run assets/scenes/swing_beam.json --frames 3 --record-states 2 \
       --out "$out/seeds/incise-run" --record "$replays/swing_beam.replay" >"$out/logs/record-seed.log" 2>&1 ||
-      echo "fuzz.sh: build/incise could not record a replay seed ($out/logs/record-seed.log); going on without it"
+      echo "fuzz.sh: build/tools/incise could not record a replay seed ($out/logs/record-seed.log); going on without it"
   fi
   for f in "$replays"/*.replay; do
     [ -f "$f" ] || continue
@@ -99,7 +99,8 @@ fail() {  # fail TARGET RC
   [ "$first_rc" -ne 0 ] || first_rc=$2
 }
 
-# Saved findings (fuzz/findings/TARGET-*) first: each must no longer fail.
+# Saved findings (fuzz/findings/TARGET-*) first: inputs that once failed, each
+# fixed and kept so that it stays fixed.
 for t in "${targets[@]}"; do
   for f in fuzz/findings/"$t"-*; do
     [ -f "$f" ] || continue
@@ -107,7 +108,7 @@ for t in "${targets[@]}"; do
     rc=0
     "$out/$t" -runs=1 "$f" >"$log" 2>&1 || rc=$?
     if [ "$rc" -eq 0 ]; then
-      echo "$t: saved finding $f: passes now (fixed? then move it into a seed folder or delete it)"
+      echo "$t: $f (a fixed finding, kept as a regression input): passes"
     else
       echo "$t: saved finding $f: STILL FAILS (exit $rc, $log)"
       report "$log"
