@@ -53,9 +53,8 @@ TEST_F(Replay, ARecordedRunWithCutContactAndHapticsReplaysBitForBit) {
   EXPECT_NE(run.out.find("wrote " + path("r.replay") + ": 24 frames"), std::string::npos) << run.out;
   const ReplayFile r = read_replay(path("r.replay"));
   ASSERT_EQ(r.frames.size(), 24u);
-  int contact_frames = 0, cut_frames = 0, snapshots = 0, taken = 0;
+  int contact_frames = 0, cut_frames = 0, snapshots = 0;
   for (const ReplayFrame& f : r.frames) {
-    taken += f.late_factor_call >= 0;
     contact_frames += f.contacts > 0;
     cut_frames += f.cut_frame;
     snapshots += !f.snapshot.empty();
@@ -64,7 +63,9 @@ TEST_F(Replay, ARecordedRunWithCutContactAndHapticsReplaysBitForBit) {
   EXPECT_GE(cut_frames, 5) << "the scalpel cut progressively";
   EXPECT_GT(r.frames.back().swept_triangles, 0);
   EXPECT_EQ(snapshots, 3) << "frames 10, 20 and the last";
-  EXPECT_GE(taken, 5) << "background factors taken when the clock said (late_factor skip), every 2nd frame";
+  // (Which frames took a background factor depends on the machine's load:
+  // none at all when both cores are busy, the job running at idle priority.
+  // tests/engine/solve/test_linear_solve.cpp imposes the choices instead.)
   EXPECT_GT(r.ticks.size(), 400u) << "24 frames at 30 Hz: 0.8 s of 1 kHz device samples";
   EXPECT_EQ(r.meta.compliance.size(), 2u);
   EXPECT_GT(r.meta.compliance[0], 0.0) << "the probe is held through the coupling spring";

@@ -127,7 +127,7 @@ TEST(State, DamagedFilesAreRefusedWithTheField) {
   s.swept_frame = {3};
   const std::string good = saved(s);
   EXPECT_EQ(read_error(good), "");
-  EXPECT_NE(read_error("INCSTAT1" + good.substr(8)).find("not an incise state file of version 2"), std::string::npos);
+  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 3"), std::string::npos);
   // Cut inside u's values (u's length at byte 24, its values from byte 32).
   EXPECT_NE(read_error(good.substr(0, 40)).find("run.state: state truncated in u"), std::string::npos) << read_error(good.substr(0, 40));
   EXPECT_NE(read_error(good.substr(0, 28)).find("run.state: state truncated in u (at byte 24)"), std::string::npos)

@@ -240,6 +240,44 @@ TEST(SolverPolicies, SkippingLateFactorsStaysWithinTheCgTolerance) {
   EXPECT_LT(test::rel_diff(run_swing(s, frames), exact), 1e-8);
 }
 
+// late_factor "skip" leaves to the clock whether a finished background factor
+// is taken; a replay imposes the recorded choice instead
+// (Workspace::imposed_late_factor_call, docs/replay.md). Imposing "take it
+// at the first refresh call whenever it is due" waits for the job and gives
+// the bits of late_factor "wait"; imposing "never" keeps the first factor.
+TEST(SolverPolicies, ImposedLateFactorChoicesDecideWhatTheClockWould) {
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.background = true;
+  s.refresh_every = 2;
+  s.tolerance = 1e-5;
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  const auto run = [&](bool skip, int imposed, std::vector<int>* calls, int* last_age) {
+    SolverSettings solver = s;
+    solver.skip_late_factor = skip;
+    const Model m = build_model(mesh, swing_scene(solver));
+    State st; Workspace ws;
+    init_state(m, st, ws);
+    for (int k = 0; k < 16; ++k) {
+      ws.imposed_late_factor_call = imposed;
+      step(m, st, ws);
+      calls->push_back(ws.timing.late_factor_call);
+      *last_age = ws.timing.factor_age;
+    }
+    return st.u;
+  };
+  std::vector<int> wait_calls, take_calls, never_calls;
+  int age = 0;
+  const auto u_wait = run(false, Workspace::kClockDecides, &wait_calls, &age);
+  const auto u_take = run(true, 0, &take_calls, &age);
+  EXPECT_EQ(u_take, u_wait);
+  EXPECT_EQ(std::count(wait_calls.begin(), wait_calls.end(), -1), 16) << "wait: the clock chooses nothing";
+  EXPECT_GE(std::count(take_calls.begin(), take_calls.end(), 0), 6) << "taken every 2nd frame";
+  run(true, -1, &never_calls, &age);
+  EXPECT_EQ(std::count(never_calls.begin(), never_calls.end(), -1), 16);
+  EXPECT_GE(age, 14) << "never taken: the first frame's factor preconditions the last";
+}
+
 TEST(SolverPolicies, LaggedRefreshEveryFrameIsOneIterationPerFrame) {
   SolverSettings s;
   s.policy = SolverPolicy::Lagged;
