@@ -4,9 +4,11 @@
 #include <cstdio>
 #include <thread>
 
+#include <spawn.h>
 #include <sys/wait.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
@@ -55,10 +57,21 @@ void draw_plot(const std::string& json, const std::string& png) {
   const std::string python = py_env && *py_env                                   ? py_env
                              : std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3"
                                                                                  : "python3";
-  const std::string cmd = python + " '" + script + "' '" + json + "' '" + png + "'";
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0)
-    throw Error("--plot: " + cmd + " failed (exit " + std::to_string(WEXITSTATUS(rc)) +
+  // Spawned with its arguments as given (no shell: any character in a path is safe).
+  std::vector<std::string> args = {python, script, json, png};
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  int status = 0;
+  const int err = posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ);
+  if (err == 0 && waitpid(pid, &status, 0) < 0) status = -1;
+  const std::string cmd = python + " " + script + " " + json + " " + png;
+  if (err != 0)
+    throw Error("--plot: cannot start " + python + " (" + std::strerror(err) + "); " + json + " was written");
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw Error("--plot: " + cmd + " failed (" +
+                (WIFEXITED(status) ? "exit " + std::to_string(WEXITSTATUS(status)) : std::string("killed by a signal")) +
                 "; it needs python3 and matplotlib: apt-get install python3-matplotlib); " + json + " was written");
   std::printf("wrote %s\n", png.c_str());
 }
@@ -101,10 +114,13 @@ void bench(const BenchOptions& o) {
     next = std::max(next + period, clock::now());
     if (k >= o.warmup) timings.push_back(t);
     if (haptic) {
-      if (k < o.warmup) records.clear();  // the ticks of timed frames only
       haptic->drain(records, events);
       if (record) record_ticks(*record, records, ticks_recorded, sim->state.frame);
       ticks_recorded = records.size();
+      if (k < o.warmup) {  // the statistics cover the timed frames' ticks only
+        records.clear();
+        ticks_recorded = 0;
+      }
     }
   }
   nlohmann::json extra = nlohmann::json::object();

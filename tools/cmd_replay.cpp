@@ -89,9 +89,12 @@ void replay(const ReplayOptions& o) {
   for (const auto& p : m.patches) patches.push_back({p[0], p[1], p[2]});
   Scene scene = parse_scene(m.scene_text, m.scene_path, patches);
   // The mesh is not embedded (it can be large): the recorded hash says whether it is the same file.
-  const std::uint64_t mesh_hash = replay_mesh_hash(scene.mesh_file);
+  const std::uint64_t mesh_hash = replay_file_hash(scene.mesh_file, "mesh");
   if (mesh_hash != m.mesh_hash)
     throw Error(o.file + ": the mesh " + scene.mesh_file + " has changed since the recording (its hash differs)");
+  for (const auto& [file, hash] : m.files)
+    if (replay_file_hash(file, "cut surface") != hash)
+      throw Error(o.file + ": the cut surface " + file + " has changed since the recording (its hash differs)");
   auto sim = load_checked_simulation(std::move(scene));
   Simulation& s = *sim;
   if (m.compliance.size() != s.scene.instruments.size())
@@ -141,8 +144,9 @@ void replay(const ReplayOptions& o) {
       progress.finish();
       throw Error(o.file + ": frame " + std::to_string(f.frame) + " (t = " + std::to_string(f.time) +
                   " s) differs from the recording in " + differing_fields(h, f.hashes) +
-                  (diff.empty() ? " (no snapshot at this frame)" : "; largest differences: " + diff) + "; frames 1-" +
-                  std::to_string(f.frame - 1) + " matched bit for bit");
+                  (diff.empty() ? " (no snapshot at this frame)" : "; largest differences: " + diff) +
+                  (f.frame > 1 ? "; frames 1-" + std::to_string(f.frame - 1) + " matched bit for bit"
+                               : "; it is the first frame"));
     }
   }
   progress.finish();
@@ -151,9 +155,14 @@ void replay(const ReplayOptions& o) {
     std::printf("replay: %d of %d frames equal bit for bit; largest relative difference over %d snapshots %.3g "
                 "(tolerance %g)\n",
                 matched, frames, snapshots, worst, o.tolerance);
-    if (!(worst <= o.tolerance))
-      throw Error(o.file + ": a snapshot differs by " + std::to_string(worst) + " relative, more than --tolerance " +
-                  std::to_string(o.tolerance));
+    if (snapshots == 0 && matched < frames)
+      throw Error(o.file + ": no State snapshot among the replayed frames to compare, and " +
+                  std::to_string(frames - matched) + " frames differ bit for bit (record with --record-states N)");
+    if (!(worst <= o.tolerance)) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, ": a snapshot differs by %.3g relative, more than --tolerance %g", worst, o.tolerance);
+      throw Error(o.file + buf);
+    }
   } else if (o.verify) {
     std::printf("replay: all %d frames match bit for bit (u, v, a, R, topology and clock hashes)\n", frames);
   } else {

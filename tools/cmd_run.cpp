@@ -101,13 +101,24 @@ void run(const RunOptions& o) {
     FrameTiming t;
     try {
       t = advance_frame(*sim);
-    } catch (const std::exception& e) {  // the hand's record and the replay of a run that failed are worth keeping
+    } catch (...) {  // the hand's record and the replay of a run that failed are worth keeping
       progress.finish();
-      if (haptic) finish_haptics(*haptic, records, events, haptics_dir);
-      if (record) {
-        record_drained_ticks();
-        record->finish("failed in frame " + std::to_string(s.frame + 1) + ": " + e.what());
-        std::printf("wrote %s (%d frames, up to the failure)\n", record->path().c_str(), record->frames());
+      std::string what = "unknown error";
+      try {
+        throw;
+      } catch (const std::exception& e) {
+        what = e.what();
+      } catch (...) {
+      }
+      try {
+        if (haptic) finish_haptics(*haptic, records, events, haptics_dir);
+        if (record) {
+          record_drained_ticks();
+          record->finish("failed after " + std::to_string(record->frames()) + " recorded frames: " + what);
+          std::printf("wrote %s (%d frames, up to the failure)\n", record->path().c_str(), record->frames());
+        }
+      } catch (const std::exception& e) {  // (the run's own error is the one to report)
+        std::fprintf(stderr, "incise: could not keep the logs of the failed run: %s\n", e.what());
       }
       throw;
     }

@@ -23,7 +23,9 @@ std::shared_ptr<ReplayWriter> install_record_stage(Simulation& sim, const std::s
   m.scene_text = text.str();
   for (const ScenePatch& p : patches) m.patches.push_back({p.key, p.value, p.given});
   m.mesh_file = sim.scene.mesh_file;
-  m.mesh_hash = replay_mesh_hash(sim.scene.mesh_file);
+  m.mesh_hash = replay_file_hash(sim.scene.mesh_file, "mesh");
+  for (const CutSpec& c : sim.scene.cuts)
+    if (!c.file.empty()) m.files.emplace_back(c.file, replay_file_hash(c.file, "cut surface"));
   m.compliance = sim.ws.contacts.compliance;
   m.compliance.resize(sim.scene.instruments.size(), 0.0);
   m.snapshot_every = snapshot_every;

@@ -134,7 +134,7 @@ Mesh read_legacy(const std::string& path) {
         long long used = 0;
         for (long long c = 0; c < a; ++c) {
           long long n = get_long(f, c == 0 ? next : t.need("the node count of a cell"), "the node count of a cell");
-          if (n < 0 || used + 1 + n > b) f.fail("cell " + std::to_string(c) + " overruns the CELLS size " + std::to_string(b));
+          if (n < 0 || n > b - used - 1) f.fail("cell " + std::to_string(c) + " overruns the CELLS size " + std::to_string(b));
           cells.line.push_back(f.line());
           for (long long k = 0; k < n; ++k) cells.conn.push_back(t.need_long("a node index"));
           cells.start.push_back(static_cast<long long>(cells.conn.size()));

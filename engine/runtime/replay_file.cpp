@@ -20,6 +20,7 @@ constexpr size_t kHeader = sizeof kMagic + 4;
 constexpr size_t kChunkOverhead = 4 + 8 + 8;  // tag, length, checksum
 constexpr std::uint64_t kMaxFileBytes = 16ULL << 30;
 constexpr int kMaxJsonDepth = 64;
+constexpr std::uint64_t kMaxMetaBytes = 64ULL << 20;  // a scene's text is kilobytes; JSON parsing takes ~10x the bytes
 
 template <class T>
 void put(std::string& b, const T& v) {
@@ -133,6 +134,10 @@ ReplayMeta parse_meta(const Cursor& c, const std::string& text) {
     m.mesh_file = j.at("mesh_file").get<std::string>();
     m.mesh_hash = j.at("mesh_hash").get<std::uint64_t>();
     m.compliance = j.at("compliance").get<std::vector<double>>();
+    for (const auto& f : j.at("files")) {
+      if (!f.is_array() || f.size() != 2 || !f[1].is_number_unsigned()) c.fail("META files must be [path, hash] pairs");
+      m.files.emplace_back(f[0].get<std::string>(), f[1].get<std::uint64_t>());
+    }
     m.snapshot_every = j.at("snapshot_every").get<int>();
   } catch (const nlohmann::json::exception& e) {
     c.fail(std::string("META is not the expected JSON: ") + e.what());
@@ -208,6 +213,7 @@ ReplayFile parse_replay(const std::string& b, const std::string& what) {
     if (!have_meta && t != "META") c.fail("the first chunk must be META");
     if (t == "META") {
       if (have_meta) c.fail("a second META");
+      if (len > kMaxMetaBytes) c.fail(std::to_string(len) + " bytes of META; at most 64 MiB is read");
       r.meta = parse_meta(c, c.bytes(len, "META"));
       have_meta = true;
     } else if (t == "FRAM") {
@@ -251,6 +257,7 @@ namespace {
 
 std::string read_regular_file(const std::string& path, const char* what) {
   std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw Error(path + ": no such " + std::string(what) + " file");
   if (!std::filesystem::is_regular_file(path, ec))
     throw Error(path + ": not a regular file (a " + what + " must be a file, not a folder, device or pipe)");
   const std::uint64_t size = std::filesystem::file_size(path, ec);
@@ -267,8 +274,8 @@ std::string read_regular_file(const std::string& path, const char* what) {
 
 ReplayFile read_replay(const std::string& path) { return parse_replay(read_regular_file(path, "replay"), path); }
 
-std::uint64_t replay_mesh_hash(const std::string& path) {
-  const std::string b = read_regular_file(path, "mesh");
+std::uint64_t replay_file_hash(const std::string& path, const char* what) {
+  const std::string b = read_regular_file(path, what);
   return fnv1a(b.data(), b.size());
 }
 
@@ -285,7 +292,7 @@ ReplayWriter::ReplayWriter(std::string path, const ReplayMeta& m) : path_(std::m
                             {"scene_path", m.scene_path},         {"scene_text", m.scene_text},
                             {"patches", patches},                 {"mesh_file", m.mesh_file},
                             {"mesh_hash", m.mesh_hash},           {"compliance", m.compliance},
-                            {"snapshot_every", m.snapshot_every}};
+                            {"files", m.files},                   {"snapshot_every", m.snapshot_every}};
   buf_ = j.dump();
   chunk("META");
 }

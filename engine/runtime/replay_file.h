@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "engine/dynamics/state.h"
@@ -34,7 +35,9 @@ struct ReplayMeta {
   std::string scene_text;             // the scene file as read
   std::vector<std::array<std::string, 3>> patches;  // --set: key, value, as given
   std::string mesh_file;              // as the scene resolved it
-  std::uint64_t mesh_hash = 0;        // FNV-1a of its bytes (replay_mesh_hash)
+  std::uint64_t mesh_hash = 0;        // FNV-1a of its bytes (replay_file_hash)
+  // Other files the run read whose content a replay needs (cut surfaces), with their hashes.
+  std::vector<std::pair<std::string, std::uint64_t>> files;
   std::vector<double> compliance;     // (instruments) ContactRows::compliance of the run (a haptic coupling)
   int snapshot_every = 0;             // a State snapshot every this many frames (0: none)
 };
@@ -76,8 +79,9 @@ ReplayFile parse_replay(const std::string& bytes, const std::string& what);
 // Reads `path` (a regular file, at most 16 GiB) and parses it.
 ReplayFile read_replay(const std::string& path);
 
-// FNV-1a of a file's bytes (the mesh's). Throws incise::Error when it cannot be read.
-std::uint64_t replay_mesh_hash(const std::string& path);
+// FNV-1a of a file's bytes (the mesh's, a cut surface's). Throws
+// incise::Error naming `what` when it cannot be read.
+std::uint64_t replay_file_hash(const std::string& path, const char* what);
 
 // Writes a replay as the run goes: the header and META at construction,
 // then frames and ticks, END at finish(). Everything goes to PATH.tmp, renamed
