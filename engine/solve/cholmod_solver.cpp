@@ -435,7 +435,7 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   A_ = cholmod_allocate_sparse(n, n, nnz, /*sorted=*/1, /*packed=*/1, /*stype=*/1, CHOLMOD_REAL, &c_);
   if (!A_) throw Error("CHOLMOD: out of memory allocating a " + std::to_string(n) + " x " + std::to_string(n) + " matrix");
   std::memcpy(A_->p, Ap.data(), sizeof(int) * (n + 1));
-  std::memcpy(A_->i, Ai.data(), sizeof(int) * nnz);
+  if (nnz > 0) std::memcpy(A_->i, Ai.data(), sizeof(int) * nnz);  // (an empty patch after a cut: no entries, Ai.data() null)
   std::fill(static_cast<double*>(A_->x), static_cast<double*>(A_->x) + nnz, 0.0);
   const SerialOpenMpRegions serial;
   if (perm) {
@@ -494,7 +494,7 @@ void CholmodSolver::factorize(const double* values) {
     }
     ++stats_.single_fallbacks;  // a pivot not positive in float: CHOLMOD in double decides
   }
-  std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
+  if (A_->nzmax > 0) std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
   Stopwatch clock;
   {
     const SerialOpenMpRegions serial;
