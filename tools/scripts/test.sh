@@ -11,6 +11,7 @@ if [ "${1:-}" = "--sanitize" ]; then
   # tracer then segfaults at exit ("Tracer caught signal 11") after a passing
   # test. Seen once in CI on Golden.UncutBlock; not a leak, and not ours.
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:intercept_tls_get_addr=0 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+  export LSAN_OPTIONS=suppressions=$PWD/tools/scripts/lsan.supp:print_suppressions=0
   ctest --test-dir build-asan -j "$(nproc)" --output-on-failure --timeout 900
 else
   bash tools/scripts/build.sh build
