@@ -183,8 +183,7 @@ void add_bench_command(CLI::App& app) {
   add_set_option(*cmd, opts->patches);
   add_solver_aliases(*cmd, opts->patches);
   cmd->add_flag("--render", opts->render, "Render each frame offscreen (scene's render settings) and time it as the render stage");
-  cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
-      ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
+  add_egl_platform_option(*cmd, opts->platform);
   cmd->callback([opts] { bench(*opts); });
 }
 

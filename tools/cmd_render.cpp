@@ -43,10 +43,14 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--out", opts->out, "PNG file to write")->required();
   cmd->add_option("--width", opts->width, "Width in pixels (default: render.width)")->check(CLI::Range(16, 8192));
   cmd->add_option("--height", opts->height, "Height in pixels (default: render.height)")->check(CLI::Range(16, 8192));
-  cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
-      ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
+  add_egl_platform_option(*cmd, opts->platform);
   add_set_option(*cmd, opts->patches);
   cmd->callback([opts] { render_command(*opts); });
+}
+
+void add_egl_platform_option(CLI::App& cmd, std::string& platform) {
+  cmd.add_option("--egl-platform", platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
+      ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
 }
 
 }  // namespace incise

@@ -188,8 +188,7 @@ void add_replay_command(CLI::App& app) {
   cmd->add_option("--frames", opts->frames, "Replay only the first N frames")->check(CLI::PositiveNumber);
   cmd->add_option("--out", opts->out, "Output folder for a .pvd/.vtu series of the replay");
   cmd->add_option("--render", opts->render_dir, "Render every frame offscreen to DIR/frame_00000.png ... (+ MP4)");
-  cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
-      ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
+  add_egl_platform_option(*cmd, opts->platform);
   cmd->callback([opts] { replay(*opts); });
 }
 

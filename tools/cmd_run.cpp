@@ -164,8 +164,7 @@ void add_run_command(CLI::App& app) {
   cmd->add_option("--frames", opts->frames, "Frames to step (default: the scene's run.frames)")->check(CLI::PositiveNumber);
   cmd->add_option("--out", opts->out, "Output folder for the .pvd/.vtu series and timing.json (default: output.dir)");
   cmd->add_option("--render", opts->render_dir, "Render every frame offscreen to DIR/frame_00000.png ... (+ DIR/frames.mp4 with ffmpeg)");
-  cmd->add_option("--egl-platform", opts->platform, "auto (default; or INCISE_EGL_PLATFORM), device or surfaceless")
-      ->check(CLI::IsMember({"auto", "device", "surfaceless"}));
+  add_egl_platform_option(*cmd, opts->platform);
   cmd->add_flag("--haptics", opts->haptics,
                 "Run the scene's haptic device (\"haptics\") on a 1 kHz thread beside frames paced at 1/dt; writes "
                 "haptics_force.csv (t,fx,fy,fz,tick_us,late_us), haptics_device.csv, haptics_events.csv, haptics.json");

@@ -12,6 +12,9 @@ void add_compare_command(CLI::App& app);  // incise compare SCENE [--policy P] [
 void add_render_command(CLI::App& app);   // incise render SCENE --frame K --out F.png
 void add_replay_command(CLI::App& app);   // incise replay F [--verify] [--tolerance T] [--out DIR] [--render DIR]
 
+// --egl-platform auto|device|surfaceless (run, replay, bench, render).
+void add_egl_platform_option(CLI::App& cmd, std::string& platform);
+
 // Prints the model summary (DOFs, elements, factor) used by run/static/bench.
 struct Simulation;
 void print_model_summary(const Simulation& sim);

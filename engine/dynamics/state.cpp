@@ -15,7 +15,6 @@ namespace incise {
 
 namespace {
 
-std::uint64_t fnv(const void* data, size_t bytes, std::uint64_t h = kFnvOffset) { return fnv1a(data, bytes, h); }
 
 // A field's hash: FNV-1a steps over whole 64-bit values rather than bytes,
 // in four interleaved lanes folded at the end, so the record stage's hashes
@@ -36,7 +35,7 @@ std::uint64_t fnv(const std::vector<double>& x, std::uint64_t h = kFnvOffset) {
     std::memcpy(&w, &x[i], sizeof w);
     lane[0] = (lane[0] ^ w) * kFnvPrime;
   }
-  return fnv(lane, sizeof lane, fnv(&n, sizeof n, h));
+  return fnv1a(lane, sizeof lane, fnv1a(&n, sizeof n, h));
 }
 
 // Format version 3 (2: the byte-wise field hash; 1: no swept cuts).
@@ -60,7 +59,7 @@ T get(std::istream& is, const std::string& what, const char* field) {
 
 std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& s) {
   std::array<std::uint64_t, kNumStateFields> h{};
-  h[kFieldClock] = fnv(&s.frame, sizeof s.frame, fnv(&s.time, sizeof s.time));
+  h[kFieldClock] = fnv1a(&s.frame, sizeof s.frame, fnv1a(&s.time, sizeof s.time));
   h[kFieldU] = fnv(s.u);
   h[kFieldV] = fnv(s.v);
   h[kFieldA] = fnv(s.a);
@@ -71,7 +70,7 @@ std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& s) {
 
 std::uint64_t state_hash(const State& s) {
   const auto h = state_field_hashes(s);
-  return fnv(h.data(), sizeof h);
+  return fnv1a(h.data(), sizeof h);
 }
 
 void write_state(std::ostream& os, const State& s) {
