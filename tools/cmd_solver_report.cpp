@@ -35,6 +35,10 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
     nsub += t.solves;
     if (!t.converged) ++r.not_converged_frames;
     r.rescue_frames += t.rescues > 0;
+    if (t.budget_spent) {
+      ++r.budget_frames;
+      r.max_budget_residual = std::max(r.max_budget_residual, t.residual);
+    }
     r.max_residual = std::max(r.max_residual, t.residual);
   }
   r.substitutions_per_frame = percentiles(subs).median_ms;
@@ -78,6 +82,11 @@ std::string format_solver_report(const SolverReport& r) {
                   r.iterations.median_ms, r.iterations.p99_ms, r.iterations.max_ms, r.not_converged_frames,
                   r.not_converged_frames == 1 ? "" : "s", r.max_residual);
     out += buf;
+    if (r.budget_frames > 0) {
+      std::snprintf(buf, sizeof buf, "budget: %d frame%s spent solver.frame_iterations and took the residual they had (max %.2g)\n",
+                    r.budget_frames, r.budget_frames == 1 ? "" : "s", r.max_budget_residual);
+      out += buf;
+    }
     if (r.rescue_frames > 0) {
       std::snprintf(buf, sizeof buf, "rescues: %d frame%s factored the current matrix after solver.rescue_after CG iterations\n",
                     r.rescue_frames, r.rescue_frames == 1 ? "" : "s");
@@ -93,6 +102,8 @@ nlohmann::json solver_report_json(const SolverReport& r) {
           {"iterations", {{"median", r.iterations.median_ms}, {"p99", r.iterations.p99_ms}, {"max", r.iterations.max_ms}}},
           {"not_converged_frames", r.not_converged_frames},
           {"rescue_frames", r.rescue_frames},
+          {"budget_frames", r.budget_frames},
+          {"max_budget_residual", r.max_budget_residual},
           {"max_residual", r.max_residual},
           {"substitutions_per_frame", r.substitutions_per_frame},
           {"substitution_ms", r.substitution_ms},

@@ -261,7 +261,8 @@ void decide_newton(const Model& m, State& s, Workspace& ws) {
   const bool linear = m.material.model == MaterialModel::Linear;
   const bool adaptive = !linear && m.rotation_tolerance > 0 && m.max_newton_iterations > m.newton_iterations;
   ws.newton_done = false;
-  if (it + 1 >= m.max_newton_iterations) {
+  const int budget = m.solver.frame_iterations;
+  if (it + 1 >= m.max_newton_iterations || ws.timing.budget_spent || (budget > 0 && ws.timing.iterations >= budget)) {
     ws.newton_done = true;
     return;
   }

@@ -57,6 +57,7 @@ struct FrameTiming {
   double start_residual = 1;  // CG's relative residual at its start (< 1: solver.initial_guess "previous" helped)
   bool converged = true;      // CG reached solver.tolerance within solver.max_iterations
   int rescues = 0;            // lagged: synchronous refactorizations after solver.rescue_after CG iterations
+  bool budget_spent = false;  // solver.frame_iterations ran out: the frame took CG's last residual (`residual`) as it was
   int factor_age = 0;         // lagged: frames since the matrix of the preconditioning factor (last Newton iteration)
   int late_factor_call = -1;  // late_factor "skip": the lagged refresh call (0, 1, ...) that took a finished background factor; -1 none (Workspace::imposed_late_factor_call)
   int patch_dofs = 0;         // lagged after cuts: DOFs of the exactly solved patch (0: none)

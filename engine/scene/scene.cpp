@@ -435,10 +435,10 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
 }
 
 // solver.* keys that only some policies use (the parser refuses them under another).
-const std::vector<std::string> kIterativeKeys{"tolerance", "max_iterations", "initial_guess"};
+const std::vector<std::string> kIterativeKeys{"tolerance", "max_iterations", "initial_guess", "frame_iterations"};
 const std::vector<std::string> kLaggedKeys{"refresh_every", "background",    "warp",        "single_precision",
                                            "factor_copy",   "factor_precision", "rescue_after", "late_factor",
-                                           "patch",         "cut_ordering",  "background_priority"};
+                                           "patch",         "cut_ordering",  "background_priority", "coarse"};
 
 bool listed(const std::vector<std::string>& keys, const std::string& k) {
   return std::find(keys.begin(), keys.end(), k) != keys.end();
@@ -449,7 +449,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   p.object(v, at);
   p.allowed_keys(v, at, {"preset", "policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
-                         "factorization", "ordering", "factor_precision", "initial_guess", "affinity"});
+                         "factorization", "ordering", "factor_precision", "initial_guess", "affinity", "coarse",
+                         "frame_iterations"});
   SolverSettings& o = s.solver;
   RuntimeSettings& rt = s.runtime;
   if (auto it = v.find("preset"); it != v.end()) s.preset = solver_preset_names()[p.choice(*it, at + ".preset", solver_preset_names())];
@@ -490,6 +491,9 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   }
   if (auto it = v.find("max_iterations"); it != v.end())
     o.max_iterations = p.at_least_one(*it, at + ".max_iterations");
+  if (auto it = v.find("frame_iterations"); it != v.end())
+    o.frame_iterations = p.nonnegative_int(*it, at + ".frame_iterations");
+  if (auto it = v.find("coarse"); it != v.end()) o.coarse = p.choice(*it, at + ".coarse", {"none", "corners"}) == 1;
   if (auto it = v.find("initial_guess"); it != v.end())
     o.previous_guess = p.choice(*it, at + ".initial_guess", {"zero", "previous"}) == 1;
   if (auto it = v.find("threads"); it != v.end()) {
@@ -983,6 +987,8 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
       {"tolerance", number_text(o.tolerance)},
       {"max_iterations", std::to_string(o.max_iterations)},
       {"initial_guess", quoted(o.previous_guess ? "previous" : "zero")},
+      {"frame_iterations", std::to_string(o.frame_iterations)},
+      {"coarse", quoted(o.coarse ? "corners" : "none")},
       {"threads", std::to_string(rt.threads)},
       {"substitution_threads", std::to_string(rt.substitution_threads)},
       {"affinity", quoted(rt.split_affinity ? "split" : "none")},

@@ -167,6 +167,11 @@ struct SolverSettings {
   double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
   bool previous_guess = true;  // CG: solver.initial_guess "previous" (the last frame's increment, scaled) or "zero"
   int max_iterations = 50;     // CG iterations per solve (>= 1)
+  // CG: solver.frame_iterations, CG iterations per frame over all its Newton
+  // iterations (0 = no cap): once spent, the frame accepts the residual it
+  // has (FrameTiming::budget_spent) instead of iterating or rescuing further.
+  int frame_iterations = 0;
+  bool coarse = false;         // lagged: solver.coarse "corners" (two-level, engine/solve/coarse_space.h) or "none"
   FactorMethod factor = FactorMethod::Auto;
   OrderingMethod ordering = OrderingMethod::Auto;
 };

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include <Eigen/Core>
@@ -394,6 +395,32 @@ void lagged_apply(const Model& m, Workspace& ws, const double* A, const double* 
   }
 }
 
+// solver.coarse "corners": the balancing two-level preconditioner
+// z = Q r + (I - Q A) M (I - A Q) r with M = lagged_apply and Q = P A_c^-1 P^T
+// (engine/solve/coarse_space.h): two products with A and two coarse solves
+// more than M alone.
+void two_level_apply(const Model& m, Workspace& ws, const double* A, const double* r, double* z) {
+  auto& w = ws.work;
+  const int n = m.ndof();
+  double* q = w.bnn_q.data();
+  double* t = w.bnn_t.data();
+  double* s = w.bnn_s.data();
+  apply_coarse_space(m, w.coarse, r, q);
+  sym_matvec_parallel(m, w.plan, *w.pool, A, q, t);
+  for (int i = 0; i < n; ++i) t[i] = r[i] - t[i];
+  lagged_apply(m, ws, A, t, z);
+  sym_matvec_parallel(m, w.plan, *w.pool, A, z, t);
+  apply_coarse_space(m, w.coarse, t, s);
+  for (int i = 0; i < n; ++i) z[i] += q[i] - s[i];
+}
+
+// solver.frame_iterations: the CG iterations left to the frame (at least one
+// per solve, so every Newton iteration moves); no cap without a budget.
+int budget_left(const Model& m, const Workspace& ws) {
+  const int b = m.solver.frame_iterations;
+  return b > 0 ? std::max(1, b - ws.timing.iterations) : std::numeric_limits<int>::max();
+}
+
 // The patch's DOF nodes: unknown = a DOF node with a DOF the front map does
 // not carry, node_in = a node of an element touching an unknown one.
 void patch_nodes(const Model& m, const std::vector<int>& map, std::vector<char>& node_in, std::vector<char>& unknown) {
@@ -684,6 +711,11 @@ void prepare_solver(const Model& m, Workspace& ws, int frame, const std::vector<
   else reset_factors(m, ws);
   prepare_cg(m, ws, dofnode_map);
   prepare_node_rotations(m, ws, carried ? dofnode_map : nullptr);
+  auto& w = ws.work;
+  if (m.solver.policy == SolverPolicy::Lagged && m.solver.coarse) {
+    build_coarse_space(m, w.coarse);  // kept over a cut: the standard DOFs' pattern stays
+    for (auto* v : {&w.bnn_q, &w.bnn_t, &w.bnn_s}) v->assign(m.ndof(), 0.0);
+  }
 }
 
 void update_node_rotations(const Model& m, const double* R, Workspace& ws) {
@@ -770,6 +802,10 @@ void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
       if (rescue || ws.newton_iterations_done == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
       if (m.solver.warp) lagged_warp_rotations(m, ws);
       if (rescue || ws.newton_iterations_done == 0 || ws.work.patch_key < 0) lagged_patch(m, ws, ws.A.data());
+      // The coarse level: from this frame's first matrix (measured at 20k DOF
+      // here: 5-6 ms to form A_c, 5.7 ms to factor it; later Newton
+      // iterations of the frame keep it).
+      if (m.solver.coarse && ws.newton_iterations_done == 0 && !rescue) factor_coarse_space(m, ws.A.data(), ws.work.coarse);
       ws.timing.factor_age = s.frame - ws.work.front_frame;
       ws.timing.patch_dofs = static_cast<int>(ws.work.patch_dof.size());
       break;
@@ -789,20 +825,30 @@ void solve_for_policy(const Model& m, Workspace& ws) {
       substitute(ws, ws.solver, ws.rhs.data(), du);
       break;
     case SolverPolicy::Lagged: {
-      const auto precond = [&](const double* r, double* z) { lagged_apply(m, ws, ws.A.data(), r, z); };
+      const auto precond = [&](const double* r, double* z) {
+        if (m.solver.coarse) two_level_apply(m, ws, ws.A.data(), r, z);
+        else lagged_apply(m, ws, ws.A.data(), r, z);
+      };
       const int rescue = m.solver.rescue_after;
+      const int left = budget_left(m, ws);
       auto& guess = ws.work.guess;
       if (ws.rescue_pending) {  // the rescue factor is in place: CG again from 0
         ws.rescue_pending = false;
-        pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, m.solver.max_iterations);
+        pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, std::min(m.solver.max_iterations, left));
+        if (ws.timing.residual > m.solver.tolerance && left <= m.solver.max_iterations) ws.timing.budget_spent = true;
       } else {
         // The first Newton iteration's increment alternates in sign between
         // frames (the trapezoidal rule's undamped sawtooth about the
         // constant-velocity predictor): the last one, scaled, starts CG close.
         const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
-        pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond,
-            rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations, use_guess ? guess.data() : nullptr);
-        if (rescue > 0 && !ws.timing.converged && rescue < m.solver.max_iterations) {
+        const int cap = rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations;
+        pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, std::min(cap, left), use_guess ? guess.data() : nullptr);
+        const bool stalled = ws.timing.residual > m.solver.tolerance;
+        if (stalled && left <= cap) {
+          // solver.frame_iterations spent: the frame takes this increment as
+          // it is (no rescue, no further Newton iteration: decide_newton).
+          ws.timing.budget_spent = true;
+        } else if (rescue > 0 && stalled && rescue < m.solver.max_iterations) {
           // The lagged factor is too far from A (fast large rotations): the
           // factorization stage factors A now and CG runs again with it,
           // instead of hundreds of CG iterations.
@@ -821,8 +867,10 @@ void solve_for_policy(const Model& m, Workspace& ws) {
     case SolverPolicy::WarpedCG: {
       auto& guess = ws.work.guess;
       const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
+      const int left = budget_left(m, ws);
       pcg(m, ws, ws.A.data(), ws.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, ws, r, z); },
-          m.solver.max_iterations, use_guess ? guess.data() : nullptr);
+          std::min(m.solver.max_iterations, left), use_guess ? guess.data() : nullptr);
+      if (ws.timing.residual > m.solver.tolerance && left <= m.solver.max_iterations) ws.timing.budget_spent = true;
       if (iteration == 0 && m.solver.previous_guess) guess.assign(du, du + m.ndof());
       break;
     }

@@ -11,6 +11,7 @@
 
 #include "engine/fem/assemble_parallel.h"
 #include "engine/solve/cholmod_solver.h"
+#include "engine/solve/coarse_space.h"
 #include "engine/runtime/helper_thread.h"
 #include "engine/runtime/thread_pool.h"
 
@@ -86,6 +87,10 @@ struct SolverWork {
   std::vector<char> node_identity;   // (ndofnode) 1 where 1 or 2 components are constrained: R = I keeps the projection
 
   std::vector<double> r, z, p, q, t;  // (ndof) CG work
+  // solver.coarse "corners": the two-level preconditioner's coarse level and
+  // its work vectors (ndof each).
+  CoarseSpace coarse;
+  std::vector<double> bnn_q, bnn_t, bnn_s;
   // (ndof, or empty) CG's start for the next frame's first Newton iteration:
   // this frame's first increment du (mapped through a cut; 0 on new DOFs).
   std::vector<double> guess;

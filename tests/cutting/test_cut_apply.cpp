@@ -128,6 +128,9 @@ TEST(CutPolicies, ProgressiveCutUnderEveryPolicyMatchesExact) {
   s.multiplicative_patch = true;
   s.single_factorization = true;
   cases.push_back({"lagged background refresh 2 warp, single-precision factorization", s, true});
+  s.coarse = true;  // the corner-node coarse level kept over the cuts (enriched DOFs outside it)
+  cases.push_back({"lagged background refresh 2 warp, two-level (coarse corners)", s, true});
+  s.coarse = false;
   SolverSettings w;
   w.policy = SolverPolicy::WarpedCG;
   cases.push_back({"warped_cg", w, false});

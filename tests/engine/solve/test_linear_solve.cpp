@@ -135,6 +135,8 @@ TEST(SolverPolicies, IterativePoliciesConvergeToExactAsToleranceTightens) {
     cases.push_back({"lagged background refresh 2", s});
     s.single_factorization = true;  // factored in float (engine/solve/single_factor.h)
     cases.push_back({"lagged background refresh 2, single-precision factorization", s});
+    s.coarse = true;  // two-level: the corner-node coarse level (engine/solve/coarse_space.h)
+    cases.push_back({"lagged background refresh 2, two-level", s});
     SolverSettings w;
     w.policy = SolverPolicy::WarpedCG;
     cases.push_back({"warped_cg", w});
@@ -363,6 +365,74 @@ TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
   EXPECT_LE(worst, 3 + 2) << "3 stalled iterations, then 1-2 with the fresh factor";
   EXPECT_LT(test::rel_diff(st.u, exact), 1e-8);
   EXPECT_LT(test::rel_diff(lagged, exact), 1e-8);
+}
+
+// A factor refreshed every 50 frames is far from the swinging beam's matrix;
+// the fresh coarse level (solver.coarse "corners") takes the smooth part of
+// the error, so CG needs fewer iterations for the same trajectory.
+TEST(SolverPolicies, TwoLevelNeedsFewerIterationsWithAStaleFactor) {
+  const int frames = 20;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.refresh_every = 50;
+  s.tolerance = 1e-8;
+  s.max_iterations = 500;
+  std::vector<int> one, two;
+  const auto u1 = run_swing(s, frames, &one);
+  s.coarse = true;
+  const auto u2 = run_swing(s, frames, &two);
+  int n1 = 0, n2 = 0;
+  for (int i : one) n1 += i;
+  for (int i : two) n2 += i;
+  std::printf("[ CG iterations over %d frames: lagged %d, two-level %d ]\n", frames, n1, n2);
+  EXPECT_LT(n2, n1);
+  EXPECT_LT(test::rel_diff(u1, exact), 1e-6);
+  EXPECT_LT(test::rel_diff(u2, exact), 1e-6);
+}
+
+// solver.frame_iterations: a budget far too small to converge (one CG
+// iteration per frame, a factor refreshed every 50 frames, tolerance 1e-10,
+// rescue after 3). No frame goes past its budget, none rescues, the frames
+// that stopped short say so with the residual they took, and the state
+// stays finite and bounded (NaN never comes out of a starved frame).
+TEST(SolverPolicies, FrameIterationBudgetCapsCgAndReportsTheResidualTaken) {
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.refresh_every = 50;
+  s.tolerance = 1e-10;
+  s.max_iterations = 500;
+  s.rescue_after = 3;
+  s.frame_iterations = 1;
+  for (bool coarse : {false, true}) {
+    s.coarse = coarse;
+    Scene sc = swing_scene(s);
+    sc.rotation_tolerance = 0.1;  // Newton may want more iterations: the budget stops them
+    const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+    const Model m = build_model(mesh, sc);
+    State st; Workspace ws;
+    init_state(m, st, ws);
+    int spent = 0;
+    for (int k = 0; k < 60; ++k) {
+      step(m, st, ws);
+      EXPECT_LE(ws.timing.iterations, 1) << "frame " << k;
+      EXPECT_EQ(ws.timing.rescues, 0) << "frame " << k;
+      EXPECT_EQ(ws.timing.newton, 1) << "frame " << k;
+      if (ws.timing.budget_spent) {
+        ++spent;
+        EXPECT_FALSE(ws.timing.converged);
+        EXPECT_GT(ws.timing.residual, s.tolerance) << "frame " << k;
+        EXPECT_TRUE(std::isfinite(ws.timing.residual)) << "frame " << k;
+      }
+    }
+    EXPECT_GT(spent, 30) << "coarse " << coarse;
+    double umax = 0.0;
+    for (double x : st.u) {
+      ASSERT_TRUE(std::isfinite(x));
+      umax = std::max(umax, std::abs(x));
+    }
+    EXPECT_LT(umax, 2.0) << "coarse " << coarse << ": the 2 m beam stays within its own length of rest";
+  }
 }
 
 // Parallel fused assembly equals the serial reference (assemble_internal +
