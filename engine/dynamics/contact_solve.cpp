@@ -142,24 +142,29 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   const int r = c.nrow(), n = m.ndof();
   if (r == 0) return;
   if (c.lambda.size() != static_cast<size_t>(r)) c.lambda.assign(r, 0.0);
-  // Y = A^-1 H^T, one column per row (constrained DOFs: no force, no motion),
-  // and one more column as the right-hand side's scratch.
+  // Y = A^-1 H^T, one column per row (constrained DOFs: no force, no motion).
   // Later Newton iterations of the frame keep the first one's Y and W under
   // the iterative policies (their preconditioner is an approximate inverse
   // anyway; H Y dlambda = W dlambda still meets the rows exactly): one
   // substitution per row and frame. exact recomputes them with each factor.
   const bool reuse = m.solver.policy != SolverPolicy::Exact && ws.contact_frame == s.frame &&
                      ws.contact_W.size() == static_cast<size_t>(r) * r;
-  resize_with_headroom(ws.contact_work, static_cast<size_t>(r + 1) * n);
-  double* rhs = ws.contact_work.data() + static_cast<size_t>(r) * n;
-  for (int i = 0; i < r && !reuse; ++i) {
-    std::fill(rhs, rhs + n, 0.0);
-    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
-      if (!m.constrained[c.dof[k]]) rhs[c.dof[k]] += c.coef[k];
-    double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
-    apply_factor_inverse(m, ws, rhs, y);
-    for (int d : m.fixed_dofs) y[d] = 0.0;
-    for (const auto& p : m.prescribed) y[p.dof] = 0.0;
+  resize_with_headroom(ws.contact_work, static_cast<size_t>(r) * n);
+  if (!reuse) {
+    // H^T's columns, then all of them through the factor in one substitution
+    // (apply_factor_inverse_multi: L read once, not once per row).
+    std::fill(ws.contact_work.begin(), ws.contact_work.begin() + static_cast<size_t>(r) * n, 0.0);
+    for (int i = 0; i < r; ++i) {
+      double* h = ws.contact_work.data() + static_cast<size_t>(i) * n;
+      for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
+        if (!m.constrained[c.dof[k]]) h[c.dof[k]] += c.coef[k];
+    }
+    apply_factor_inverse_multi(m, ws, r, ws.contact_work.data(), ws.contact_work.data());
+    for (int i = 0; i < r; ++i) {
+      double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
+      for (int d : m.fixed_dofs) y[d] = 0.0;
+      for (const auto& p : m.prescribed) y[p.dof] = 0.0;
+    }
   }
   // W = H Y (symmetrised: the lagged preconditioner is symmetric up to roundoff).
   std::vector<double>& W = ws.contact_W;

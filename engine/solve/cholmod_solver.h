@@ -131,6 +131,13 @@ class CholmodSolver {
   void solve_copy(const double* b, double* x);
   // A copy of the current factor exists (solve_copy reads it).
   bool has_factor_copy() const { return factorized_ && copy_valid_; }
+  // X = A^-1 B for k right-hand sides at once (B, X: n x k column-major, may
+  // alias), through the copy when there is one (as solve_copy), else the
+  // factor. A supernodal factor is read once for all k columns (the contact
+  // compliance's columns: a substitution's time is reading L, so k columns
+  // cost far less than k substitutions); a simplicial one solves them one by
+  // one. On this thread only; allocates only when k or n grows.
+  void solve_copy_multi(int k, const double* B, double* X);
 
   // Substitutions (solve, solve_copy) on two threads: this thread and the
   // worker (not owned; null = one thread), over the split of the current
@@ -170,6 +177,7 @@ class CholmodSolver {
   int n_ = 0;
   bool factorized_ = false;
   std::vector<double> work_y_, work_w_;  // own substitution: permuted vector, supernode gather
+  std::vector<double> multi_y_, multi_w_;  // solve_copy_multi: (n, 16) and (largest supernode rows, 16), row-interleaved
   SubstitutionWorker* worker_ = nullptr;   // set_substitution_worker
   SubstitutionSplit split_;                // of the current analysis
   std::vector<double> work_y2_, work_w2_, work_top_;  // the worker's y copy and gather, the top rows' start values

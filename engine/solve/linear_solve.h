@@ -75,6 +75,10 @@ void solve_for_policy(const Model& model, Workspace& ws);
 // stage builds its compliance W = H A^-1 H^T with it (Courtecuisse et al.'s
 // compliance from the preconditioner). Call after the solve stage.
 void apply_factor_inverse(const Model& model, Workspace& ws, const double* b, double* x);
+// The same for k columns at once (B, X: ndof x k column-major, may alias):
+// one read of the factor for all of them where it applies whole (exact,
+// warped, lagged before a cut maps it), column by column otherwise.
+void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const double* B, double* X);
 
 // Node rotations of the warped policies from the slot rotations R (nrot, 9):
 // the polar rotation of the volume-weighted sum of the incident slots' R;

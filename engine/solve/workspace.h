@@ -42,7 +42,7 @@ struct Workspace {
   // put on the DOFs, H^T lambda (ndof; empty while there are none).
   ContactRows contacts;
   std::vector<double> contact_force;
-  std::vector<double> contact_work;  // (nrow + 1, ndof) A^-1 H^T columns (and a scratch column), reused
+  std::vector<double> contact_work;  // (nrow, ndof) A^-1 H^T columns, reused
   std::vector<double> contact_W;     // (nrow, nrow) the compliance H A^-1 H^T of the last solve
   std::vector<double> contact_Wc;    // (nrow, nrow) the same plus the tools' coupling springs (ContactRows::compliance)
   int contact_frame = -1;            // State::frame contact_W and contact_work were computed in

@@ -2,7 +2,14 @@
 # Issue 4 "real-time" configuration against `exact`: the organ-like meshes
 # (assets/meshes/organ_*.msh, organ_drag boundary conditions) at 3k, 10k, 20k
 # and 30k DOF, the swinging beam at 10k and 20k, and the progressive incision
-# of assets/scenes/organ_incision.json (10k DOF). Each case runs
+# of assets/scenes/organ_incision.json (10k DOF); and issue 20's fast-motion
+# cases at 20k DOF: hang-20k (a soft organ, E = 10 kPa, nu = 0.45, rho =
+# 1060, Rayleigh 0.5 / 0.01, hung by its top 2 cm and released from rest
+# under gravity), drag-20k (the same organ taken at its lower face by a
+# grasper, dragged 5 cm at 0.2 m/s and let go:
+# assets/trajectories/organ_grasp_drag.csv) and haptics-20k
+# (assets/scenes/organ_haptics.json: the probe on the scripted haptic device
+# while the scalpel incises; its bench runs the 1 kHz haptic thread). Each case runs
 #   incise compare  (exact reference, then the policy; error after 1, 30, FRAMES frames)
 #   incise bench    (frame, cut-frame and stage timings of the policy alone)
 # The policy: solver.preset "realtime" (docs/scene-format.md, "Presets"),
@@ -49,6 +56,8 @@ reuse="${REALTIME_TANGENT_REUSE:-}"         # integrator.tangent_reuse of the po
 subthreads="${REALTIME_SUBSTITUTION_THREADS:-}"  # solver.substitution_threads (the preset: 2)
 precision="${REALTIME_FACTOR_PRECISION:-}"  # solver.factor_precision (the preset: single; needs the float copy)
 affinity="${REALTIME_AFFINITY:-}"           # solver.affinity (the preset: split; none leaves it to the kernel)
+coarse="${REALTIME_COARSE:-}"               # solver.coarse (the preset: none; corners: the two-level preconditioner)
+frame_its="${REALTIME_FRAME_ITERATIONS:-}"  # solver.frame_iterations (the preset: 0, no cap; N: CG iterations per frame)
 set_opts=""
 add() { if [ -n "$2" ]; then set_opts="$set_opts --set $1=$2"; fi; }
 add solver.tolerance "$tol"
@@ -60,6 +69,8 @@ add integrator.tangent_reuse "$reuse"
 add solver.substitution_threads "$subthreads"
 add solver.factor_precision "$precision"
 add solver.affinity "$affinity"
+add solver.coarse "$coarse"
+add solver.frame_iterations "$frame_its"
 # name mesh-or-scene K
 # K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
 # CHOLMOD's OpenMP teams were made serial; single precision, eighth session:
@@ -73,13 +84,31 @@ cases=(
   "beam-10k beam_20x4x4 2"
   "beam-20k beam_28x5x5 3"
   "incision-10k organ_incision 2"
+  "hang-20k organ_20k 3"
+  "drag-20k organ_20k 3"
+  "haptics-20k organ_haptics 3"
 )
 only="${BENCH_ONLY:-}"
 for c in "${cases[@]}"; do
   read -r name mesh k <<<"$c"
   if [ -n "$only" ] && [[ " $only " != *" $name "* ]]; then continue; fi
   scene="$out/$name.json"
+  bench_extra=""
   case "$name" in
+    hang-*|drag-*)
+      grasper=""
+      if [ "${name%%-*}" = drag ]; then
+        grasper=', "instruments": [{"type": "grasper", "name": "grasper", "jaw_size": [0.01, 0.002, 0.01], "opening": 0.012,
+                  "trajectory": "'"$(realpath --relative-to="$out" assets/trajectories/organ_grasp_drag.csv)"'"}]'
+      fi
+      cat >"$scene" <<JSON
+{"mesh": {"file": "$(realpath --relative-to="$out" "assets/meshes/$mesh.msh")", "order": 2},
+ "material": {"model": "corotated", "young": 1e4, "poisson": 0.45, "density": 1060,
+              "rayleigh": {"mass": 0.5, "stiffness": 0.01}},
+ "mass": "lumped", "gravity": [0, 0, -9.81],
+ "fixed": [{"box": [[-1, -1, 0.03], [1, 1, 1]]}]$grasper}
+JSON
+      ;;
     organ-*)
       cat >"$scene" <<JSON
 {"mesh": {"file": "$(realpath --relative-to="$out" "assets/meshes/$mesh.msh")", "order": 2},
@@ -104,13 +133,18 @@ JSON
                  "displacement": {"x": -0.12, "y": 0.1, "z": 0.08}, "ramp": 1.0}]}
 JSON
       ;;
-    incision-*)
+    incision-*|haptics-*)
+      [ "${name%%-*}" = haptics ] && bench_extra="--haptics"
       python3 - "assets/scenes/$mesh.json" "$scene" <<'PY'
 import json, os, sys
 src, dst = sys.argv[1], sys.argv[2]
 d = json.load(open(src))
 d.pop("integrator", None)  # the preset's (a --set when REALTIME_TANGENT is given)
-d["mesh"]["file"] = os.path.relpath(os.path.join(os.path.dirname(src), d["mesh"]["file"]), os.path.dirname(dst))
+rel = lambda f: os.path.relpath(os.path.join(os.path.dirname(src), f), os.path.dirname(dst))
+d["mesh"]["file"] = rel(d["mesh"]["file"])
+for ins in d.get("instruments", []):
+    if "trajectory" in ins:
+        ins["trajectory"] = rel(ins["trajectory"])
 for k in ("output", "render", "run", "solver"):
     d.pop(k, None)
 json.dump(d, open(dst, "w"), indent=1)
@@ -123,7 +157,7 @@ PY
   "$incise" compare "$scene" $opts --frames "1,30,$frames" --json "$out/$name.compare.json" >"$out/$name.compare.log" 2>&1 ||
     echo "  failed: see $out/$name.compare.log" >&2
   # shellcheck disable=SC2086
-  "$incise" bench "$scene" $opts --frames "$bench_frames" --warmup 5 --pace "$pace" --json "$out/$name.bench.json" \
+  "$incise" bench "$scene" $opts --frames "$bench_frames" --warmup 5 --pace "$pace" $bench_extra --json "$out/$name.bench.json" \
     --trace "$out/$name.trace.csv" >"$out/$name.bench.log" 2>&1 ||
     echo "  failed: see $out/$name.bench.log" >&2
 done
