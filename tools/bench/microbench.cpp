@@ -2,7 +2,8 @@
 // assembly (not part of ctest). Per element: rotation extraction (warm-started
 // polar), internal force, stiffness blocks and the scatter into the global
 // pattern. Also the supernodal forward+back substitution with the double
-// factor and with its float and binary16 copies (BM_Substitution), and one
+// factor and with its float and binary16 copies (BM_Substitution), k columns
+// at once against k single substitutions (BM_SubstitutionColumns), and one
 // numeric factorization by CHOLMOD or in single precision (BM_Factorization).
 // Run: build/tools/incise_microbench [--benchmark_filter=...]
 #include <algorithm>
@@ -168,6 +169,31 @@ void BM_Substitution(benchmark::State& state, int nx, int nyz, FactorCopy copy, 
     state.counters["top_share"] = f.substitution_split().top_share;
     state.counters["balance"] = f.substitution_split().balance;
   }
+}
+
+// k right-hand sides through the float copy (the contact compliance's
+// columns): one multi-column substitution (solve_copy_multi) or k single ones
+// (solve_copy, one thread). per_column_ms: the time per column.
+void BM_SubstitutionColumns(benchmark::State& state, int nx, int nyz, int k, bool multi) {
+  std::vector<double> A;
+  const Model m = dynamic_beam(nx, nyz, A);
+  const int n = m.ndof();
+  CholmodSolver f;
+  f.set_factor_copy(FactorCopy::Float);
+  f.analyze(n, m.Ap, m.Ai);
+  f.factorize(A.data());
+  std::vector<double> B(static_cast<size_t>(n) * k), X(B.size());
+  for (size_t i = 0; i < B.size(); ++i) B[i] = std::sin(0.37 * static_cast<double>(i));
+  f.solve_copy_multi(k, B.data(), X.data());  // first call allocates
+  for (auto _ : state) {
+    if (multi) f.solve_copy_multi(k, B.data(), X.data());
+    else
+      for (int c = 0; c < k; ++c) f.solve_copy(B.data() + static_cast<size_t>(c) * n, X.data() + static_cast<size_t>(c) * n);
+    benchmark::DoNotOptimize(X.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["dofs"] = n;
+  state.counters["per_column_ms"] = benchmark::Counter(k / 1e3, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
 // One numeric factorization of the dynamic beam system (see dynamic_beam):
@@ -431,6 +457,10 @@ BENCHMARK_CAPTURE(BM_Substitution, beam10k_half_2threads, 20, 4, FactorCopy::Hal
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_double_2threads, 28, 5, FactorCopy::None, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_single_2threads, 28, 5, FactorCopy::Float, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Substitution, beam20k_half_2threads, 28, 5, FactorCopy::Half, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SubstitutionColumns, beam20k_16_single, 28, 5, 16, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SubstitutionColumns, beam20k_16_multi, 28, 5, 16, true)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SubstitutionColumns, beam20k_4_single, 28, 5, 4, false)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SubstitutionColumns, beam20k_4_multi, 28, 5, 4, true)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_CAPTURE(BM_Factorization, beam10k_cholmod, 20, 4, false)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Factorization, beam10k_single, 20, 4, true)->Unit(benchmark::kMillisecond)->UseRealTime();
