@@ -333,6 +333,17 @@ TEST(SolverPolicies, PreviousIncrementStartSavesIterationsAndKeepsTheTrajectory)
   }
 }
 
+// The lagged policy with a factor refreshed every 50 frames: far from the
+// swinging beam's matrix within a few frames.
+SolverSettings stale_lagged(double tolerance) {
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.refresh_every = 50;
+  s.tolerance = tolerance;
+  s.max_iterations = 500;
+  return s;
+}
+
 TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
   // A factor refreshed every 50 frames is far from the swinging beam's
   // matrix: CG needs many iterations. With rescue_after = 3 a frame that has
@@ -341,11 +352,7 @@ TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
   // trajectory matches exact to the CG tolerance.
   const int frames = 20;
   const auto exact = run_swing(SolverSettings{}, frames);
-  SolverSettings s;
-  s.policy = SolverPolicy::Lagged;
-  s.refresh_every = 50;
-  s.tolerance = 1e-10;
-  s.max_iterations = 500;
+  SolverSettings s = stale_lagged(1e-10);
   std::vector<int> slow;
   const auto lagged = run_swing(s, frames, &slow);
   s.rescue_after = 3;
@@ -373,11 +380,7 @@ TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
 TEST(SolverPolicies, TwoLevelNeedsFewerIterationsWithAStaleFactor) {
   const int frames = 20;
   const auto exact = run_swing(SolverSettings{}, frames);
-  SolverSettings s;
-  s.policy = SolverPolicy::Lagged;
-  s.refresh_every = 50;
-  s.tolerance = 1e-8;
-  s.max_iterations = 500;
+  SolverSettings s = stale_lagged(1e-8);
   std::vector<int> one, two;
   const auto u1 = run_swing(s, frames, &one);
   s.coarse = true;
@@ -397,11 +400,7 @@ TEST(SolverPolicies, TwoLevelNeedsFewerIterationsWithAStaleFactor) {
 // that stopped short say so with the residual they took, and the state
 // stays finite and bounded (NaN never comes out of a starved frame).
 TEST(SolverPolicies, FrameIterationBudgetCapsCgAndReportsTheResidualTaken) {
-  SolverSettings s;
-  s.policy = SolverPolicy::Lagged;
-  s.refresh_every = 50;
-  s.tolerance = 1e-10;
-  s.max_iterations = 500;
+  SolverSettings s = stale_lagged(1e-10);
   s.rescue_after = 3;
   s.frame_iterations = 1;
   for (bool coarse : {false, true}) {
