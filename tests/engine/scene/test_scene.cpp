@@ -803,6 +803,20 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
                "solver.rescue_after must be an integer >= 0, got -1");
   expect_error_contains(minimal(R"("solver": {"policy": "lagged", "late_factor": "sometimes"})"),
                         "solver.late_factor must be one of \"wait\", \"skip\"");
+  // Issue 20's knobs: the coarse level (lagged) and the frame budget (CG policies).
+  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "coarse": "corners", "frame_iterations": 8})"), scene_path_);
+  EXPECT_TRUE(s.solver.coarse);
+  EXPECT_EQ(s.solver.frame_iterations, 8);
+  s = parse_scene(minimal(R"("solver": {"policy": "warped_cg", "frame_iterations": 3})"), scene_path_);
+  EXPECT_EQ(s.solver.frame_iterations, 3);
+  expect_error(minimal(R"("solver": {"policy": "warped_cg", "coarse": "corners"})"),
+               "solver.coarse: only used by solver.policy \"lagged\"; solver.policy is \"warped_cg\"");
+  expect_error(minimal(R"("solver": {"frame_iterations": 4})"),
+               "solver.frame_iterations: only used by the iterative policies \"lagged\" and \"warped_cg\"; solver.policy is \"exact\"");
+  expect_error(minimal(R"("solver": {"policy": "lagged", "frame_iterations": -2})"),
+               "solver.frame_iterations must be an integer >= 0, got -2");
+  expect_error_contains(minimal(R"("solver": {"policy": "lagged", "coarse": "aggregates"})"),
+                        "solver.coarse must be one of \"none\", \"corners\"");
   // The lagged policy's two-valued string keys: default (true), the other
   // value (false), a bad value, and the key under another policy.
   struct Choice {
