@@ -25,6 +25,8 @@ void print_model_summary(const Simulation& sim) {
                       m.max_newton_iterations > m.newton_iterations
                   ? " (more, up to integrator.max_newton_iterations, while rotations move > rotation_tolerance)"
                   : "");
+  if (sim.scene.initial_static)
+    std::printf("  initial: static equilibrium at t = 0 (solved at set-up, static.tolerance %g)\n", sim.scene.static_tolerance);
   if (m.material.model == MaterialModel::Corotated && m.material.rayleigh_stiffness == 0.0 &&
       m.newton_iterations == 1 && m.material.poisson > 0.49)
     std::printf("  warning: undamped corotated tissue with nu > 0.49 and one linearised solve per step can gain\n"

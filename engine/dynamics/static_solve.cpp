@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "engine/fem/assemble.h"
 #include "engine/util/error.h"
@@ -11,13 +12,13 @@
 
 namespace incise {
 
-StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolerance, int max_iterations) {
+StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolerance, int max_iterations, double time) {
   const int n = m.ndof();
   const bool linear = m.material.model == MaterialModel::Linear;
   ws.work.wait_job();  // a lagged policy's background factorization may use ws.solver
   ws.work.job_running = false;
   for (int d : m.fixed_dofs) s.u[d] = 0.0;
-  for (const auto& p : m.prescribed) s.u[p.dof] = p.value;
+  for (const auto& p : m.prescribed) s.u[p.dof] = time >= 0.0 ? m.prescribed_value(p, time) : p.value;
   double fext = 0.0;
   for (int d = 0; d < n; ++d)
     if (!m.constrained[d]) fext += m.f_gravity[d] * m.f_gravity[d];
@@ -57,6 +58,22 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
   }
   ws.factor_current = false;  // the factor held K, not a dynamics matrix
   return res;
+}
+
+void start_at_static_equilibrium(const Model& m, State& s, Workspace& ws, double tolerance, int max_iterations,
+                                 const std::string& scene_path) {
+  const StaticResult r = solve_static(m, s, ws, tolerance, max_iterations, s.time);
+  if (!r.converged) {
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  ": initial \"static\": the static solve did not reach static.tolerance %g in %d iterations "
+                  "(relative residual %g); raise static.max_iterations or static.tolerance, or start from rest "
+                  "(initial \"rest\")",
+                  tolerance, r.iterations, r.residual);
+    throw Error(scene_path + buf);
+  }
+  std::fill(s.v.begin(), s.v.end(), 0.0);
+  consistent_acceleration(m, s, ws);  // M a = f_ext - f_int(u): the residual the solve left, ~0
 }
 
 }  // namespace incise

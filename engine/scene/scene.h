@@ -250,6 +250,7 @@ struct Scene {
   // "solver.policy", "integrator.tangent", ... -> where the value came from
   // (scene file, preset, or a patch); a key that is absent kept its default.
   std::map<std::string, SettingOrigin> origin;
+  bool initial_static = false;          // initial: "static" (frame 0 at static equilibrium) or "rest" (unstressed)
   double static_tolerance = 1e-8;       // static.tolerance: relative residual
   int static_max_iterations = 50;       // static.max_iterations
   int frames = 60;                      // run.frames default for `incise run`
