@@ -248,12 +248,19 @@ void supernodal_substitute(const cholmod_factor* L, const T* Lx, const double* i
 // 109 ms one by one, 4 columns 10.8 against 25.9 ms. W: (nsrow, 4 NB) gather of
 // the supernode's rows. The same arithmetic per column as
 // forward_supernode / backward_supernode, summed in another order.
-inline D4 ld4(const double* p) {  // the interleaved rows are 8-byte aligned only
+// The interleaved rows are 8-byte aligned only: loads and stores go through
+// memcpy. ld4 returns a 32-byte vector, which without -mavx (the sanitizer
+// build) GCC flags as an ABI change (-Wpsabi), here and at every use; it is
+// always inlined in this file, so no call crosses an ABI (the pragma ends
+// after supernodal_substitute_multi).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+__attribute__((always_inline)) inline D4 ld4(const double* p) {
   D4 v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-inline void st4(double* p, const D4& v) { std::memcpy(p, &v, sizeof v); }
+__attribute__((always_inline)) inline void st4(double* p, const D4& v) { std::memcpy(p, &v, sizeof v); }
 
 template <class T, int NB>
 void forward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W) {
@@ -389,6 +396,8 @@ void supernodal_substitute_multi(const cholmod_factor* L, const T* Lx, const dou
       for (int c = 0; c < kg; ++c) X[static_cast<size_t>(c0 + c) * n + Perm[r]] = Y[static_cast<size_t>(r) * kp + c];
   }
 }
+
+#pragma GCC diagnostic pop
 
 // The worker's bins (SubstitutionSplit::bins[1]) for split_substitute, on
 // its private copy y2 (the caller's y stays the caller's, so a bin the caller

@@ -375,8 +375,15 @@ TEST_F(SceneTest, SolverSettingsChecked) {
 TEST_F(SceneTest, UnknownTopLevelKey) {
   expect_error(minimal(R"("materal": {})"),
                "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
-               "prescribed, integrator, solver, static, run, output, cuts, render, instruments, contact, haptics; did you mean "
+               "prescribed, integrator, solver, static, run, output, cuts, render, instruments, contact, haptics, initial; did you mean "
                "\"material\"?");
+}
+
+TEST_F(SceneTest, InitialIsRestOrStatic) {
+  EXPECT_FALSE(parse_scene(minimal(""), scene_path_).initial_static);
+  EXPECT_FALSE(parse_scene(minimal(R"("initial": "rest")"), scene_path_).initial_static);
+  EXPECT_TRUE(parse_scene(minimal(R"("initial": "static")"), scene_path_).initial_static);
+  expect_error_contains(minimal(R"("initial": "equilibrium")"), "initial must be one of \"rest\", \"static\"");
 }
 
 TEST_F(SceneTest, UnknownNestedKey) {
