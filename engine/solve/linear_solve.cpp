@@ -881,8 +881,8 @@ namespace {
 
 // X = Rn F^-1 Rn^T B per column with the factor f (Rn: per-node rotations of
 // (ndofnode, 9), or none), all columns in one substitution.
-void rotated_multi(const Model& m, Workspace& ws, CholmodSolver& f, const std::vector<double>* Rn, bool transpose_first,
-                   int k, const double* B, double* X) {
+void rotated_multi(const Model& m, Workspace& ws, CholmodSolver& f, const std::vector<double>* Rn, int k,
+                   const double* B, double* X) {
   const size_t n = static_cast<size_t>(m.ndof());
   const auto rotate = [&](double* V, bool transpose) {
     for (int c = 0; c < k; ++c)
@@ -895,12 +895,12 @@ void rotated_multi(const Model& m, Workspace& ws, CholmodSolver& f, const std::v
       }
   };
   if (X != B) std::copy(B, B + n * k, X);
-  if (Rn) rotate(X, transpose_first);
+  if (Rn) rotate(X, true);
   Stopwatch w;
   f.solve_copy_multi(k, X, X);
   ws.timing.solves += k;
   ws.timing.solve_kernel_ms += w.ms();
-  if (Rn) rotate(X, !transpose_first);
+  if (Rn) rotate(X, false);
 }
 
 }  // namespace
@@ -910,18 +910,18 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
   auto& w = ws.work;
   switch (m.solver.policy) {
     case SolverPolicy::Exact:
-      rotated_multi(m, ws, ws.solver, nullptr, true, k, B, X);
+      rotated_multi(m, ws, ws.solver, nullptr, k, B, X);
       return;
     case SolverPolicy::Lagged:
       if (w.slot_map[w.front].empty()) {  // the front factor knows every DOF: no patch
         // warp: Q F^-1 Q^T (factor_apply), Q = the rotations since the factor's frame
-        rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, true, k, B, X);
+        rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, B, X);
         return;
       }
       break;
     case SolverPolicy::Warped:
     case SolverPolicy::WarpedCG:
-      rotated_multi(m, ws, ws.solver, &w.Rn, true, k, B, X);
+      rotated_multi(m, ws, ws.solver, &w.Rn, k, B, X);
       return;
   }
   for (int c = 0; c < k; ++c) apply_factor_inverse(m, ws, B + c * n, X + c * n);
