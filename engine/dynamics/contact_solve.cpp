@@ -146,7 +146,7 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   // Later Newton iterations of the frame keep the first one's Y and W under
   // the iterative policies (their preconditioner is an approximate inverse
   // anyway; H Y dlambda = W dlambda still meets the rows exactly): one
-  // substitution per row and frame. exact recomputes them with each factor.
+  // multi-column substitution per frame. exact recomputes them with each factor.
   const bool reuse = m.solver.policy != SolverPolicy::Exact && ws.contact_frame == s.frame &&
                      ws.contact_W.size() == static_cast<size_t>(r) * r;
   resize_with_headroom(ws.contact_work, static_cast<size_t>(r) * n);

@@ -15,7 +15,6 @@ namespace incise {
 
 namespace {
 
-
 // A field's hash: FNV-1a steps over whole 64-bit values rather than bytes,
 // in four interleaved lanes folded at the end, so the record stage's hashes
 // cost 0.1 ms, not 1 ms, per 10k-DOF frame. Every step is a bijection of its

@@ -221,7 +221,6 @@ void factor_coarse_space(const Model& m, const double* A, CoarseSpace& c) {
     }
   }
   c.factor.factorize(c.cA.data());
-  ++c.factorizations;
 }
 
 void apply_coarse_space(const Model& m, CoarseSpace& c, const double* r, double* z) {

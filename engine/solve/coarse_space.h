@@ -46,7 +46,6 @@ struct CoarseSpace {
   std::vector<char> cfixed;  // (3 ncoarse) coarse DOFs whose corner DOF is constrained
   CholmodSolver factor;
   std::vector<double> rc;  // (3 ncoarse) work
-  int factorizations = 0;
 };
 
 // Builds the space for the model, or keeps it when only enriched DOFs

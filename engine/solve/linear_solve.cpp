@@ -421,6 +421,15 @@ int budget_left(const Model& m, const Workspace& ws) {
   return b > 0 ? std::max(1, b - ws.timing.iterations) : std::numeric_limits<int>::max();
 }
 
+// After a CG solve capped at min(cap, left): whether it stopped short of the
+// tolerance because the budget ran out (recorded in the frame's timing: no
+// rescue and no further Newton iteration follow).
+bool budget_ran_out(const Model& m, Workspace& ws, int left, int cap) {
+  const bool out = ws.timing.residual > m.solver.tolerance && left <= cap;
+  if (out) ws.timing.budget_spent = true;
+  return out;
+}
+
 // The patch's DOF nodes: unknown = a DOF node with a DOF the front map does
 // not carry, node_in = a node of an element touching an unknown one.
 void patch_nodes(const Model& m, const std::vector<int>& map, std::vector<char>& node_in, std::vector<char>& unknown) {
@@ -835,7 +844,7 @@ void solve_for_policy(const Model& m, Workspace& ws) {
       if (ws.rescue_pending) {  // the rescue factor is in place: CG again from 0
         ws.rescue_pending = false;
         pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, std::min(m.solver.max_iterations, left));
-        if (ws.timing.residual > m.solver.tolerance && left <= m.solver.max_iterations) ws.timing.budget_spent = true;
+        budget_ran_out(m, ws, left, m.solver.max_iterations);
       } else {
         // The first Newton iteration's increment alternates in sign between
         // frames (the trapezoidal rule's undamped sawtooth about the
@@ -843,12 +852,10 @@ void solve_for_policy(const Model& m, Workspace& ws) {
         const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
         const int cap = rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations;
         pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, std::min(cap, left), use_guess ? guess.data() : nullptr);
-        const bool stalled = ws.timing.residual > m.solver.tolerance;
-        if (stalled && left <= cap) {
-          // solver.frame_iterations spent: the frame takes this increment as
-          // it is (no rescue, no further Newton iteration: decide_newton).
-          ws.timing.budget_spent = true;
-        } else if (rescue > 0 && stalled && rescue < m.solver.max_iterations) {
+        // With solver.frame_iterations spent the frame takes this increment
+        // as it is (no rescue, no further Newton iteration: decide_newton).
+        if (!budget_ran_out(m, ws, left, cap) && rescue > 0 && ws.timing.residual > m.solver.tolerance &&
+            rescue < m.solver.max_iterations) {
           // The lagged factor is too far from A (fast large rotations): the
           // factorization stage factors A now and CG runs again with it,
           // instead of hundreds of CG iterations.
@@ -870,7 +877,7 @@ void solve_for_policy(const Model& m, Workspace& ws) {
       const int left = budget_left(m, ws);
       pcg(m, ws, ws.A.data(), ws.rhs.data(), du, [&](const double* r, double* z) { warped_apply(m, ws, r, z); },
           std::min(m.solver.max_iterations, left), use_guess ? guess.data() : nullptr);
-      if (ws.timing.residual > m.solver.tolerance && left <= m.solver.max_iterations) ws.timing.budget_spent = true;
+      budget_ran_out(m, ws, left, m.solver.max_iterations);
       if (iteration == 0 && m.solver.previous_guess) guess.assign(du, du + m.ndof());
       break;
     }
