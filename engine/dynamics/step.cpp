@@ -278,7 +278,8 @@ void decide_newton(const Model& m, State& s, Workspace& ws) {
   // before one-iteration stepping diverges; on smooth frames it stays below.
   double* x = ws.tmp.data();
   for (int d = 0; d < n; ++d) x[d] = s.u[d] + ws.delta[d];
-  ws.newton_done = !(max_rotation_change(m, ws.work.plan, *ws.work.pool, x, s.R.data()) > m.rotation_tolerance);
+  ws.timing.rotation_change = max_rotation_change(m, ws.work.plan, *ws.work.pool, x, s.R.data());
+  ws.newton_done = !(ws.timing.rotation_change > m.rotation_tolerance);
 }
 
 void integrate(const Model& m, State& s, Workspace& ws) {
@@ -315,8 +316,10 @@ const double* internal_forces(const Model& m, State& s, Workspace& ws, const dou
   TangentCache* cache = reuse_tangent && tangent && m.tangent_reuse > 0.0 ? &ws.tangent_cache : nullptr;
   ws.tangent_cache.updated = tangent ? m.nelem : 0;  // what a full assembly recomputes (the cache overwrites it)
   if (tangent && !cache) ws.tangent_cache.valid = false;  // K rebuilt without it (a static solve): no longer the kept sum
-  ws.rotation_fallbacks += assemble_corotated(m, ws.work.plan, *ws.work.pool, x, s.R.data(), ws.f_int.data(),
-                                             tangent ? ws.K.data() : nullptr, cache);
+  const int fallbacks = assemble_corotated(m, ws.work.plan, *ws.work.pool, x, s.R.data(), ws.f_int.data(),
+                                          tangent ? ws.K.data() : nullptr, cache);
+  ws.rotation_fallbacks += fallbacks;
+  ws.timing.inverted_points = fallbacks;
   return ws.K.data();
 }
 

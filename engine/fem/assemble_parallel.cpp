@@ -659,6 +659,10 @@ double element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, 
     const int r = plan.elem_rot[k];
     double F[9];
     grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+    // An inverted point's rotation (the inversion-safe one, polar.h) jumps
+    // as F passes through det F = 0 and does not settle with more Newton
+    // iterations; it is counted (FrameTiming::inverted_points), not checked.
+    if (!(Eigen::Map<const Mat3>(F).determinant() > 0.0)) continue;
     worst = std::max(worst, rotation_angle_to(Eigen::Map<const Mat3>(F), Eigen::Map<const Mat3>(Rall + 9 * r)));
   }
   return worst;

@@ -91,7 +91,7 @@ int assemble_corotated(const Model& model, AssemblyPlan& plan, ThreadPool& pool,
 // Largest angle between the slot rotations R and the rotations of the
 // configuration u, over every slot (rotation_angle_to: one Newton step, not a
 // full extraction), on the pool's workers; R is not changed. An angle that is
-// NaN is not counted.
+// NaN is not counted, nor a slot where u inverts the element (det F <= 0).
 double max_rotation_change(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R);
 
 void element_subset_forces(const Model& model, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,

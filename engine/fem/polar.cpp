@@ -100,7 +100,10 @@ double rotation_angle_to(const Eigen::Matrix3d& F, const Eigen::Matrix3d& R) {
   const Eigen::Matrix3d B = F * R.transpose();
   const Eigen::Matrix3d H = B.trace() * Eigen::Matrix3d::Identity() - 0.5 * (B + B.transpose());
   Eigen::Vector3d d;
-  if (H.diagonal().minCoeff() > 1e-6 * scale && solve_spd3(H, g, d)) return d.norm();
+  // The one-step estimate is second-order accurate for small angles only;
+  // past 0.5 rad (or near a singular H, where it can read thousands of
+  // radians) the exact angle below is taken.
+  if (H.diagonal().minCoeff() > 1e-6 * scale && solve_spd3(H, g, d) && d.norm() < 0.5) return d.norm();
   Eigen::Matrix3d Rf = R;
   extract_rotation(F, Rf);
   const double c = 0.5 * ((R.transpose() * Rf).trace() - 1.0);

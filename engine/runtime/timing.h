@@ -62,6 +62,8 @@ struct FrameTiming {
   int late_factor_call = -1;  // late_factor "skip": the lagged refresh call (0, 1, ...) that took a finished background factor; -1 none (Workspace::imposed_late_factor_call)
   int patch_dofs = 0;         // lagged after cuts: DOFs of the exactly solved patch (0: none)
   int tangent_updates = 0;    // elements whose tangent blocks were (re)computed (all but the kept ones: integrator.tangent_reuse)
+  int inverted_points = 0;    // cubature points the frame's last assembly found inverted or degenerate (SVD fallback of the rotation)
+  double rotation_change = 0; // adaptive Newton: largest rotation change (rad) at the last check (integrator.rotation_tolerance)
   // Instruments (collision/, engine/dynamics/contact_solve.h).
   int contacts = 0;           // contact rows of the frame (after reduction to contact.max_rows)
   int grasp_rows = 0;         // bilateral grasp rows

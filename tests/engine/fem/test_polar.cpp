@@ -82,5 +82,40 @@ TEST(Polar, DegenerateFlatElementGivesAProperRotation) {
   EXPECT_LT((R - Eigen::Matrix3d::Identity()).norm(), 1e-12);
 }
 
+// rotation_angle_to (the adaptive Newton check): the angle between R and
+// F's rotation, to 1% below 0.1 rad (its one-step estimate) and exactly
+// (to 1e-9) beyond 0.5 rad, never above pi, for stretched, nearly singular
+// and inverted F: a one-step estimate there read thousands of radians.
+TEST(Polar, RotationAngleToIsTheAngleForSmallLargeAndDegenerateF) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> U(0.3, 2.0);
+  for (int k = 0; k < 300; ++k) {
+    const Eigen::Matrix3d R = random_rotation(rng);
+    const Eigen::Vector3d axis = Eigen::Vector3d::Random().normalized();
+    const double angle = k < 100 ? 0.1 * k / 100.0 : 0.5 + 2.5 * (k - 100) / 200.0;
+    const Eigen::Matrix3d Q = R * Eigen::AngleAxisd(angle, axis).toRotationMatrix();
+    Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+    S.diagonal() << U(rng), U(rng), U(rng);
+    const Eigen::Matrix3d V = random_rotation(rng);
+    const Eigen::Matrix3d F = Q * V * S * V.transpose();  // rotation Q, stretch V S V^T
+    const double got = rotation_angle_to(F, R);
+    if (angle < 0.1) {
+      EXPECT_NEAR(got, angle, 0.01 * angle + 1e-12) << "k = " << k;
+    } else if (angle > 0.5) {
+      EXPECT_NEAR(got, angle, 1e-9) << "k = " << k;
+    }
+  }
+  for (int k = 0; k < 300; ++k) {  // nearly singular and inverted: an angle in [0, pi]
+    const Eigen::Matrix3d R = random_rotation(rng);
+    Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+    S.diagonal() << U(rng), U(rng), (k % 3 == 0 ? -1.0 : 1.0) * 1e-3 * U(rng) * (k % 2);
+    const Eigen::Matrix3d V = random_rotation(rng);
+    const Eigen::Matrix3d F = random_rotation(rng) * V * S * V.transpose();
+    const double got = rotation_angle_to(F, R);
+    EXPECT_GE(got, 0.0) << "k = " << k;
+    EXPECT_LE(got, M_PI + 1e-12) << "k = " << k;
+  }
+}
+
 }  // namespace
 }  // namespace incise
