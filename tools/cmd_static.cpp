@@ -80,9 +80,10 @@ void run_static(const StaticOptions& o) {
   Stopwatch clock;
   const StaticResult r = solve_static(sim->model, sim->state, sim->ws, sim->scene.static_tolerance,
                                       sim->scene.static_max_iterations);
-  std::printf("static: %s after %d Newton iteration(s), relative residual %.3e (tolerance %.1e), %.1f ms\n",
+  std::printf("static: %s after %d Newton iteration(s), relative residual %.3e (tolerance %g), %.1f ms\n",
               r.converged ? "converged" : "NOT converged", r.iterations, r.residual, sim->scene.static_tolerance,
               clock.ms());
+  std::printf("  %s\n", static_report(r).c_str());
   if (!o.vtu.empty()) write_vtu(result_grid(sim->model, sim->state), o.vtu);
   if (!pts.empty()) {
     std::ostringstream os;
@@ -103,10 +104,14 @@ void run_static(const StaticOptions& o) {
       std::printf("wrote %s (%zu points)\n", o.out.c_str(), pts.size());
     }
   }
-  if (!r.converged)
-    throw Error(o.scene + ": static solve did not reach static.tolerance " + std::to_string(sim->scene.static_tolerance) +
-                " in " + std::to_string(sim->scene.static_max_iterations) +
-                " iterations; raise static.max_iterations or loosen static.tolerance");
+  if (!r.converged) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  ": static solve did not reach static.tolerance %g in %d iterations (relative residual %g); raise "
+                  "static.max_iterations or loosen static.tolerance",
+                  sim->scene.static_tolerance, sim->scene.static_max_iterations, r.residual);
+    throw Error(o.scene + buf);
+  }
 }
 }  // namespace
 

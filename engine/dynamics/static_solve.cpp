@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "engine/fem/assemble.h"
+#include "engine/fem/assemble_parallel.h"
 #include "engine/util/error.h"
 #include "engine/dynamics/step.h"
 
@@ -29,35 +30,124 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
   // run beside ours (unsafe with a serial OpenBLAS, blas_concurrency_safe): a
   // lagged dynamics state is reset.
   if (ws.work.job_running || ws.work.slot_pattern[0] != ws.work.pattern) prepare_solver(m, ws, s.frame);
-  for (int it = 0; it <= max_iterations; ++it) {
-    const double* K = internal_forces(m, s, ws, s.u.data(), true);
+  // The consistent tangent whatever integrator.tangent says: a plan of our own.
+  AssemblyPlan plan;
+  if (!linear) {
+    plan = make_assembly_plan(m, ws.work.pool->size());
+    plan.qp_own_rot = point_rotation_flags(m, true);
+    plan.slot_weight = shared_slot_weights(m, true);
+    plan.exact_rotation_term = true;
+  }
+  // Free residual f_ext - f_int(u) into ws.rhs and its norm; K (nnz) when asked.
+  int fallbacks = 0;
+  const auto residual_at = [&](const double* u, bool tangent) {
+    if (linear) {
+      internal_forces(m, s, ws, u, false);
+    } else {
+      fallbacks = assemble_corotated(m, plan, *ws.work.pool, u, s.R.data(), ws.f_int.data(),
+                                     tangent ? ws.K.data() : nullptr);
+    }
     double r2 = 0.0;
     for (int d = 0; d < n; ++d) {
       ws.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d] - ws.f_int[d];
       r2 += ws.rhs[d] * ws.rhs[d];
     }
-    const double r = std::sqrt(r2);
+    return std::sqrt(r2);
+  };
+  double* trial = ws.tmp.data();
+  double r = residual_at(s.u.data(), true);
+  for (int it = 0; it <= max_iterations; ++it) {
     if (!std::isfinite(r)) throw Error("static: non-finite residual at iteration " + std::to_string(it));
     if (it == 0) ref = std::max(fext, r);
     res.iterations = it;
     res.residual = ref > 0 ? r / ref : 0.0;
+    res.residuals.push_back(res.residual);
     if (res.residual <= tolerance) {
       res.converged = true;
       break;
     }
     if (it == max_iterations) break;
     if (!(linear && ws.factor_current)) {
-      std::copy(K, K + m.nnz(), ws.A.begin());
-      project_constraints(m, ws.A.data());
-      ws.solver.factorize(ws.A.data());
-      ++ws.refactorizations;
+      const auto factorize = [&] {
+        const double* K = linear ? m.K0_csc.data() : ws.K.data();
+        std::copy(K, K + m.nnz(), ws.A.begin());
+        project_constraints(m, ws.A.data());
+        ws.solver.factorize(ws.A.data());
+        ++ws.refactorizations;
+      };
+      try {
+        factorize();
+      } catch (const Error&) {
+        // The exact tangent is indefinite here (compressed rotation modes
+        // outweigh the rest: near inversion, a buckling load): this
+        // iteration takes the projected, positive semi-definite one.
+        if (linear) throw;
+        plan.exact_rotation_term = false;
+        residual_at(s.u.data(), true);
+        plan.exact_rotation_term = true;
+        ++res.projected;
+        factorize();
+      }
       ws.factor_current = linear;
     }
     ws.solver.solve(ws.rhs.data(), ws.du.data());
-    for (int d = 0; d < n; ++d) s.u[d] += ws.du[d];
+    for (int d = 0; d < n; ++d)
+      if (!std::isfinite(ws.du[d]))
+        throw Error("static: non-finite Newton step at iteration " + std::to_string(it) + ", DOF node " +
+                    std::to_string(d / 3) + " component " + "xyz"[d % 3] + " (a singular tangent: a piece held by nothing?)");
+    // Backtracking on the total potential energy Pi(u) = U(u) - f_ext . u
+    // (U: the corotated elastic energy, elastic_energy; -r its gradient on
+    // the free DOFs): the full step, then halves until Pi drops by at least
+    // 1e-4 alpha du . r (Armijo), or the residual norm drops (near the
+    // solution Pi's change, O(r^2), is below its roundoff). The residual norm
+    // alone is no merit: on a cantilever the Newton path raises it for an
+    // iteration where the energy falls. Where no length passes (a step into
+    // inversion), the shortest is taken and counted.
+    double slope = 0.0;  // du . r = -dPi/dalpha at 0
+    for (int d = 0; d < n; ++d) slope += ws.du[d] * ws.rhs[d];
+    const auto energy_at = [&](const double* u) {  // after residual_at(u): s.R holds u's rotations
+      double w = 0.0;
+      for (int d = 0; d < n; ++d) w += m.f_gravity[d] * u[d];
+      return elastic_energy(m, u, s.R.data()) - w;
+    };
+    double alpha = 1.0, r_new = 0.0;
+    const bool search = !linear && slope > 0.0;
+    double pi0 = 0.0;
+    if (search) pi0 = energy_at(s.u.data());  // s.R: u's rotations (its tangent's assembly)
+    for (int h = 0;; ++h) {
+      for (int d = 0; d < n; ++d) trial[d] = s.u[d] + alpha * ws.du[d];
+      r_new = residual_at(trial, false);
+      if (!search || (std::isfinite(r_new) && (r_new < r || energy_at(trial) <= pi0 - 1e-4 * alpha * slope))) break;
+      if (h == kStaticLineSearchHalvings) {
+        ++res.stalled;
+        break;
+      }
+      alpha *= 0.5;
+    }
+    if (alpha < 1.0) ++res.shortened;
+    res.smallest_step = std::min(res.smallest_step, alpha);
+    std::copy(trial, trial + n, s.u.begin());
+    // The tangent at the new point (and its residual again: the same forces).
+    r = residual_at(s.u.data(), true);
   }
+  res.inverted_points = fallbacks;
   ws.factor_current = false;  // the factor held K, not a dynamics matrix
   return res;
+}
+
+std::string static_report(const StaticResult& r) {
+  std::string out = "Newton (consistent tangent): residuals";
+  char buf[96];
+  for (double x : r.residuals) {
+    std::snprintf(buf, sizeof buf, " %.1e", x);
+    out += buf;
+  }
+  std::snprintf(buf, sizeof buf, "; line search shortened %d step(s) (shortest %g), %d without descent", r.shortened,
+                r.smallest_step, r.stalled);
+  out += buf;
+  if (r.projected > 0) out += "; " + std::to_string(r.projected) + " iteration(s) on the projected tangent (exact one indefinite)";
+  if (r.inverted_points > 0) out += "; " + std::to_string(r.inverted_points) + " inverted cubature point(s) at the end";
+  return out;
 }
 
 void start_at_static_equilibrium(const Model& m, State& s, Workspace& ws, double tolerance, int max_iterations,

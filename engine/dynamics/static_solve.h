@@ -1,8 +1,12 @@
 #pragma once
-// Static equilibrium f_int(u) = f_ext by Newton iterations on the corotated
-// tangent (book eq. 3.53 without inertia), prescribed displacements at their
-// final values (or at their values at `time` >= 0).
+// Static equilibrium f_int(u) = f_ext: Newton's method on the consistent
+// corotated tangent (the frozen-rotation tangent R K0 R^T plus the rotation
+// term dR/du of engine/fem/rotation_stiffness.h, whatever integrator.tangent
+// says; [book] eq. (3.53) without inertia), with a backtracking line search
+// on the residual norm, prescribed displacements at their final values (or
+// at their values at `time` >= 0).
 #include <string>
+#include <vector>
 
 #include "engine/model/model.h"
 #include "engine/dynamics/state.h"
@@ -14,14 +18,32 @@ struct StaticResult {
   int iterations = 0;
   double residual = 0.0;  // ||r_free|| / reference (see below)
   bool converged = false;
+  std::vector<double> residuals;  // relative residual before each iteration (residuals[0]: at the start)
+  int shortened = 0;      // iterations whose step the line search shortened
+  double smallest_step = 1.0;  // shortest step length taken (1: every step was a full Newton step)
+  int stalled = 0;        // iterations where no step length passed the line search (the shortest was taken)
+  int projected = 0;      // iterations whose exact tangent was indefinite: the projected one was taken
+  int inverted_points = 0;  // cubature points inverted at the solution (SVD fallbacks of the last assembly)
 };
+
+// The line search (static_solve.cpp): alpha halves from 1 at most this many
+// times.
+inline constexpr int kStaticLineSearchHalvings = 10;
 
 // Solves into state.u (state and ws must be init_state'd). Converged when
 // ||f_ext - f_int(u)|| on the free DOFs <= tolerance * max(||f_ext||, ||r_0||),
 // r_0 the first residual (covers load-free, displacement-driven problems).
-// A linear model converges in one solve.
+// A linear model converges in one solve; a corotated one quadratically once
+// near the solution: the tangent is the exact one (rotation_stiffness.h,
+// `exact`: compressed rotation modes kept), and where that is indefinite
+// (Cholesky fails) the iteration takes the projected one (counted).
 StaticResult solve_static(const Model& model, State& state, Workspace& ws, double tolerance, int max_iterations,
                           double time = -1.0);
+
+// One line on what the solve did: the residual per iteration, the line
+// search's shortened steps and the shortest, projected tangents, inverted
+// points at the end.
+std::string static_report(const StaticResult& result);
 
 // The scene key `initial: "static"` (issue 20): the State at frame 0 becomes
 // the static equilibrium under the loads and the prescribed values at t = 0,

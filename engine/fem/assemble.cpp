@@ -36,18 +36,22 @@ Mat3 corotated_stress(const Model& m, const Mat3& R, const Mat3& F) {
 }
 }  // namespace
 
-std::vector<char> point_rotation_flags(const Model& m) {
+std::vector<char> point_rotation_flags(const Model& m) { return point_rotation_flags(m, m.consistent_tangent); }
+
+std::vector<char> point_rotation_flags(const Model& m, bool consistent) {
   std::vector<char> own(m.qp_rot.size(), 0);
-  if (m.material.model == MaterialModel::Linear || !m.consistent_tangent) return own;
+  if (m.material.model == MaterialModel::Linear || !consistent) return own;
   std::vector<int> users(m.nrot, 0);
   for (int r : m.qp_rot) ++users[r];
   for (size_t q = 0; q < own.size(); ++q) own[q] = users[m.qp_rot[q]] == 1;
   return own;
 }
 
-std::vector<double> shared_slot_weights(const Model& m) {
+std::vector<double> shared_slot_weights(const Model& m) { return shared_slot_weights(m, m.consistent_tangent); }
+
+std::vector<double> shared_slot_weights(const Model& m, bool consistent) {
   std::vector<double> W(m.nrot, 0.0);
-  if (m.material.model == MaterialModel::Linear || !m.consistent_tangent) return W;
+  if (m.material.model == MaterialModel::Linear || !consistent) return W;
   std::vector<int> users(m.nrot, 0);
   for (int r : m.qp_rot) ++users[r];
   for (size_t q = 0; q < m.qp_rot.size(); ++q)

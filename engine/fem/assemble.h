@@ -37,6 +37,10 @@ std::vector<char> point_rotation_flags(const Model& model);
 // rotation term (add_slot_rotation_stiffness); 0 for a point's own slot, and
 // all 0 under the same conditions as point_rotation_flags.
 std::vector<double> shared_slot_weights(const Model& model);
+// The same with the rotation term asked for explicitly (the static solve
+// always takes it, whatever integrator.tangent says).
+std::vector<char> point_rotation_flags(const Model& model, bool consistent);
+std::vector<double> shared_slot_weights(const Model& model, bool consistent);
 
 // f_int (ndof) = internal elastic force at u with rotations R; K (nnz) = the
 // corotated tangent in the pattern (skipped when K is null). Both are

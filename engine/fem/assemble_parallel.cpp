@@ -350,7 +350,7 @@ inline void slot_rotation_terms(const Model& m, const AssemblyPlan& plan, int e,
     if (store_F) std::copy(F, F + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
     if (plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points)
       add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
-                                  plan.slot_weight[r], Kl, h, t);
+                                  plan.slot_weight[r], Kl, h, t, plan.exact_rotation_term);
   }
 }
 
@@ -467,11 +467,11 @@ inline void point_terms(const Model& m, const AssemblyPlan& plan, int e, int q, 
   if (!Kl) return;  // a kept element: forces only
   rotate_gradients<NN>(n, R, g, h);
   double Y[9];
-  const bool rot = NN > 0 && plan.qp_own_rot[q] && rotation_stiffness_matrix(R, F, mu, lambda, w, Y);
+  const bool rot = NN > 0 && plan.qp_own_rot[q] && rotation_stiffness_matrix(R, F, mu, lambda, w, Y, plan.exact_rotation_term);
   add_point_blocks<NN>(n, g, h, w * lambda, w * mu, rot ? Y : nullptr, Kl);
   if constexpr (NN == 0) {
     double uk[9], coef[3];
-    if (plan.qp_own_rot[q] && rotation_stiffness_modes(R, F, mu, lambda, w, uk, coef))
+    if (plan.qp_own_rot[q] && rotation_stiffness_modes(R, F, mu, lambda, w, uk, coef, plan.exact_rotation_term))
       add_rotation_stiffness(n, h, uk, coef, Kl, t);
   }
 }

@@ -37,9 +37,9 @@ namespace incise {
 // axes of S), and S. False (no rotation term) where T is not positive
 // definite (an inverted or degenerate point: some pair s_i + s_j <= 0) or
 // every |kappa| is below 1% of mu (a nearly unstrained point: not worth the
-// element update).
+// element update; `exact` keeps it: the static solve's Newton tangent).
 inline bool rotation_mode_stiffness(const double* R, const double* F, double mu, double lambda, Eigen::Matrix3d& Z,
-                                    Eigen::Matrix3d& S) {
+                                    Eigen::Matrix3d& S, bool exact = false) {
   const Eigen::Map<const Eigen::Matrix3d> Rm(R), Fm(F);
   const Eigen::Matrix3d RtF = Rm.transpose() * Fm;
   S = 0.5 * (RtF + RtF.transpose());
@@ -54,7 +54,7 @@ inline bool rotation_mode_stiffness(const double* R, const double* F, double mu,
     return false;
   Z = (-2.0 * c) * T.inverse();  // cofactors for a fixed 3x3
   Z.diagonal().array() += 2.0 * mu;
-  return Z.cwiseAbs().maxCoeff() >= 1e-2 * mu;
+  return exact || Z.cwiseAbs().maxCoeff() >= 1e-2 * mu;
 }
 
 // For a point with rotation R and gradient F (both column-major 3x3) and
@@ -64,18 +64,19 @@ inline bool rotation_mode_stiffness(const double* R, const double* F, double mu,
 // Z is positive semi-definite (the usual case where rotation terms matter: a
 // stretched point) its 3x3 Cholesky factor gives the u_k; otherwise the
 // eigen-decomposition of S does (slower, rarer). Returns whether any
-// coefficient is positive.
+// coefficient is positive. `exact`: Z itself, kappa_k < 0 kept (coef may be
+// negative; the tangent may then be indefinite: the static solve's Newton).
 inline bool rotation_stiffness_modes(const double* R, const double* F, double mu, double lambda, double w, double* u,
-                                     double* coef) {
+                                     double* coef, bool exact = false) {
   const Eigen::Map<const Eigen::Matrix3d> Rm(R);
   Eigen::Matrix3d Z, S;
-  if (!rotation_mode_stiffness(R, F, mu, lambda, Z, S)) {
+  if (!rotation_mode_stiffness(R, F, mu, lambda, Z, S, exact)) {
     coef[0] = coef[1] = coef[2] = 0.0;
     return false;
   }
   // Cholesky Z = L L^T, lower.
   const double l00s = Z(0, 0);
-  if (l00s > 0.0) {
+  if (l00s > 0.0 && !exact) {
     const double l00 = std::sqrt(l00s), l10 = Z(1, 0) / l00, l20 = Z(2, 0) / l00;
     const double l11s = Z(1, 1) - l10 * l10;
     if (l11s > 0.0) {
@@ -100,8 +101,8 @@ inline bool rotation_stiffness_modes(const double* R, const double* F, double mu
   for (int k = 0; k < 3; ++k) {
     const double pair = s[(k + 1) % 3] + s[(k + 2) % 3];
     const double kappa = pair > 1e-8 ? 2.0 * mu - 2.0 * c / pair : 0.0;
-    coef[k] = kappa > 0.0 ? 0.5 * w * kappa : 0.0;
-    any = any || coef[k] > 0.0;
+    coef[k] = kappa > 0.0 || exact ? 0.5 * w * kappa : 0.0;
+    any = any || coef[k] != 0.0;
     Eigen::Map<Eigen::Vector3d>(u + 3 * k) = Rm * es.eigenvectors().col(k);
   }
   return any;
@@ -112,17 +113,18 @@ inline bool rotation_stiffness_modes(const double* R, const double* F, double mu
 // [h_a]x Y [h_b]x^T. Positive semi-definite Z (checked by its leading minors,
 // the Cholesky test of rotation_stiffness_modes) needs no factor: Y =
 // w/2 R Z R^T; otherwise the modes' eigen path. Returns whether Y != 0.
+// `exact`: Y = w/2 R Z R^T always (rotation_stiffness_modes).
 inline bool rotation_stiffness_matrix(const double* R, const double* F, double mu, double lambda, double w,
-                                      double* Y) {
+                                      double* Y, bool exact = false) {
   const Eigen::Map<const Eigen::Matrix3d> Rm(R);
   Eigen::Map<Eigen::Matrix3d> Ym(Y);
   Eigen::Matrix3d Z, S;
-  if (!rotation_mode_stiffness(R, F, mu, lambda, Z, S)) {
+  if (!rotation_mode_stiffness(R, F, mu, lambda, Z, S, exact)) {
     Ym.setZero();
     return false;
   }
   const double m2 = Z(0, 0) * Z(1, 1) - Z(0, 1) * Z(0, 1);
-  if (Z(0, 0) > 0.0 && m2 > 0.0 && Z.determinant() >= 0.0) {
+  if (exact || (Z(0, 0) > 0.0 && m2 > 0.0 && Z.determinant() >= 0.0)) {
     Ym = (0.5 * w) * (Rm * Z * Rm.transpose());
     return true;
   }
@@ -173,9 +175,10 @@ inline void add_rotation_stiffness(int n, const double* h, const double* u, cons
 // for constant-gradient elements, an approximation (still positive
 // semi-definite) otherwise. hbar (n, 3) and t (n, 3, 3) are scratch.
 inline void add_slot_rotation_stiffness(int n, const double* R, const double* F, const double* gbar, double mu,
-                                        double lambda, double W, double* blocks, double* hbar, double* t) {
+                                        double lambda, double W, double* blocks, double* hbar, double* t,
+                                        bool exact = false) {
   double u[9], coef[3];
-  if (!rotation_stiffness_modes(R, F, mu, lambda, W, u, coef)) return;
+  if (!rotation_stiffness_modes(R, F, mu, lambda, W, u, coef, exact)) return;
   for (int a = 0; a < n; ++a) {
     const double g0 = gbar[3 * a], g1 = gbar[3 * a + 1], g2 = gbar[3 * a + 2];
     hbar[3 * a] = R[0] * g0 + R[3] * g1 + R[6] * g2;

@@ -38,7 +38,7 @@ TEST(InitialStatic, StartsAtEquilibriumAndStaysThere) {
   const Model m = build_model(make_beam(0.1, 0.04, 0.04, 4, 2, 2, 1), hanging_beam());
   State st; Workspace ws;
   init_state(m, st, ws);
-  start_at_static_equilibrium(m, st, ws, 1e-8, 100, "beam.json");  // frozen-rotation Newton: linear convergence (issue 21)
+  start_at_static_equilibrium(m, st, ws, 1e-8, 100, "beam.json");
   const std::vector<double> u0 = st.u;
   double sag = 0.0;
   for (double x : u0) sag = std::max(sag, std::abs(x));

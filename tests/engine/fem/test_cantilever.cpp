@@ -28,7 +28,10 @@ double tip_deflection(int order, RotationMode rot, MaterialModel mm, int nx, int
   State st; Workspace ws;
   init_state(m, st, ws);
   const StaticResult r = solve_static(m, st, ws, 1e-7, 60);
-  std::printf("order %d nx %d: %d iterations, residual %.2e\n", order, nx, r.iterations, r.residual);
+  std::printf("order %d nx %d: %d iterations, residual %.2e, shortened %d, smallest step %g, stalled %d:", order, nx,
+              r.iterations, r.residual, r.shortened, r.smallest_step, r.stalled);
+  for (double x : r.residuals) std::printf(" %.1e", x);
+  std::printf("\n");
   EXPECT_TRUE(r.converged) << "residual " << r.residual;
   double w = 0;
   int cnt = 0;
