@@ -3,10 +3,6 @@
 #include <chrono>
 #include <cstdio>
 #include <thread>
-
-#include <spawn.h>
-#include <sys/wait.h>
-
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -21,6 +17,7 @@
 #include "render/render_stage.h"
 #include "engine/runtime/timing_stats.h"
 #include "tools/commands.h"
+#include "tools/spawn.h"
 #include "tools/frame_loop.h"
 #include "tools/frame_trace.h"
 #include "tools/solver_report.h"
@@ -57,21 +54,15 @@ void draw_plot(const std::string& json, const std::string& png) {
   const std::string python = py_env && *py_env                                   ? py_env
                              : std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3"
                                                                                  : "python3";
-  // Spawned with its arguments as given (no shell: any character in a path is safe).
-  std::vector<std::string> args = {python, script, json, png};
-  std::vector<char*> argv;
-  for (std::string& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  pid_t pid = 0;
-  int status = 0;
-  const int err = posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ);
-  if (err == 0 && waitpid(pid, &status, 0) < 0) status = -1;
   const std::string cmd = python + " " + script + " " + json + " " + png;
-  if (err != 0)
-    throw Error("--plot: cannot start " + python + " (" + std::strerror(err) + "); " + json + " was written");
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    throw Error("--plot: " + cmd + " failed (" +
-                (WIFEXITED(status) ? "exit " + std::to_string(WEXITSTATUS(status)) : std::string("killed by a signal")) +
+  int status = 0;
+  try {
+    status = spawn_and_wait({python, script, json, png});
+  } catch (const Error& e) {
+    throw Error(std::string("--plot: ") + e.what() + "; " + json + " was written");
+  }
+  if (status != 0)
+    throw Error("--plot: " + cmd + " failed (exit " + std::to_string(status) +
                 "; it needs python3 and matplotlib: apt-get install python3-matplotlib); " + json + " was written");
   std::printf("wrote %s\n", png.c_str());
 }

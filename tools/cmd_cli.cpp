@@ -18,6 +18,7 @@ int cli_main(int argc, char** argv) {
   add_compare_command(app);
   add_render_command(app);
   add_replay_command(app);
+  add_study_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -13,6 +13,7 @@
 #include "engine/runtime/simulation.h"
 #include "engine/dynamics/static_solve.h"
 #include "tools/commands.h"
+#include "tools/probe_points.h"
 #include "tools/frame_loop.h"
 #include "tools/solver_report.h"
 
@@ -23,31 +24,6 @@ struct StaticOptions {
   std::string scene, probe, out, vtu;
   std::vector<ScenePatch> patches;  // --set
 };
-
-// x,y,z per line; an optional header line; blank lines and '#' comments skipped.
-std::vector<std::array<double, 3>> read_probe_points(const std::string& path) {
-  std::ifstream is(path);
-  if (!is) throw Error(path + ": cannot open probe file");
-  std::vector<std::array<double, 3>> pts;
-  std::string line;
-  for (int lineno = 1; std::getline(is, line); ++lineno) {
-    if (line.empty() || line[0] == '#' || line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::istringstream ls(line);
-    std::array<double, 3> p;
-    std::string extra;
-    if (!(ls >> p[0] >> p[1] >> p[2])) {
-      if (pts.empty() && lineno == 1) continue;  // header
-      throw Error(path + ":" + std::to_string(lineno) + ": expected three numbers x,y,z");
-    }
-    if (ls >> extra) throw Error(path + ":" + std::to_string(lineno) + ": expected exactly three values x,y,z, got more");
-    for (double v : p)
-      if (!std::isfinite(v)) throw Error(path + ":" + std::to_string(lineno) + ": coordinates must be finite");
-    pts.push_back(p);
-  }
-  if (pts.empty()) throw Error(path + ": no probe points");
-  return pts;
-}
 
 void run_static(const StaticOptions& o) {
   auto sim = load_checked_simulation(o.scene, o.patches);

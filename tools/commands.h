@@ -10,6 +10,7 @@ void add_bench_command(CLI::App& app);    // incise bench SCENE --frames N [--js
 void add_mesh_command(CLI::App& app);     // incise mesh beam|convert ...
 void add_compare_command(CLI::App& app);  // incise compare SCENE [--policy P] [--frames 1,30,300]
 void add_render_command(CLI::App& app);   // incise render SCENE --frame K --out F.png
+void add_study_command(CLI::App& app);   // incise study SCENE --sweep K=V1,V2 ... | --point K | --collect DIR
 void add_replay_command(CLI::App& app);   // incise replay F [--verify] [--tolerance T] [--out DIR] [--render DIR]
 
 // --egl-platform auto|device|surfaceless (run, replay, bench, render).
