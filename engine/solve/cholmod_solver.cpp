@@ -653,7 +653,11 @@ void CholmodSolver::factorize(const double* values) {
     }
     ++stats_.single_fallbacks;  // a pivot not positive in float: CHOLMOD in double decides
   }
-  if (A_->nzmax > 0) std::memcpy(A_->x, values, sizeof(double) * A_->nzmax);
+  // The pattern's own count, not nzmax: CHOLMOD allocates at least one
+  // entry, and an empty matrix (a lagged patch with no DOFs) comes with no
+  // values at all (values == nullptr: reading nzmax of it crashed).
+  const size_t nnz = static_cast<size_t>(static_cast<const int*>(A_->p)[n_]);
+  if (nnz > 0) std::memcpy(A_->x, values, sizeof(double) * nnz);
   Stopwatch clock;
   {
     const SerialOpenMpRegions serial;

@@ -541,6 +541,7 @@ void lagged_patch(const Model& m, Workspace& ws, const double* A) {
     w.patch_key = key;
     build_patch(m, map, w);
   }
+  if (w.patch_dof.empty()) return;  // the mapped factor knows every node: nothing to solve exactly
   for (size_t t = 0; t < w.patch_src.size(); ++t) w.patch_A[t] = A[w.patch_src[t]];
   w.patch.factorize(w.patch_A.data());
 }

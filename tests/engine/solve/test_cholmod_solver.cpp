@@ -70,6 +70,20 @@ TEST(Cholmod, SolvesLikeADenseCholeskyAndReusesTheAnalysis) {
 // error must name the DOF (the column of A), not the position in the
 // fill-reducing order (L->minor), so the DOF is chosen where the ordering
 // moved it to another node.
+// A 0 x 0 matrix (the lagged policy's patch when the mapped factor knows
+// every node after a cut) has no values: factorize(nullptr) must not read
+// any (it copied CHOLMOD's nzmax, at least 1, from null: a crash seen on the
+// liver demo), for both factorization methods.
+TEST(Cholmod, AnEmptyMatrixFactorizesWithoutValues) {
+  for (FactorMethod method : {FactorMethod::Supernodal, FactorMethod::Simplicial}) {
+    CholmodSolver s;
+    s.configure(method, OrderingMethod::Amd);
+    s.analyze(0, std::vector<int>{0}, std::vector<int>{});
+    const std::vector<double> none;
+    EXPECT_NO_THROW(s.factorize(none.data()));
+  }
+}
+
 TEST(Cholmod, IndefiniteMatrixIsAnErrorNamingTheDof) {
   const Model m = test::tissue_beam(6, 2);
   const int n = m.ndof();
