@@ -22,8 +22,6 @@ void check_positive(const InstrumentSpec& s, const char* key, double v) {
 
 }  // namespace
 
-double jaw_gap(const InstrumentSpec& spec, double jaw) { return (1.0 - std::clamp(jaw, 0.0, 1.0)) * spec.opening; }
-
 ToolShape make_tool_shape(const InstrumentSpec& s, const ToolPose& pose) {
   ToolShape t;
   t.kind = s.kind;

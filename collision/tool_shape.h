@@ -46,7 +46,5 @@ ToolShape make_tool_shape(const InstrumentSpec& spec, const ToolPose& pose);
 // Moves the parts to `pose` (q is normalised; jaw clamped to [0, 1]).
 void set_tool_pose(ToolShape& shape, const InstrumentSpec& spec, const ToolPose& pose);
 
-// Gap between the grasper's inner jaw faces: (1 - jaw) * opening.
-double jaw_gap(const InstrumentSpec& spec, double jaw);
 
 }  // namespace incise

@@ -15,6 +15,7 @@ std::unique_ptr<Renderer> make_renderer(const RenderSettings& settings, const st
 
 Image render_frame(Renderer& renderer, const Simulation& sim) {
   renderer.update(display_mesh(sim.model, sim.state));
+  renderer.set_instruments(instrument_shapes(sim.scene.instruments, sim.tools));
   return renderer.render();
 }
 

@@ -50,11 +50,13 @@ void add_mesh_command(CLI::App& app) {
   auto* conv = mesh->add_subcommand("convert", "Convert between mesh formats (optionally raise to tet10)");
   conv->add_option("in", c->in, "Input mesh (.msh, .vtk, .vtu, .node/.ele, .inp)")->required()->check(CLI::ExistingFile);
   conv->add_option("out", c->out, "Output mesh (.vtu, .vtk, .msh)")->required();
-  conv->add_option("--order", c->order, "2 raises tet4 to tet10")->check(CLI::IsMember({2}));
+  conv->add_option("--order", c->order, "2 raises tet4 to tet10, 1 keeps a tet10 mesh's corner nodes")
+      ->check(CLI::IsMember({1, 2}));
   conv->callback([c] {
     Mesh m = read_mesh(c->in);
     check_mesh(m);
     if (c->order == 2) m = raise_to_tet10(m);
+    if (c->order == 1) m = lower_to_tet4(m);
     write_mesh(m, c->out);
     report(m, c->out);
   });

@@ -136,6 +136,27 @@ Mesh make_beam(double lx, double ly, double lz, int nx, int ny, int nz, int orde
   return order == 2 ? raise_to_tet10(m) : m;
 }
 
+Mesh lower_to_tet4(const Mesh& mesh) {
+  if (mesh.order == 1) return mesh;
+  const int ntet = mesh.ntet();
+  std::vector<int> id(static_cast<size_t>(mesh.nnode()), -1);
+  for (int e = 0; e < ntet; ++e)
+    for (int a = 0; a < 4; ++a) id[static_cast<size_t>(mesh.tet[10 * static_cast<size_t>(e) + a])] = 0;
+  Mesh r;
+  r.order = 1;
+  r.source = mesh.source;
+  int n = 0;
+  for (int v = 0; v < mesh.nnode(); ++v) {
+    if (id[static_cast<size_t>(v)] < 0) continue;
+    id[static_cast<size_t>(v)] = n++;
+    r.X.insert(r.X.end(), mesh.X.begin() + 3 * static_cast<long>(v), mesh.X.begin() + 3 * static_cast<long>(v) + 3);
+  }
+  r.tet.resize(4 * static_cast<size_t>(ntet));
+  for (int e = 0; e < ntet; ++e)
+    for (int a = 0; a < 4; ++a) r.tet[4 * static_cast<size_t>(e) + a] = id[static_cast<size_t>(mesh.tet[10 * static_cast<size_t>(e) + a])];
+  return r;
+}
+
 Mesh raise_to_tet10(const Mesh& mesh) {
   if (mesh.order == 2) return mesh;
   const int ntet = mesh.ntet();

@@ -13,6 +13,10 @@ Mesh make_beam(double lx, double ly, double lz, int nx, int ny, int nz, int orde
 // Raises a tet4 mesh to tet10: one shared node at the midpoint of each edge.
 // A tet10 mesh is returned unchanged.
 Mesh raise_to_tet10(const Mesh& mesh);
+// A tet10 mesh's corner nodes as a tet4 mesh (mid-edge nodes dropped,
+// corners renumbered in ascending order; curved faces become flat). A tet4
+// mesh is returned as it is.
+Mesh lower_to_tet4(const Mesh& mesh);
 
 struct MeshQuality {
   int nnode = 0, ntet = 0;

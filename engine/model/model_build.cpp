@@ -954,10 +954,9 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
     m.mesh = base->mesh;  // checked and raised already
   } else {
     check_mesh(mesh_in);
-    if (scene.order == 1 && mesh_in.order == 2)
-      throw Error(scene.path + ": mesh.order is 1 but " + mesh_in.source +
-                  " holds tet10 elements; use order 2 or a tet4 mesh");
-    m.mesh = scene.order == 2 ? raise_to_tet10(mesh_in) : mesh_in;
+    // Order 1 on a tet10 mesh takes its corner nodes (incise study sweeps the
+    // order over one mesh file); order 2 on a tet4 mesh adds mid-edge nodes.
+    m.mesh = scene.order == 2 ? raise_to_tet10(mesh_in) : lower_to_tet4(mesh_in);
   }
   m.material = scene.material;
   const double E = scene.material.young, nu = scene.material.poisson;

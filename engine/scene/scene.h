@@ -95,6 +95,12 @@ struct InstrumentSpec {
   std::string json_path;        // "instruments[1]"
 };
 
+// Gap between a grasper's inner jaw faces: (1 - jaw) * opening (collision
+// and the renderer draw the same jaws).
+inline double jaw_gap(const InstrumentSpec& spec, double jaw) {
+  return (1.0 - (jaw < 0.0 ? 0.0 : jaw > 1.0 ? 1.0 : jaw)) * spec.opening;
+}
+
 // Contact response settings (scene key "contact"; docs/scene-format.md).
 struct ContactSettings {
   int max_rows = 48;            // contact constraints kept per frame (deepest first), >= 1

@@ -8,6 +8,7 @@ usage: plot-study.py study.csv study.png
 """
 import csv
 import math
+import os
 import sys
 
 import matplotlib
@@ -32,16 +33,17 @@ def main(src, dst):
         e, m, p = float(r[last]), float(r["median_ms"]), float(r["p99_ms"])
         if not (math.isfinite(e) and math.isfinite(m)):
             continue
-        label = " ".join(f"{k}={r[k]}" for k in knobs)
+        label = " ".join(f"{k}={os.path.basename(r[k])}" for k in knobs)  # mesh files by name
         if e == 0.0:  # the reference itself: named in the title, not drawn at log(0)
             refs.append(f"{label} at {m:.3g} ms")
             continue
         pts.append((m, p, e, label, r["pareto"] == "1"))
     fig, ax = plt.subplots(figsize=(7.5, 5))
-    for m, p, e, label, on in pts:
+    for i, (m, p, e, label, on) in enumerate(sorted(pts)):
         ax.plot([m, p], [e, e], color="0.7", lw=1, zorder=1)
         ax.scatter([m], [e], color="C3" if on else "C0", s=36, zorder=3)
-        ax.annotate(label, (m, e), textcoords="offset points", xytext=(5, 4), fontsize=7)
+        # Alternate above and below, so neighbours' labels do not overprint.
+        ax.annotate(label, (m, e), textcoords="offset points", xytext=(5, 4 if i % 2 == 0 else -11), fontsize=7)
     front = sorted((m, e) for m, p, e, _, on in pts if on)
     if front:
         ax.step([m for m, _ in front], [e for _, e in front], where="post", color="C3", lw=1.2,

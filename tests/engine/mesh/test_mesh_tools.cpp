@@ -110,6 +110,33 @@ Mesh curved_tet10(double a) {
   return m;
 }
 
+// Lowering undoes raising: the corner nodes, in order, and the same tets.
+TEST(MeshTools, LowerToTet4KeepsTheCornerNodes) {
+  const Mesh m = make_beam(2.0, 1.0, 1.0, 3, 2, 2, 1);
+  const Mesh q = raise_to_tet10(m);
+  ASSERT_GT(q.nnode(), m.nnode());
+  const Mesh l = lower_to_tet4(q);
+  EXPECT_EQ(l.order, 1);
+  EXPECT_EQ(l.X, m.X);  // raise_to_tet10 appends mid-edge nodes after the corners
+  EXPECT_EQ(l.tet, m.tet);
+  EXPECT_EQ(lower_to_tet4(m).tet, m.tet);
+  // A tet10 mesh whose corners are not its first nodes: renumbered compactly.
+  Mesh shuffled = q;
+  const int n = q.nnode();
+  std::vector<int> perm(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) perm[static_cast<size_t>(i)] = n - 1 - i;  // old -> new
+  for (int i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) shuffled.X[3 * static_cast<size_t>(perm[static_cast<size_t>(i)]) + c] = q.X[3 * static_cast<size_t>(i) + c];
+  for (int& v : shuffled.tet) v = perm[static_cast<size_t>(v)];
+  const Mesh ls = lower_to_tet4(shuffled);
+  EXPECT_EQ(ls.nnode(), m.nnode());
+  for (int e = 0; e < m.ntet(); ++e)
+    for (int a = 0; a < 4; ++a)
+      for (int c = 0; c < 3; ++c)
+        EXPECT_EQ(ls.X[3 * static_cast<size_t>(ls.tet[4 * static_cast<size_t>(e) + a]) + c],
+                  m.X[3 * static_cast<size_t>(m.tet[4 * static_cast<size_t>(e) + a]) + c]);
+}
+
 TEST(MeshTools, Tet10VolumeIntegratesCurvedGeometryExactly) {
   const double a = 0.2;
   // 1/6 + 3a/12 + 4*3a^2/120 + 8a^3/720 (monomial integrals over the unit tet)
