@@ -75,8 +75,8 @@ std::string read_all(const std::string& p) {
 // A soft tet10 cantilever swinging under gravity at three mesh resolutions
 // and both orders: the error at frame 10 against the finest (order 2, 16 x 4
 // x 4) falls as the tet10 mesh is refined; the reference row has error 0 and
-// is on the front; a second run resumes (runs nothing); another plan in the
-// same folder is refused.
+// is on the front; the probe points have an error too; a second run resumes
+// (runs nothing); another plan in the same folder is refused.
 TEST_F(StudyCli, MeshRefinementLowersTheErrorAndTheStudyResumes) {
   for (int n : {4, 8, 16}) {
     const std::string cells = std::to_string(n) + " " + std::to_string(n / 4) + " " + std::to_string(n / 4);
@@ -85,7 +85,9 @@ TEST_F(StudyCli, MeshRefinementLowersTheErrorAndTheStudyResumes) {
   write("scene.json", R"({"mesh": {"file": "b4.vtu", "order": 2},
     "material": {"model": "corotated", "young": 1e5, "poisson": 0.3, "density": 1000, "rayleigh": {"mass": 2.0, "stiffness": 0}},
     "mass": "lumped", "gravity": [0, 0, -9.81], "fixed": [{"box": [[-1, -1, -1], [0, 1, 1]]}]})");
-  const std::string args = "study " + path("scene.json") + " --sweep mesh=b4.vtu,b8.vtu,b16.vtu --sweep order=1,2 --frames 3,10 --out " + path("s");
+  write("probe.csv", "x,y,z\n0.2,0.025,0.025\n0.1,0.0,0.05\n");  // the free end's centre, a top edge point
+  const std::string args = "study " + path("scene.json") + " --sweep mesh=b4.vtu,b8.vtu,b16.vtu --sweep order=1,2 --frames 3,10 --probe " +
+                           path("probe.csv") + " --out " + path("s");
   const test::Result r = test::incise(args);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("ETA"), std::string::npos) << "progress expected: " << r.out;
@@ -102,6 +104,8 @@ TEST_F(StudyCli, MeshRefinementLowersTheErrorAndTheStudyResumes) {
     ASSERT_EQ(f.size(), 12u) << line;
     EXPECT_EQ(f[3], "ok") << line;
     if (f[2] == "2") err2.push_back(std::stod(f[8]));
+    ASSERT_FALSE(f[9].empty()) << "probe error expected: " << line;
+    EXPECT_GE(std::stod(f[9]), 0.0);
     if (f[1] == "b16.vtu" && f[2] == "2") {
       EXPECT_EQ(std::stod(f[8]), 0.0) << "the reference against itself";
       EXPECT_EQ(f[11], "1") << "the most accurate point is on the front";
