@@ -10,5 +10,9 @@ std::string engine_version();  // "0.1.0"
 std::string build_flags();
 // The CPU's model name (/proc/cpuinfo), "unknown CPU" elsewhere.
 std::string machine_name();
+// `incise --version`: the version, the build flags and the libraries found
+// (CHOLMOD and SuiteSparse versions, the BLAS library loaded at run time,
+// FCL, EGL's client version, OpenIGTLink when built), one per line.
+std::string version_report();
 
 }  // namespace incise

@@ -2,6 +2,7 @@
 
 #include "engine/util/error.h"
 #include "engine/runtime/malloc_tuning.h"
+#include "tools/build_info.h"
 #include "tools/cli.h"
 #include "tools/commands.h"
 
@@ -10,6 +11,7 @@ namespace incise {
 int cli_main(int argc, char** argv) {
   tune_malloc_for_frames();  // engine/runtime/malloc_tuning.h: no page faults from rebuilt Models in cut frames
   CLI::App app{"incise: real-time surgical cutting engine (corotated tet10 FEM, Newmark, CHOLMOD)"};
+  app.set_version_flag("--version", [] { return version_report(); }, "Print the version, build flags and libraries, and exit");
   app.require_subcommand(1);
   add_run_command(app);
   add_static_command(app);

@@ -36,6 +36,15 @@ class Cli : public incise::test::TempDirTest {
   }
 };
 
+// incise --version: the project's version (CMakeLists.txt) and the libraries found.
+TEST_F(Cli, VersionNamesTheBuildAndTheLibraries) {
+  const Result r = incise("--version");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.rfind("incise 0.", 0), 0u) << r.out;
+  for (const char* want : {"build: ", "CHOLMOD ", "BLAS: ", "FCL ", "EGL: ", "OpenIGTLink: "})
+    EXPECT_NE(r.out.find(want), std::string::npos) << want << " missing: " << r.out;
+}
+
 TEST_F(Cli, MeshBeamWritesAReadableMesh) {
   const Result r = incise("mesh beam --size 2 1 1 --cells 4 2 2 --order 2 --out " + path("b.msh"));
   ASSERT_EQ(r.code, 0) << r.out;
