@@ -1,7 +1,9 @@
 // VTK readers: legacy ASCII .vtk (UNSTRUCTURED_GRID, both the classic CELLS
-// layout and the 5.1 OFFSETS/CONNECTIVITY layout) and XML .vtu with ASCII
-// DataArrays. Cell types 10 (tet4) and 24 (tet10) are kept, others skipped.
+// layout and the 5.1 OFFSETS/CONNECTIVITY layout) and XML .vtu with ascii,
+// binary (base64 inline) or appended (raw or base64) DataArrays, plain or
+// zlib-compressed (engine/mesh/vtk_binary.h). Cell types 10 (tet4) and 24 (tet10) are kept, others skipped.
 // VTK's quadratic tetra ordering is ours, so no permutation is needed.
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
@@ -11,6 +13,7 @@
 
 #include "engine/util/error.h"
 #include "engine/mesh/mesh_text.h"
+#include "engine/mesh/vtk_binary.h"
 
 namespace incise::meshio {
 namespace {
@@ -198,9 +201,20 @@ std::string attr(std::string_view tag, std::string_view name) {
 }
 
 struct DataArray {
-  std::string name;
+  std::string name, format, type;
   size_t tag_pos = 0, begin = 0, end = 0;  // start tag, content [begin, end)
   int ncomp = 1;
+  long long offset = -1;                   // format="appended": into the appended data
+};
+
+// How the file's binary DataArrays are laid out (the VTKFile tag and
+// <AppendedData>).
+struct Binary {
+  VtkBlockFormat fmt;
+  bool header_given = false;  // header_type present; else both sizes are tried (meshio writes UInt64 without it)
+  bool appended_base64 = false;
+  std::string_view appended;  // after the '_' to </AppendedData>
+  std::vector<long long> offsets;  // of every appended array, sorted (a base64 array ends at the next)
 };
 
 // All DataArrays in [from, to) of the text.
@@ -214,11 +228,17 @@ std::vector<DataArray> arrays_in(const Xml& x, size_t from, size_t to) {
     DataArray a;
     a.name = attr(tag, "Name");
     a.tag_pos = p;
-    std::string format = attr(tag, "format");
-    if (format != "ascii")
+    a.format = attr(tag, "format");
+    a.type = attr(tag, "type");
+    if (a.format != "ascii" && a.format != "binary" && a.format != "appended")
       x.fail(p, "DataArray '" + a.name + "' has " +
-                    (format.empty() ? std::string("no format attribute") : "format=\"" + format + "\"") +
-                    "; only format=\"ascii\" is supported (save the .vtu with ASCII data mode)");
+                    (a.format.empty() ? std::string("no format attribute") : "format=\"" + a.format + "\"") +
+                    "; allowed: ascii, binary, appended");
+    if (a.format == "appended") {
+      long long off = -1;
+      if (!parse_long(attr(tag, "offset"), off) || off < 0) x.fail(p, "DataArray '" + a.name + "' is appended but has no offset >= 0");
+      a.offset = off;
+    }
     std::string nc = attr(tag, "NumberOfComponents");
     if (!nc.empty()) a.ncomp = std::atoi(nc.c_str());
     a.begin = gt + 1;
@@ -251,9 +271,47 @@ bool section(const Xml& x, const char* name, size_t& begin, size_t& end) {
   return true;
 }
 
-// Numbers of an ASCII DataArray; line numbers are computed only on error.
+// The bytes of a binary or appended DataArray.
+std::string block_bytes(const Xml& x, const DataArray& a, const Binary& bin) {
+  const std::string ctx = x.path + ":" + std::to_string(x.line_of(a.tag_pos)) + ": DataArray '" + a.name + "'";
+  auto with = [&](bool u64) {
+    VtkBlockFormat f = bin.fmt;
+    f.uint64_header = u64;
+    if (a.format == "binary") return decode_inline_block(std::string_view(x.s).substr(a.begin, a.end - a.begin), f, ctx);
+    if (bin.appended.data() == nullptr) throw Error(ctx + ": format=\"appended\" but the file has no <AppendedData>");
+    if (!bin.appended_base64) {
+      if (static_cast<size_t>(a.offset) > bin.appended.size())
+        throw Error(ctx + ": offset " + std::to_string(a.offset) + " is beyond the appended data (" + std::to_string(bin.appended.size()) + " bytes)");
+      size_t pos = static_cast<size_t>(a.offset);
+      return read_vtk_block(bin.appended, pos, f, ctx);
+    }
+    // base64: this array's text runs to the next array's offset.
+    size_t end = bin.appended.size();
+    for (long long o : bin.offsets)
+      if (o > a.offset) {
+        end = std::min(end, static_cast<size_t>(o));
+        break;
+      }
+    if (static_cast<size_t>(a.offset) > end) throw Error(ctx + ": offset " + std::to_string(a.offset) + " is beyond the appended data");
+    return decode_inline_block(bin.appended.substr(static_cast<size_t>(a.offset), end - static_cast<size_t>(a.offset)), f, ctx);
+  };
+  if (bin.header_given) return with(bin.fmt.uint64_header);
+  try {
+    return with(false);
+  } catch (const Error&) {
+    return with(true);  // its error names what does not fit
+  }
+}
+
+// Numbers of a DataArray; line numbers are computed only on error.
 template <class T>
-std::vector<T> numbers(const Xml& x, const DataArray& a) {
+std::vector<T> numbers(const Xml& x, const DataArray& a, const Binary& bin) {
+  if (a.format != "ascii") {
+    const std::string ctx = x.path + ":" + std::to_string(x.line_of(a.tag_pos)) + ": DataArray '" + a.name + "'";
+    const std::string bytes = block_bytes(x, a, bin);
+    if constexpr (std::is_same_v<T, double>) return vtk_values_as_double(bytes, a.type, ctx);
+    else return vtk_values_as_int(bytes, a.type, ctx);
+  }
   std::vector<T> out;
   size_t i = a.begin;
   while (i < a.end) {
@@ -277,12 +335,48 @@ std::vector<T> numbers(const Xml& x, const DataArray& a) {
 
 Mesh read_xml(const std::string& path) {
   TextFile f(path);
-  const Xml x{f.text(), path};
-  size_t b = 0, e = 0;
-  if (!section(x, "VTKFile", b, e)) throw Error(path + ": not a VTK XML file (no <VTKFile>)");
-  std::string type = attr(std::string_view(x.s).substr(b, x.s.find('>', b) - b), "type");
+  // The XML ends where raw appended data (any bytes) begins: tags are looked
+  // up in the text before it only.
+  const size_t app = f.text().find("<AppendedData");
+  const std::string head = app == std::string::npos ? f.text() : f.text().substr(0, app);
+  const Xml x{head, path};
+  size_t b = 0;
+  if (x.s.find("<VTKFile") == std::string::npos) throw Error(path + ": not a VTK XML file (no <VTKFile>)");
+  b = x.s.find("<VTKFile");
+  const std::string_view vtk_tag = std::string_view(x.s).substr(b, x.s.find('>', b) - b);
+  std::string type = attr(vtk_tag, "type");
+  Binary bin;
+  if (attr(vtk_tag, "byte_order") == "BigEndian") x.fail(b, "byte_order=\"BigEndian\" is not supported; allowed: LittleEndian");
+  const std::string header_type = attr(vtk_tag, "header_type");
+  if (!header_type.empty() && header_type != "UInt32" && header_type != "UInt64")
+    x.fail(b, "header_type=\"" + header_type + "\" is not supported; allowed: UInt32, UInt64");
+  bin.header_given = !header_type.empty();
+  bin.fmt.uint64_header = header_type == "UInt64";
+  const std::string compressor = attr(vtk_tag, "compressor");
+  if (!compressor.empty() && compressor != "vtkZLibDataCompressor")
+    x.fail(b, "compressor=\"" + compressor + "\" is not supported; allowed: vtkZLibDataCompressor (or none)");
+  bin.fmt.zlib = !compressor.empty();
+  if (app != std::string::npos) {
+    const std::string& all = f.text();
+    const size_t gt = all.find('>', app);
+    const size_t us = gt == std::string::npos ? gt : all.find('_', gt);
+    const size_t close = all.rfind("</AppendedData>");
+    if (us == std::string::npos || close == std::string::npos || close < us)
+      throw Error(path + ": <AppendedData> has no '_' marker or is not closed");
+    const std::string enc = attr(std::string_view(all).substr(app, gt - app), "encoding");
+    if (enc != "raw" && enc != "base64")
+      throw Error(path + ": <AppendedData encoding=\"" + enc + "\"> is not supported; allowed: raw, base64");
+    bin.appended_base64 = enc == "base64";
+    bin.appended = std::string_view(all).substr(us + 1, close - us - 1);
+    if (bin.appended_base64) {  // the text up to the closing tag, without the blanks before it
+      while (!bin.appended.empty() && std::isspace(static_cast<unsigned char>(bin.appended.back()))) bin.appended.remove_suffix(1);
+    }
+  }
   if (type != "UnstructuredGrid")
     x.fail(b, "VTKFile type \"" + type + "\" is not supported; allowed: UnstructuredGrid (.vtu)");
+  for (const auto& a : arrays_in(x, 0, x.s.size()))
+    if (a.offset >= 0) bin.offsets.push_back(a.offset);
+  std::sort(bin.offsets.begin(), bin.offsets.end());
   size_t pb, pe;
   if (!section(x, "Piece", pb, pe)) x.fail(b, "no <Piece> in the UnstructuredGrid");
   if (x.s.find("<Piece", pe) != std::string::npos) x.fail(pe, "more than one <Piece>; only single-piece .vtu files are supported");
@@ -293,7 +387,7 @@ Mesh read_xml(const std::string& path) {
   auto parr = arrays_in(x, sb, se);
   if (parr.empty()) x.fail(sb, "<Points> has no DataArray");
   if (parr[0].ncomp != 3) x.fail(parr[0].tag_pos, "Points DataArray must have NumberOfComponents=\"3\"");
-  auto pts = numbers<double>(x, parr[0]);
+  auto pts = numbers<double>(x, parr[0], bin);
   if (pts.size() % 3) x.fail(parr[0].tag_pos, "Points DataArray has " + std::to_string(pts.size()) + " values, not a multiple of 3");
   for (size_t i = 0; i < pts.size(); ++i)
     if (!std::isfinite(pts[i])) x.fail(parr[0].tag_pos, "point " + std::to_string(i / 3) + " has a non-finite coordinate");
@@ -310,9 +404,9 @@ Mesh read_xml(const std::string& path) {
   }
   if (!conn || !offs || !types) x.fail(sb, "<Cells> needs DataArrays named connectivity, offsets and types");
   Cells c;
-  c.conn = numbers<long long>(x, *conn);
-  auto off = numbers<long long>(x, *offs);
-  c.types = numbers<long long>(x, *types);
+  c.conn = numbers<long long>(x, *conn, bin);
+  auto off = numbers<long long>(x, *offs, bin);
+  c.types = numbers<long long>(x, *types, bin);
   c.start.push_back(0);
   for (size_t i = 0; i < off.size(); ++i) {
     if (off[i] < c.start.back() || off[i] > static_cast<long long>(c.conn.size()))

@@ -6,9 +6,9 @@ packages=(
   libeigen3-dev libsuitesparse-dev libopenblas0-pthread
   nlohmann-json3-dev libcli11-dev libgtest-dev libbenchmark-dev
   libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0 libpng-dev
-  libfcl-dev libccd-dev
+  libfcl-dev libccd-dev zlib1g-dev
   libboost-dev libopenigtlink-dev
-  clang-15 python3-matplotlib
+  clang-15 python3-matplotlib python3-meshio
 )
 missing=()
 for p in "${packages[@]}"; do
