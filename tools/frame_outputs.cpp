@@ -19,7 +19,8 @@ FrameOutputs::FrameOutputs(Simulation& sim, const std::string& stem, const std::
     : render_dir_(render_dir) {
   if (!out.empty() && sim.scene.output.write_vtu) {
     std::filesystem::create_directories(out);
-    series_ = std::make_unique<PvdSeries>((std::filesystem::path(out) / (stem + ".pvd")).string());
+    series_ = std::make_unique<PvdSeries>((std::filesystem::path(out) / (stem + ".pvd")).string(),
+                                          sim.scene.output.vtu_ascii ? VtuEncoding::Ascii : VtuEncoding::Binary);
     series_->add(sim.state.time, result_grid(sim.model, sim.state));
   }
   if (!render_dir.empty()) {

@@ -3,7 +3,10 @@
 // rename). Points are printed with %.17g so a write/read round trip is exact.
 #include "engine/mesh/mesh_io.h"
 
+#include <zlib.h>
+
 #include <algorithm>
+#include <cstdint>
 #include <cctype>
 #include <cmath>
 #include <filesystem>
@@ -157,7 +160,64 @@ void write_mesh(const Mesh& mesh, const std::string& path) {
   if (ext == ".msh") write_msh41(mesh, path);
 }
 
-void write_vtu(const VtuGrid& g, const std::string& path) {
+namespace {
+
+// The appended blocks of the binary .vtu: each array one zlib block with its
+// UInt64 header [1, size, size, compressed size] (0 blocks when empty).
+struct Appended {
+  std::string blob;
+  size_t add(const void* data, size_t n, const std::string& path) {
+    const size_t at = blob.size();
+    auto u64 = [&](uint64_t v) { blob.append(reinterpret_cast<const char*>(&v), 8); };
+    if (n == 0) {
+      u64(0), u64(32768), u64(0);
+      return at;
+    }
+    uLongf cn = compressBound(static_cast<uLong>(n));
+    std::string c(cn, '\0');
+    if (compress2(reinterpret_cast<Bytef*>(c.data()), &cn, static_cast<const Bytef*>(data), static_cast<uLong>(n), Z_BEST_SPEED) != Z_OK)
+      throw Error(path + ": zlib could not compress a DataArray of " + std::to_string(n) + " bytes");
+    u64(1), u64(n), u64(n), u64(cn);
+    blob.append(c.data(), cn);
+    return at;
+  }
+};
+
+void write_vtu_binary(const VtuGrid& g, const std::string& path) {
+  const size_t npoint = g.points.size() / 3, ncell = g.types.size();
+  Appended app;
+  std::string s;
+  s += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
+       "header_type=\"UInt64\" compressor=\"vtkZLibDataCompressor\">\n";
+  appendf(s, "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n", npoint, ncell);
+  auto arr = [&](const char* type, const std::string& name, int ncomp, const void* data, size_t bytes) {
+    const size_t off = app.add(data, bytes, path);
+    s += std::string("        <DataArray type=\"") + type + "\"" + (name.empty() ? "" : " Name=\"" + xml_escape(name) + "\"");
+    appendf(s, " NumberOfComponents=\"%d\" format=\"appended\" offset=\"%zu\"/>\n", ncomp, off);
+  };
+  for (const auto* fields : {&g.point_data, &g.cell_data}) {
+    if (fields->empty()) continue;
+    const char* tag = fields == &g.point_data ? "PointData" : "CellData";
+    appendf(s, "      <%s>\n", tag);
+    for (const auto& f : *fields) arr("Float64", f.name, f.ncomp, f.values.data(), f.values.size() * sizeof(double));
+    appendf(s, "      </%s>\n", tag);
+  }
+  s += "      <Points>\n";
+  arr("Float64", "Points", 3, g.points.data(), g.points.size() * sizeof(double));
+  s += "      </Points>\n      <Cells>\n";
+  arr("Int32", "connectivity", 1, g.connectivity.data(), g.connectivity.size() * sizeof(int));
+  arr("Int32", "offsets", 1, g.offsets.data(), g.offsets.size() * sizeof(int));
+  std::vector<unsigned char> types(g.types.begin(), g.types.end());
+  arr("UInt8", "types", 1, types.data(), types.size());
+  s += "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   _";
+  s += app.blob;
+  s += "\n  </AppendedData>\n</VTKFile>\n";
+  meshio::write_atomic(path, s);
+}
+
+}  // namespace
+
+void write_vtu(const VtuGrid& g, const std::string& path, VtuEncoding encoding) {
   const size_t npoint = g.points.size() / 3, ncell = g.types.size();
   if (g.points.size() % 3) throw Error(path + ": points size " + std::to_string(g.points.size()) + " is not a multiple of 3");
   if (g.offsets.size() != ncell)
@@ -181,6 +241,10 @@ void write_vtu(const VtuGrid& g, const std::string& path) {
                   ", but only " + std::to_string(npoint) + " points are defined");
   for (const auto& f : g.point_data) check_field(f, npoint, "point", path);
   for (const auto& f : g.cell_data) check_field(f, ncell, "cell", path);
+  if (encoding == VtuEncoding::Binary) {
+    write_vtu_binary(g, path);
+    return;
+  }
 
   std::string s;
   s.reserve(64 * (npoint + g.connectivity.size()));
@@ -205,7 +269,7 @@ void write_vtu(const VtuGrid& g, const std::string& path) {
   meshio::write_atomic(path, s);
 }
 
-PvdSeries::PvdSeries(std::string pvd_path) : pvd_path_(std::move(pvd_path)) {
+PvdSeries::PvdSeries(std::string pvd_path, VtuEncoding encoding) : pvd_path_(std::move(pvd_path)), encoding_(encoding) {
   fs::path dir = fs::path(pvd_path_).parent_path();
   std::error_code ec;
   if (!dir.empty()) fs::create_directories(dir, ec);
@@ -217,7 +281,7 @@ void PvdSeries::add(double time, const VtuGrid& grid) {
   const fs::path pvd(pvd_path_);
   std::string name = pvd.stem().string();
   appendf(name, "_%06zu.vtu", files_.size());
-  write_vtu(grid, (pvd.parent_path() / name).string());
+  write_vtu(grid, (pvd.parent_path() / name).string(), encoding_);
   files_.push_back(name);
   times_.push_back(time);
 

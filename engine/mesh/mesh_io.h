@@ -33,18 +33,24 @@ struct VtuGrid {
   std::vector<VtuField> point_data;
   std::vector<VtuField> cell_data;
 };
-void write_vtu(const VtuGrid& grid, const std::string& path);  // atomic (temp + rename)
+// Binary: every DataArray appended raw after <AppendedData>, zlib-compressed
+// (vtkZLibDataCompressor, UInt64 headers, fastest level: a frame is written
+// while the next one waits), what ParaView writes; Ascii: readable text.
+enum class VtuEncoding { Binary, Ascii };
+void write_vtu(const VtuGrid& grid, const std::string& path,
+               VtuEncoding encoding = VtuEncoding::Binary);  // atomic (temp + rename)
 
 // A ParaView .pvd collection: add() writes one .vtu per step into the
 // folder of the .pvd and rewrites the .pvd so it is valid after every step.
 class PvdSeries {
  public:
-  explicit PvdSeries(std::string pvd_path);
+  explicit PvdSeries(std::string pvd_path, VtuEncoding encoding = VtuEncoding::Binary);
   void add(double time, const VtuGrid& grid);
   const std::vector<std::string>& files() const { return files_; }
 
  private:
   std::string pvd_path_;
+  VtuEncoding encoding_;
   std::vector<double> times_;
   std::vector<std::string> files_;  // relative to the .pvd folder
 };

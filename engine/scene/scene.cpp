@@ -542,12 +542,14 @@ void parse_run(const Parser& p, const json& v, Scene& s) {
 void parse_output(const Parser& p, const json& v, Scene& s) {
   const std::string at = "output";
   p.object(v, at);
-  p.allowed_keys(v, at, {"dir", "every", "vtu"});
+  p.allowed_keys(v, at, {"dir", "every", "vtu", "vtu_format"});
   if (auto it = v.find("dir"); it != v.end())
     s.output.dir = p.resolve(p.nonempty_string(*it, at + ".dir"));
   if (auto it = v.find("every"); it != v.end())
     s.output.every = p.at_least_one(*it, at + ".every");
   if (auto it = v.find("vtu"); it != v.end()) s.output.write_vtu = p.boolean(*it, at + ".vtu");
+  if (auto it = v.find("vtu_format"); it != v.end())
+    s.output.vtu_ascii = p.choice(*it, at + ".vtu_format", {"binary", "ascii"}) == 1;
 }
 
 void parse_cuts(const Parser& p, const json& v, Scene& s) {

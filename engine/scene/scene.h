@@ -48,6 +48,7 @@ struct OutputSettings {
   std::string dir;        // resolved; empty = no field output unless --out is given
   int every = 1;          // write every N-th frame, >= 1
   bool write_vtu = true;  // ParaView .vtu + .pvd series
+  bool vtu_ascii = false; // output.vtu_format "ascii"; default "binary" (appended, zlib)
 };
 
 // A cut declared in the scene (applied by cutting/ at at_time; static: all at once).

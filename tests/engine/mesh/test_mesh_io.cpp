@@ -293,6 +293,27 @@ std::string appended_vtu(bool zlib, bool uint64, std::string* truncated = nullpt
   return head + blob + "\n</AppendedData>\n</VTKFile>\n";
 }
 
+// The frame writer's two encodings give the same grid back: binary (the
+// default, appended zlib) and ascii, fields included in the file.
+TEST_F(MeshIo, BinaryAndAsciiVtuWritesReadBackTheSameMesh) {
+  const Mesh ref = read_mesh(asset("box_tet10.vtu"));
+  VtuGrid g;
+  g.points = ref.X;
+  g.connectivity = ref.tet;
+  for (int e = 0; e < ref.ntet(); ++e) g.offsets.push_back(10 * (e + 1)), g.types.push_back(24);
+  g.point_data.push_back({"displacement", 3, std::vector<double>(ref.X.size(), 0.25)});
+  g.cell_data.push_back({"von_mises", 1, std::vector<double>(static_cast<size_t>(ref.ntet()), 7.0)});
+  write_vtu(g, path("b.vtu"));
+  write_vtu(g, path("a.vtu"), VtuEncoding::Ascii);
+  EXPECT_NE(slurp(path("b.vtu")).find("compressor=\"vtkZLibDataCompressor\""), std::string::npos);
+  EXPECT_NE(slurp(path("a.vtu")).find("format=\"ascii\""), std::string::npos);
+  for (const char* f : {"a.vtu", "b.vtu"}) {
+    const Mesh m = read_mesh(path(f));
+    EXPECT_EQ(m.X, ref.X) << f;
+    EXPECT_EQ(m.tet, ref.tet) << f;
+  }
+}
+
 TEST_F(MeshIo, AppendedRawAndZlibVtuReadAsTheAsciiOne) {
   for (bool zlib : {false, true})
     for (bool u64 : {false, true}) {
