@@ -1,4 +1,5 @@
-// incise mesh beam | convert: structured beams and format conversion.
+// incise mesh beam | convert | tetrahedralize: structured beams, format
+// conversion, and a closed surface filled with tetrahedra (TetGen).
 #include <array>
 #include <cstdio>
 
@@ -6,6 +7,7 @@
 #include "engine/mesh/mesh_io.h"
 #include "engine/mesh/mesh_tools.h"
 #include "tools/commands.h"
+#include "tools/tetrahedralize.h"
 
 namespace incise {
 
@@ -19,6 +21,11 @@ struct BeamOptions {
 struct ConvertOptions {
   std::string in, out;
   int order = 0;  // 0: keep
+};
+struct TetOptions {
+  std::string in, out;
+  double size = 0, quality = 1.4;
+  int order = 2;
 };
 
 void report(const Mesh& m, const std::string& path) {
@@ -59,6 +66,23 @@ void add_mesh_command(CLI::App& app) {
     if (c->order == 1) m = lower_to_tet4(m);
     write_mesh(m, c->out);
     report(m, c->out);
+  });
+
+  auto t = std::make_shared<TetOptions>();
+  auto* tet = mesh->add_subcommand("tetrahedralize", "Fill a closed triangle surface with tetrahedra (TetGen)");
+  tet->add_option("surface", t->in, "Closed surface (.stl, .ply, .off, .obj), e.g. from a segmentation")
+      ->required()
+      ->check(CLI::ExistingFile);
+  tet->add_option("--size", t->size, "Target edge length (the surface's units)")->required();
+  tet->add_option("--order", t->order, "2 = tet10 (default), 1 = tet4")->check(CLI::IsMember({1, 2}));
+  tet->add_option("--quality", t->quality, "Largest radius-edge ratio TetGen may leave (default 1.4)");
+  tet->add_option("--out", t->out, "Output mesh (.vtu, .vtk, .msh)")->required();
+  tet->callback([t] {
+    Mesh m = tetrahedralize(t->in, t->size, t->quality);
+    check_mesh(m);
+    if (t->order == 2) m = raise_to_tet10(m);
+    write_mesh(m, t->out);
+    report(m, t->out);
   });
 }
 

@@ -8,6 +8,11 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <map>
+#include <array>
+#include <vector>
+#include <algorithm>
+#include <cmath>
 
 #include <gtest/gtest.h>
 
@@ -16,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
 
 namespace fs = std::filesystem;
 
@@ -53,6 +59,76 @@ TEST_F(Cli, MeshBeamWritesAReadableMesh) {
   EXPECT_EQ(m.ntet(), 4 * 2 * 2 * 6);
   EXPECT_EQ(m.nnode(), 9 * 5 * 5);  // tet10 nodes of a Kuhn grid = the 2x finer lattice
   EXPECT_NE(r.out.find("dihedral"), std::string::npos) << "quality report expected: " << r.out;
+}
+
+// A closed sphere (an icosahedron subdivided 4 times, radius 0.05, its
+// polyhedral volume 0.2% under the sphere's) as ASCII STL; `open` drops one
+// triangle.
+std::string sphere_stl(bool open) {
+  const double t = (1 + std::sqrt(5.0)) / 2;
+  std::vector<std::array<double, 3>> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                                          {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  std::vector<std::array<int, 3>> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                       {11, 10, 2}, {10, 7, 6}, {7, 1, 8},   {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                                       {3, 8, 9},   {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  auto unit = [](std::array<double, 3> p) {
+    const double l = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    return std::array<double, 3>{p[0] / l, p[1] / l, p[2] / l};
+  };
+  for (auto& p : v) p = unit(p);
+  for (int level = 0; level < 4; ++level) {
+    std::map<std::pair<int, int>, int> mid;
+    auto m = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      v.push_back(unit({v[a][0] + v[b][0], v[a][1] + v[b][1], v[a][2] + v[b][2]}));
+      return mid[key] = static_cast<int>(v.size()) - 1;
+    };
+    std::vector<std::array<int, 3>> g;
+    for (const auto& [a, b, c] : f) {
+      const int ab = m(a, b), bc = m(b, c), ca = m(c, a);
+      g.push_back({a, ab, ca}), g.push_back({b, bc, ab}), g.push_back({c, ca, bc}), g.push_back({ab, bc, ca});
+    }
+    f = g;
+  }
+  std::ostringstream os;
+  os << "solid sphere\n";
+  for (size_t k = open ? 1 : 0; k < f.size(); ++k) {
+    os << " facet normal 0 0 0\n  outer loop\n";
+    for (int i : f[k]) os << "   vertex " << 0.05 * v[i][0] << ' ' << 0.05 * v[i][1] << ' ' << 0.05 * v[i][2] << '\n';
+    os << "  endloop\n endfacet\n";
+  }
+  os << "endsolid sphere\n";
+  return os.str();
+}
+
+// incise mesh tetrahedralize (TetGen): a closed sphere becomes a tet10 mesh
+// of its volume (within 1% of the sphere's) without an inverted element; an
+// open surface is an error saying so.
+TEST_F(Cli, TetrahedralizeFillsAClosedSurfaceAndRefusesAnOpenOne) {
+  if (std::system("command -v tetgen > /dev/null 2>&1") != 0) GTEST_SKIP() << "tetgen not installed";
+  write("sphere.stl", sphere_stl(false));
+  const Result r = incise("mesh tetrahedralize " + path("sphere.stl") + " --size 0.01 --out " + path("s.msh"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const incise::Mesh m = incise::read_mesh(path("s.msh"));
+  EXPECT_EQ(m.order, 2);
+  EXPECT_NO_THROW(incise::check_mesh(m));  // positive Jacobians
+  double vol = 0;
+  for (int e = 0; e < m.ntet(); ++e) {
+    const int* t = &m.tet[10 * static_cast<size_t>(e)];
+    double d[3][3];
+    for (int k = 0; k < 3; ++k)
+      for (int c = 0; c < 3; ++c) d[k][c] = m.X[3 * t[k + 1] + c] - m.X[3 * t[0] + c];
+    vol += (d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1]) - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0]) +
+            d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0])) / 6.0;
+  }
+  EXPECT_NEAR(vol / (4.0 / 3.0 * M_PI * 0.05 * 0.05 * 0.05), 1.0, 0.01);
+  write("open.stl", sphere_stl(true));
+  const Result bad = incise("mesh tetrahedralize " + path("open.stl") + " --size 0.01 --out " + path("o.msh"));
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("open.stl: TetGen made no tetrahedra: the surface is not closed"), std::string::npos) << bad.out;
+  EXPECT_FALSE(fs::exists(path("o.msh")));
 }
 
 TEST_F(Cli, MeshConvertRaisesToTet10) {

@@ -8,7 +8,7 @@ packages=(
   libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0 libpng-dev
   libfcl-dev libccd-dev zlib1g-dev
   libboost-dev libopenigtlink-dev
-  clang-15 python3-matplotlib python3-meshio
+  clang-15 python3-matplotlib python3-meshio tetgen
 )
 missing=()
 for p in "${packages[@]}"; do
