@@ -1,4 +1,5 @@
-// Gmsh .msh reader, ASCII format 2.2 and 4.1. Element types 4 (tet4) and 11
+// Gmsh .msh reader, format 2.2 and 4.1, ASCII and binary (little-endian,
+// 8-byte size_t: what gmsh and meshio write). Element types 4 (tet4) and 11
 // (tet10) are kept; all other types (points, lines, triangles) are skipped.
 //
 // Gmsh tet10 mid-edge nodes (Gmsh manual, "Node ordering"): 4:(0,1) 5:(1,2)
@@ -6,6 +7,8 @@
 // nodes 8 and 9 swap; the others match (edge direction does not matter).
 // Node tags may be sparse; they are mapped to 0-based rows in file order.
 #include <algorithm>
+#include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -19,11 +22,42 @@ constexpr int kFromGmshTet10[10] = {0, 1, 2, 3, 4, 5, 6, 7, 9, 8};  // ours[k] =
 
 int tet_nodes(long long type) { return type == 4 ? 4 : type == 11 ? 10 : 0; }
 
+// Nodes of Gmsh element types 1-19 (a binary file's elements of other types
+// must be skipped by size); 0 for types not in the table.
+int gmsh_nodes(long long type) {
+  static const int n[20] = {0, 2, 3, 4, 4, 8, 6, 5, 3, 6, 9, 10, 27, 18, 14, 1, 8, 20, 15, 13};
+  return type >= 1 && type <= 19 ? n[type] : 0;
+}
+
+// A cursor over binary data inside the file's text, bounds-checked.
+struct Bin {
+  TextFile& f;
+  size_t pos;
+  template <class T>
+  T get(const char* what) {
+    const std::string& s = f.text();
+    if (pos > s.size() || s.size() - pos < sizeof(T))
+      f.fail(std::string("binary data ends inside ") + what + " (truncated at byte " + std::to_string(s.size()) + ")");
+    T v;
+    std::memcpy(&v, s.data() + pos, sizeof(T));
+    pos += sizeof(T);
+    return v;
+  }
+  // A count that must fit in what is left of the file at `bytes_each` each.
+  uint64_t count(uint64_t n, uint64_t bytes_each, const char* what) {
+    const uint64_t left = f.text().size() - std::min(pos, f.text().size());
+    if (bytes_each > 0 && n > left / bytes_each)
+      f.fail(std::string(what) + " is " + std::to_string(n) + ", more than the " + std::to_string(left) + " bytes left can hold");
+    return n;
+  }
+};
+
 struct Reader {
   TextFile f;
   RawMesh raw;
   std::vector<std::string_view> tok;
   int major = 0;  // 2 or 4
+  bool binary = false;
 
   explicit Reader(const std::string& path) : f(path) {}
 
@@ -54,13 +88,20 @@ struct Reader {
   void mesh_format() {
     need_line("'version file-type data-size'");
     need_tokens(3, "'version file-type data-size'");
-    if (tok[1] != "0") f.fail("binary .msh not supported, save as ASCII");
+    if (tok[1] != "0" && tok[1] != "1") f.fail("file-type must be 0 (ASCII) or 1 (binary), got " + quote(tok[1]));
+    binary = tok[1] == "1";
+    if (binary && tok[2] != "8") f.fail("binary data-size " + quote(tok[2]) + " is not supported; allowed: 8 (64-bit size_t)");
     if (tok[0].substr(0, 2) == "2.")
       major = 2;
     else if (tok[0] == "4.1")
       major = 4;
     else
-      f.fail("Gmsh format version " + std::string(tok[0]) + " is not supported; allowed: 2.2 or 4.1 (ASCII)");
+      f.fail("Gmsh format version " + std::string(tok[0]) + " is not supported; allowed: 2.2 or 4.1");
+    if (binary) {  // the integer 1, to tell the byte order
+      Bin b{f, f.pos()};
+      if (b.get<int32_t>("the byte-order mark") != 1) f.fail("big-endian binary .msh is not supported");
+      f.seek(b.pos);
+    }
     expect_end("$EndMeshFormat");
   }
 
@@ -151,6 +192,101 @@ struct Reader {
     }
   }
 
+  void node_bin(long long tag, const double* x) { raw.add_node(f, tag, x); }
+  void tet_bin(long long id, long long type, const long long* g) {
+    const int n = tet_nodes(type);
+    long long ours[10];
+    for (int a = 0; a < n; ++a) ours[a] = n == 10 ? g[kFromGmshTet10[a]] : g[a];
+    raw.add_tet(f, id, ours, n);
+  }
+
+  void nodes2_bin() {
+    need_line("the number of nodes");
+    Bin b{f, f.pos()};
+    const uint64_t n = b.count(static_cast<uint64_t>(get_long(f, tok[0], "the number of nodes")), 28, "the number of nodes");
+    for (uint64_t i = 0; i < n; ++i) {
+      const long long tag = b.get<int32_t>("a node tag");
+      double x[3];
+      for (double& c : x) c = b.get<double>("a node coordinate");
+      node_bin(tag, x);
+    }
+    f.seek(b.pos);
+  }
+
+  void elements2_bin() {
+    need_line("the number of elements");
+    Bin b{f, f.pos()};
+    const uint64_t total = b.count(static_cast<uint64_t>(get_long(f, tok[0], "the number of elements")), 8, "the number of elements");
+    uint64_t done = 0;
+    while (done < total) {
+      const long long type = b.get<int32_t>("an element type");
+      const uint64_t n = b.count(static_cast<uint32_t>(b.get<int32_t>("the elements following")), 4, "the elements following");
+      const int32_t ntags = b.get<int32_t>("the number of tags");
+      const int nn = gmsh_nodes(type);
+      if (nn == 0) f.fail("binary element type " + std::to_string(type) + " is not one this reader can skip (types 1-19)");
+      if (ntags < 0 || ntags > 100) f.fail("implausible number of element tags " + std::to_string(ntags));
+      if (n == 0 || n > total - done) f.fail("an element block of " + std::to_string(n) + " runs past the " + std::to_string(total) + " elements");
+      for (uint64_t i = 0; i < n; ++i) {
+        const long long id = b.get<int32_t>("an element tag");
+        for (int t = 0; t < ntags; ++t) b.get<int32_t>("an element tag");
+        long long g[27];
+        for (int a = 0; a < nn; ++a) g[a] = b.get<int32_t>("an element's node tag");
+        if (tet_nodes(type)) tet_bin(id, type, g);
+      }
+      done += n;
+    }
+    f.seek(b.pos);
+  }
+
+  void nodes4_bin() {
+    Bin b{f, f.pos()};
+    const uint64_t nblocks = b.count(b.get<uint64_t>("numEntityBlocks"), 20, "numEntityBlocks");
+    b.get<uint64_t>("numNodes"), b.get<uint64_t>("minNodeTag"), b.get<uint64_t>("maxNodeTag");
+    std::vector<long long> tags;
+    for (uint64_t k = 0; k < nblocks; ++k) {
+      b.get<int32_t>("entityDim"), b.get<int32_t>("entityTag");
+      if (b.get<int32_t>("parametric") != 0) f.fail("binary nodes with parametric coordinates are not supported");
+      const uint64_t n = b.count(b.get<uint64_t>("numNodesInBlock"), 32, "numNodesInBlock");
+      tags.resize(n);
+      for (auto& t : tags) t = static_cast<long long>(b.get<uint64_t>("a node tag"));
+      for (uint64_t i = 0; i < n; ++i) {
+        double x[3];
+        for (double& c : x) c = b.get<double>("a node coordinate");
+        node_bin(tags[i], x);
+      }
+    }
+    f.seek(b.pos);
+  }
+
+  void elements4_bin() {
+    Bin b{f, f.pos()};
+    const uint64_t nblocks = b.count(b.get<uint64_t>("numEntityBlocks"), 20, "numEntityBlocks");
+    b.get<uint64_t>("numElements"), b.get<uint64_t>("minElementTag"), b.get<uint64_t>("maxElementTag");
+    for (uint64_t k = 0; k < nblocks; ++k) {
+      b.get<int32_t>("entityDim"), b.get<int32_t>("entityTag");
+      const long long type = b.get<int32_t>("elementType");
+      const int nn = gmsh_nodes(type);
+      if (nn == 0) f.fail("binary element type " + std::to_string(type) + " is not one this reader can skip (types 1-19)");
+      const uint64_t n = b.count(b.get<uint64_t>("numElementsInBlock"), 8 * (1 + static_cast<uint64_t>(nn)), "numElementsInBlock");
+      for (uint64_t i = 0; i < n; ++i) {
+        const long long id = static_cast<long long>(b.get<uint64_t>("an element tag"));
+        long long g[27];
+        for (int a = 0; a < nn; ++a) g[a] = static_cast<long long>(b.get<uint64_t>("an element's node tag"));
+        if (tet_nodes(type)) tet_bin(id, type, g);
+      }
+    }
+    f.seek(b.pos);
+  }
+
+  // A binary section this reader does not use ($Entities, ...): its end
+  // line found in the text after it.
+  void skip_binary_to(const std::string& end) {
+    const size_t at = f.text().find("\n" + end, f.pos());
+    if (at == std::string::npos) f.fail("unexpected end of file, missing " + end);
+    f.seek(at + 1);
+    expect_end(end);
+  }
+
   Mesh read() {
     std::string_view line;
     while (f.next(line)) {
@@ -165,13 +301,17 @@ struct Reader {
       if ((name == "Nodes" || name == "Elements") && major == 0)
         f.fail("$" + name + " before $MeshFormat; is this a Gmsh .msh file?");
       if (name == "Nodes") {
-        major == 2 ? nodes2() : nodes4();
+        if (binary) major == 2 ? nodes2_bin() : nodes4_bin();
+        else major == 2 ? nodes2() : nodes4();
         expect_end("$EndNodes");
       } else if (name == "Elements") {
-        major == 2 ? elements2() : elements4();
+        if (binary) major == 2 ? elements2_bin() : elements4_bin();
+        else major == 2 ? elements2() : elements4();
         expect_end("$EndElements");
       } else if (name == "NOD" || name == "ELM") {
-        f.fail("Gmsh format 1 is not supported; allowed: 2.2 or 4.1 (ASCII)");
+        f.fail("Gmsh format 1 is not supported; allowed: 2.2 or 4.1");
+      } else if (binary) {
+        skip_binary_to("$End" + name);
       } else {
         skip_to("$End" + name);  // $Entities, $PhysicalNames, $NodeData, ...
       }

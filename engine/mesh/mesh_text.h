@@ -21,6 +21,10 @@ class TextFile {
   const std::string& text() const { return text_; }
   // Next line without its end of line ("\n" or "\r\n"); false at end of file.
   bool next(std::string_view& line);
+  // Byte position of the next line, and a jump past binary data read from
+  // text() (Gmsh binary sections); the line count stays that of the text.
+  size_t pos() const { return pos_; }
+  void seek(size_t pos) { pos_ = pos; }
   int line() const { return line_; }  // 1-based number of the line last returned
   [[noreturn]] void fail(const std::string& msg) const { fail_at(line_, msg); }
   [[noreturn]] void fail_at(int line, const std::string& msg) const;

@@ -206,9 +206,25 @@ TEST_F(MeshIo, MissingFileIsNamed) {
   EXPECT_NE(e.find("nope.msh: cannot open"), std::string::npos) << e;
 }
 
-TEST_F(MeshIo, BinaryGmshIsRejectedClearly) {
-  std::string p = write("bin.msh", "$MeshFormat\n4.1 1 8\n\x01\0\0\0\n$EndMeshFormat\n");
-  EXPECT_NE(error_of([&] { read_mesh(p); }).find("bin.msh:2: binary .msh not supported, save as ASCII"), std::string::npos);
+// Binary Gmsh files that do not hold what they claim: a 4-byte size_t, a
+// node count beyond the file, a truncated node block.
+TEST_F(MeshIo, BinaryGmshErrorsNameWhatDoesNotFit) {
+  const std::string p4 = write("b4.msh", "$MeshFormat\n4.1 1 4\n\x01\0\0\0\n$EndMeshFormat\n");
+  EXPECT_NE(error_of([&] { read_mesh(p4); }).find("b4.msh:2: binary data-size '4' is not supported"), std::string::npos);
+  std::string big = std::string("$MeshFormat\n2.2 1 8\n") + std::string("\x01\0\0\0", 4) + "\n$EndMeshFormat\n$Nodes\n1000000\n";
+  big += std::string(28, '\0') + "\n$EndNodes\n";
+  const std::string e = error_of([&] { read_mesh(write("big.msh", big)); });
+  EXPECT_NE(e.find("big.msh:6: the number of nodes is 1000000, more than the"), std::string::npos) << e;
+  std::string cut = std::string("$MeshFormat\n4.1 1 8\n") + std::string("\x01\0\0\0", 4) + "\n$EndMeshFormat\n$Nodes\n";
+  const uint64_t head[4] = {1, 2, 1, 2};
+  cut.append(reinterpret_cast<const char*>(head), sizeof head);
+  const int32_t block[3] = {3, 1, 0};
+  const uint64_t nin = 2;
+  cut.append(reinterpret_cast<const char*>(block), sizeof block);
+  cut.append(reinterpret_cast<const char*>(&nin), 8);
+  cut.append(std::string(20, '\0'));  // two tags need 16 bytes, their coordinates 48: cut short
+  const std::string e2 = error_of([&] { read_mesh(write("cut.msh", cut)); });
+  EXPECT_NE(e2.find("cut.msh:5: numNodesInBlock is 2, more than the"), std::string::npos) << e2;
 }
 
 TEST_F(MeshIo, GmshUndefinedNodeNamesFileLineAndElement) {
@@ -339,8 +355,9 @@ TEST_F(MeshIo, TruncatedBinaryVtuNamesTheArrayAndTheSize) {
 }
 
 // Round trips against meshio (Debian python3-meshio; skipped without it):
-// every .vtu mode meshio writes (ascii, binary, binary + zlib) and its
-// legacy .vtk and Gmsh 2.2 ASCII read back with the same elements; what
+// every .vtu mode meshio writes (ascii, binary, binary + zlib), its legacy
+// .vtk, and Gmsh 2.2 (ASCII and binary) and 4.1 binary (meshio's default)
+// read back with the same elements; what
 // incise writes (.vtu, .vtk, .msh) reads in meshio with the same points.
 TEST_F(MeshIo, MeshioRoundTrips) {
   if (std::system("/usr/bin/python3 -c 'import meshio' > /dev/null 2>&1") != 0) GTEST_SKIP() << "python3-meshio not installed";
@@ -354,9 +371,13 @@ TEST_F(MeshIo, MeshioRoundTrips) {
                                  "meshio.vtu.write(d + '/b.vtu', m, binary=True, compression=None)\n"
                                  "meshio.vtu.write(d + '/z.vtu', m, binary=True, compression='zlib')\n"
                                  "meshio.vtk.write(d + '/l.vtk', m, binary=False)\n"
-                                 "meshio.gmsh.write(d + '/g.msh', m, fmt_version='2.2', binary=False)\n");
+                                 "meshio.gmsh.write(d + '/g.msh', m, fmt_version='2.2', binary=False)\n"
+                                 "t = [c for c in m.cells if c.type.startswith('tetra')][0]\n"
+                                 "m = meshio.Mesh(m.points, [(t.type, t.data)])  # gmsh 4.1 wants one cell block\n"
+                                 "meshio.gmsh.write(d + '/g22b.msh', m, fmt_version='2.2', binary=True)\n"
+                                 "meshio.gmsh.write(d + '/g41b.msh', m, fmt_version='4.1', binary=True)\n");
     ASSERT_EQ(std::system(("/usr/bin/python3 " + py + " " + asset(sample) + " " + dir_.string() + " 2>/dev/null").c_str()), 0);
-    for (const char* f : {"a.vtu", "b.vtu", "z.vtu", "l.vtk", "g.msh"}) {
+    for (const char* f : {"a.vtu", "b.vtu", "z.vtu", "l.vtk", "g.msh", "g22b.msh", "g41b.msh"}) {
       const Mesh m = read_mesh(path(f));
       EXPECT_EQ(m.order, ref.order) << sample << " via meshio " << f;
       EXPECT_EQ(element_coords(m), element_coords(ref)) << sample << " via meshio " << f;
