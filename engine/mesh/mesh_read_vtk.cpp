@@ -1,12 +1,14 @@
-// VTK readers: legacy ASCII .vtk (UNSTRUCTURED_GRID, both the classic CELLS
-// layout and the 5.1 OFFSETS/CONNECTIVITY layout) and XML .vtu with ascii,
+// VTK readers: legacy .vtk, ASCII or binary (big-endian) (UNSTRUCTURED_GRID,
+// both the classic CELLS layout and the 5.1 OFFSETS/CONNECTIVITY layout) and XML .vtu with ascii,
 // binary (base64 inline) or appended (raw or base64) DataArrays, plain or
 // zlib-compressed (engine/mesh/vtk_binary.h). Cell types 10 (tet4) and 24 (tet10) are kept, others skipped.
 // VTK's quadratic tetra ordering is ours, so no permutation is needed.
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -79,6 +81,153 @@ struct Tokens {
   void drop_line() { i = tok.size(); }
 };
 
+// Binary legacy .vtk: the keyword lines are text, each array's values
+// follow as big-endian binary (the legacy format's byte order), then '\n'.
+struct BigEndian {
+  TextFile& f;
+  size_t pos;
+  size_t size_of(std::string_view type) {
+    const std::string t = upper(type);
+    if (t == "FLOAT" || t == "INT" || t == "UNSIGNED_INT" || t == "VTKTYPEINT32") return 4;
+    if (t == "DOUBLE" || t == "LONG" || t == "UNSIGNED_LONG" || t == "VTKTYPEINT64") return 8;
+    f.fail("binary data type " + quote(type) + " is not supported; allowed: float, double, int, long, vtktypeint32/64");
+  }
+  void check(uint64_t n, size_t each, const char* what) {
+    const uint64_t left = f.text().size() - std::min(pos, f.text().size());
+    if (n > left / each) f.fail(std::string(what) + ": " + std::to_string(n) + " values of " + std::to_string(each) + " bytes, more than the " + std::to_string(left) + " bytes left");
+  }
+  uint64_t raw(size_t each) {
+    uint64_t v = 0;
+    for (size_t k = 0; k < each; ++k) v = (v << 8) | static_cast<unsigned char>(f.text()[pos + k]);
+    pos += each;
+    return v;
+  }
+  double real(size_t each) {
+    const uint64_t b = raw(each);
+    if (each == 4) {
+      float x;
+      const uint32_t w = static_cast<uint32_t>(b);
+      std::memcpy(&x, &w, 4);
+      return x;
+    }
+    double x;
+    std::memcpy(&x, &b, 8);
+    return x;
+  }
+  long long integer(size_t each) {
+    const uint64_t b = raw(each);
+    return each == 4 ? static_cast<long long>(static_cast<int32_t>(b)) : static_cast<long long>(b);
+  }
+  void done() { f.seek(pos); }
+};
+
+Mesh read_legacy_binary(TextFile& f, const std::string& path) {
+  std::string_view line;
+  std::vector<std::string_view> tok;
+  auto keyword_line = [&](bool& more) {
+    while ((more = f.next(line)))
+      if (!trim(line).empty()) break;
+    split(line, tok);
+  };
+  bool more = true;
+  keyword_line(more);
+  if (!more || tok.size() < 2 || upper(tok[0]) != "DATASET" || upper(tok[1]) != "UNSTRUCTURED_GRID")
+    f.fail("expected DATASET UNSTRUCTURED_GRID");
+  RawMesh raw;
+  Cells cells;
+  bool have_points = false, have_cells = false, have_types = false;
+  for (keyword_line(more); more; keyword_line(more)) {
+    const std::string key = upper(tok[0]);
+    BigEndian b{f, f.pos()};
+    if (key == "POINTS") {
+      if (tok.size() < 3) f.fail("expected POINTS n type");
+      const long long n = get_long(f, tok[1], "the number of points");
+      const size_t each = b.size_of(tok[2]);
+      if (n < 0) f.fail("the number of points must not be negative");
+      b.check(3 * static_cast<uint64_t>(n), each, "POINTS");
+      for (long long p = 0; p < n; ++p) {
+        double x[3];
+        for (double& c : x) c = b.real(each);
+        for (double c : x)
+          if (!std::isfinite(c)) f.fail("point " + std::to_string(p) + " has a non-finite coordinate");
+        raw.add_node(f, p, x);
+      }
+      b.done();
+      have_points = true;
+    } else if (key == "CELLS") {
+      if (tok.size() < 3) f.fail("expected CELLS n size");
+      const long long a = get_long(f, tok[1], "the number of cells"), sz = get_long(f, tok[2], "the size of the cell list");
+      if (a < 0 || sz < 0) f.fail("CELLS sizes must not be negative");
+      const int cells_line = f.line();
+      // VTK 5.1: OFFSETS type \n a values, CONNECTIVITY type \n sz values.
+      const size_t save = f.pos();
+      std::string_view probe;
+      bool offsets = false;
+      if (f.next(probe) && upper(trim(probe)).rfind("OFFSETS", 0) == 0) offsets = true;
+      else f.seek(save);
+      if (offsets) {
+        std::vector<std::string_view> ot;
+        split(probe, ot);
+        BigEndian o{f, f.pos()};
+        const size_t each = o.size_of(ot.size() > 1 ? ot[1] : "");
+        o.check(static_cast<uint64_t>(a), each, "OFFSETS");
+        for (long long i = 0; i < a; ++i) cells.start.push_back(o.integer(each));
+        o.done();
+        keyword_line(more);
+        if (!more || upper(tok[0]) != "CONNECTIVITY") f.fail("expected CONNECTIVITY after OFFSETS");
+        BigEndian c{f, f.pos()};
+        const size_t ce = c.size_of(tok.size() > 1 ? tok[1] : "");
+        c.check(static_cast<uint64_t>(sz), ce, "CONNECTIVITY");
+        for (long long i = 0; i < sz; ++i) cells.conn.push_back(c.integer(ce));
+        c.done();
+        if (cells.start.empty() || cells.start[0] != 0) f.fail("OFFSETS must start with 0");
+        for (size_t i = 1; i < cells.start.size(); ++i) {
+          if (cells.start[i] < cells.start[i - 1] || cells.start[i] > sz)
+            f.fail("OFFSETS must increase and stay within the " + std::to_string(sz) + " CONNECTIVITY entries");
+          cells.line.push_back(cells_line);
+        }
+        if (a == 0) cells.start.assign(1, 0);
+      } else {
+        b.check(static_cast<uint64_t>(sz), 4, "CELLS");
+        cells.start.push_back(0);
+        long long used = 0;
+        for (long long c = 0; c < a; ++c) {
+          if (used >= sz) f.fail("cell " + std::to_string(c) + " overruns the CELLS size " + std::to_string(sz));
+          const long long n = b.integer(4);
+          ++used;
+          if (n < 0 || n > sz - used) f.fail("cell " + std::to_string(c) + " overruns the CELLS size " + std::to_string(sz));
+          for (long long k = 0; k < n; ++k) cells.conn.push_back(b.integer(4));
+          used += n;
+          cells.start.push_back(static_cast<long long>(cells.conn.size()));
+          cells.line.push_back(cells_line);
+        }
+        b.done();
+      }
+      have_cells = true;
+    } else if (key == "CELL_TYPES") {
+      if (tok.size() < 2) f.fail("expected CELL_TYPES n");
+      const long long n = get_long(f, tok[1], "the number of cell types");
+      if (n < 0) f.fail("the number of cell types must not be negative");
+      b.check(static_cast<uint64_t>(n), 4, "CELL_TYPES");
+      for (long long i = 0; i < n; ++i) cells.types.push_back(b.integer(4));
+      b.done();
+      have_types = true;
+    } else if (key == "POINT_DATA" || key == "CELL_DATA" || key == "FIELD") {
+      break;  // fields are not part of the mesh
+    } else if (key == "METADATA") {
+      while (f.next(line) && !trim(line).empty()) {
+      }
+    } else {
+      f.fail("unexpected keyword " + quote(tok[0]) + "; expected POINTS, CELLS or CELL_TYPES");
+    }
+  }
+  if (!have_points || !have_cells || !have_types)
+    throw Error(path + ": missing " + std::string(!have_points ? "POINTS" : !have_cells ? "CELLS" : "CELL_TYPES") + " section");
+  if (cells.line.size() != cells.types.size()) cells.line.assign(cells.types.size(), f.line());
+  add_cells(raw, cells, f);
+  return finish(raw, path, kKinds);
+}
+
 Mesh read_legacy(const std::string& path) {
   TextFile f(path);
   std::string_view line;
@@ -87,7 +236,7 @@ Mesh read_legacy(const std::string& path) {
   if (!f.next(line)) f.fail("unexpected end of file after the header");  // title
   if (!f.next(line)) f.fail("unexpected end of file, expected ASCII or BINARY");
   const std::string fmt = upper(trim(line));
-  if (fmt == "BINARY") f.fail("binary legacy .vtk not supported, save as ASCII");
+  if (fmt == "BINARY") return read_legacy_binary(f, path);
   if (fmt != "ASCII") f.fail("expected ASCII or BINARY, got " + quote(line));
 
   Tokens t{f, {}, 0};

@@ -227,6 +227,14 @@ TEST_F(MeshIo, BinaryGmshErrorsNameWhatDoesNotFit) {
   EXPECT_NE(e2.find("cut.msh:5: numNodesInBlock is 2, more than the"), std::string::npos) << e2;
 }
 
+// A binary legacy .vtk whose POINTS claim more than the file holds.
+TEST_F(MeshIo, BinaryLegacyVtkCountsAreCheckedAgainstTheFile) {
+  std::string t = "# vtk DataFile Version 4.2\nx\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 1000 double\n";
+  t += std::string(24, '\0') + "\n";
+  const std::string e = error_of([&] { read_mesh(write("p.vtk", t)); });
+  EXPECT_NE(e.find("p.vtk:5: POINTS: 3000 values of 8 bytes, more than the 25 bytes left"), std::string::npos) << e;
+}
+
 TEST_F(MeshIo, GmshUndefinedNodeNamesFileLineAndElement) {
   std::string p = write("bad.msh",
                         "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"
@@ -356,7 +364,8 @@ TEST_F(MeshIo, TruncatedBinaryVtuNamesTheArrayAndTheSize) {
 
 // Round trips against meshio (Debian python3-meshio; skipped without it):
 // every .vtu mode meshio writes (ascii, binary, binary + zlib), its legacy
-// .vtk, and Gmsh 2.2 (ASCII and binary) and 4.1 binary (meshio's default)
+// .vtk (ASCII, binary 5.1 and 4.2), and Gmsh 2.2 (ASCII and binary) and 4.1
+// binary (meshio's default)
 // read back with the same elements; what
 // incise writes (.vtu, .vtk, .msh) reads in meshio with the same points.
 TEST_F(MeshIo, MeshioRoundTrips) {
@@ -371,13 +380,15 @@ TEST_F(MeshIo, MeshioRoundTrips) {
                                  "meshio.vtu.write(d + '/b.vtu', m, binary=True, compression=None)\n"
                                  "meshio.vtu.write(d + '/z.vtu', m, binary=True, compression='zlib')\n"
                                  "meshio.vtk.write(d + '/l.vtk', m, binary=False)\n"
+                                 "meshio.vtk.write(d + '/lb.vtk', m, binary=True)\n"
+                                 "meshio.vtk.write(d + '/lb42.vtk', m, binary=True, fmt_version='4.2')\n"
                                  "meshio.gmsh.write(d + '/g.msh', m, fmt_version='2.2', binary=False)\n"
                                  "t = [c for c in m.cells if c.type.startswith('tetra')][0]\n"
                                  "m = meshio.Mesh(m.points, [(t.type, t.data)])  # gmsh 4.1 wants one cell block\n"
                                  "meshio.gmsh.write(d + '/g22b.msh', m, fmt_version='2.2', binary=True)\n"
                                  "meshio.gmsh.write(d + '/g41b.msh', m, fmt_version='4.1', binary=True)\n");
     ASSERT_EQ(std::system(("/usr/bin/python3 " + py + " " + asset(sample) + " " + dir_.string() + " 2>/dev/null").c_str()), 0);
-    for (const char* f : {"a.vtu", "b.vtu", "z.vtu", "l.vtk", "g.msh", "g22b.msh", "g41b.msh"}) {
+    for (const char* f : {"a.vtu", "b.vtu", "z.vtu", "l.vtk", "lb.vtk", "lb42.vtk", "g.msh", "g22b.msh", "g41b.msh"}) {
       const Mesh m = read_mesh(path(f));
       EXPECT_EQ(m.order, ref.order) << sample << " via meshio " << f;
       EXPECT_EQ(element_coords(m), element_coords(ref)) << sample << " via meshio " << f;
