@@ -365,7 +365,7 @@ TEST_F(MeshIo, TruncatedBinaryVtuNamesTheArrayAndTheSize) {
 // Round trips against meshio (Debian python3-meshio; skipped without it):
 // every .vtu mode meshio writes (ascii, binary, binary + zlib), its legacy
 // .vtk (ASCII, binary 5.1 and 4.2), and Gmsh 2.2 (ASCII and binary) and 4.1
-// binary (meshio's default)
+// binary (meshio's default) and ASCII, Abaqus .inp and TetGen .node/.ele
 // read back with the same elements; what
 // incise writes (.vtu, .vtk, .msh) reads in meshio with the same points.
 TEST_F(MeshIo, MeshioRoundTrips) {
@@ -386,9 +386,15 @@ TEST_F(MeshIo, MeshioRoundTrips) {
                                  "t = [c for c in m.cells if c.type.startswith('tetra')][0]\n"
                                  "m = meshio.Mesh(m.points, [(t.type, t.data)])  # gmsh 4.1 wants one cell block\n"
                                  "meshio.gmsh.write(d + '/g22b.msh', m, fmt_version='2.2', binary=True)\n"
-                                 "meshio.gmsh.write(d + '/g41b.msh', m, fmt_version='4.1', binary=True)\n");
+                                 "meshio.gmsh.write(d + '/g41b.msh', m, fmt_version='4.1', binary=True)\n"
+                                 "meshio.gmsh.write(d + '/g41a.msh', m, fmt_version='4.1', binary=False)\n"
+                                 "meshio.abaqus.write(d + '/ab.inp', m)\n"
+                                 "if t.type == 'tetra': meshio.tetgen.write(d + '/tg.node', m)  # tetgen: linear tets\n");
     ASSERT_EQ(std::system(("/usr/bin/python3 " + py + " " + asset(sample) + " " + dir_.string() + " 2>/dev/null").c_str()), 0);
-    for (const char* f : {"a.vtu", "b.vtu", "z.vtu", "l.vtk", "lb.vtk", "lb42.vtk", "g.msh", "g22b.msh", "g41b.msh"}) {
+    std::vector<std::string> files = {"a.vtu", "b.vtu", "z.vtu", "l.vtk", "lb.vtk", "lb42.vtk", "g.msh",
+                                      "g22b.msh", "g41b.msh", "g41a.msh", "ab.inp"};
+    if (ref.order == 1) files.push_back("tg.ele");
+    for (const std::string& f : files) {
       const Mesh m = read_mesh(path(f));
       EXPECT_EQ(m.order, ref.order) << sample << " via meshio " << f;
       EXPECT_EQ(element_coords(m), element_coords(ref)) << sample << " via meshio " << f;
