@@ -90,7 +90,17 @@ std::string read_vtk_block(std::string_view in, size_t& pos, const VtkBlockForma
   if (nblocks > 0 && (bsize == 0 || total / nblocks > bsize)) throw Error(context + ": inconsistent compressed block sizes");
   if (total > (uint64_t{1} << 36)) throw Error(context + ": a block of " + std::to_string(total) + " bytes is beyond the 64 GiB limit");
   std::vector<uint64_t> csize(nblocks);
-  for (uint64_t b = 0; b < nblocks; ++b) csize[b] = header_int(in, pos + (3 + b) * hs, fmt.uint64_header);
+  uint64_t compressed = 0;
+  for (uint64_t b = 0; b < nblocks; ++b) {
+    csize[b] = header_int(in, pos + (3 + b) * hs, fmt.uint64_header);
+    if (csize[b] > in.size()) throw Error(context + ": a compressed block of " + std::to_string(csize[b]) + " bytes is larger than the data");
+    compressed += csize[b];
+  }
+  // zlib expands at most about 1032:1: a header that claims more is wrong,
+  // and is refused before anything that large is allocated.
+  if (total > 1100 * compressed + 1024)
+    throw Error(context + ": the header claims " + std::to_string(total) + " bytes from " + std::to_string(compressed) +
+                " compressed, more than zlib can expand");
   pos += (3 + nblocks) * hs;
   std::string out(total, '\0');
   size_t at = 0;
