@@ -86,7 +86,8 @@ const std::vector<std::string> kTet4Samples = {
     "box_tet4_sparse_v22.msh", "box_tet4.node", "box_tet4.ele", "box_tet4.inp"};
 const std::vector<std::string> kTet10Samples = {"box_tet10.vtk",     "box_tet10_classic.vtk", "box_tet10.vtu",
                                                 "box_tet10_v22.msh", "box_tet10_v41.msh",     "box_tet10.ele",
-                                                "box_tet10.inp"};
+                                                "box_tet10.inp",     "box_tet10_zlib.vtu",    "box_tet10_appended.vtu",
+                                                "box_tet10_v41_bin.msh", "box_tet10_v22_bin.msh", "box_tet10_bin.vtk"};
 
 TEST_F(MeshIo, EveryTet4SampleIsTheSameBox) {
   const Mesh ref = read_mesh(asset("box_tet4.vtk"));
