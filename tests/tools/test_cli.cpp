@@ -64,7 +64,7 @@ TEST_F(Cli, MeshBeamWritesAReadableMesh) {
 // A closed sphere (an icosahedron subdivided 4 times, radius 0.05, its
 // polyhedral volume 0.2% under the sphere's) as ASCII STL; `open` drops one
 // triangle.
-std::string sphere_stl(bool open) {
+std::string sphere_stl(bool open, bool obj = false) {
   const double t = (1 + std::sqrt(5.0)) / 2;
   std::vector<std::array<double, 3>> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
                                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
@@ -93,6 +93,11 @@ std::string sphere_stl(bool open) {
     f = g;
   }
   std::ostringstream os;
+  if (obj) {  // the same surface as an indexed OBJ
+    for (const auto& p : v) os << "v " << 0.05 * p[0] << ' ' << 0.05 * p[1] << ' ' << 0.05 * p[2] << '\n';
+    for (size_t k = open ? 1 : 0; k < f.size(); ++k) os << "f " << f[k][0] + 1 << ' ' << f[k][1] + 1 << ' ' << f[k][2] + 1 << '\n';
+    return os.str();
+  }
   os << "solid sphere\n";
   for (size_t k = open ? 1 : 0; k < f.size(); ++k) {
     os << " facet normal 0 0 0\n  outer loop\n";
@@ -114,16 +119,26 @@ TEST_F(Cli, TetrahedralizeFillsAClosedSurfaceAndRefusesAnOpenOne) {
   const incise::Mesh m = incise::read_mesh(path("s.msh"));
   EXPECT_EQ(m.order, 2);
   EXPECT_NO_THROW(incise::check_mesh(m));  // positive Jacobians
-  double vol = 0;
-  for (int e = 0; e < m.ntet(); ++e) {
-    const int* t = &m.tet[10 * static_cast<size_t>(e)];
-    double d[3][3];
-    for (int k = 0; k < 3; ++k)
-      for (int c = 0; c < 3; ++c) d[k][c] = m.X[3 * t[k + 1] + c] - m.X[3 * t[0] + c];
-    vol += (d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1]) - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0]) +
-            d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0])) / 6.0;
-  }
-  EXPECT_NEAR(vol / (4.0 / 3.0 * M_PI * 0.05 * 0.05 * 0.05), 1.0, 0.01);
+  auto volume = [](const incise::Mesh& mesh) {  // of the corner tetrahedra (straight edges)
+    double vol = 0;
+    for (int e = 0; e < mesh.ntet(); ++e) {
+      const int* t = &mesh.tet[static_cast<size_t>(mesh.npe()) * static_cast<size_t>(e)];
+      double d[3][3];
+      for (int k = 0; k < 3; ++k)
+        for (int c = 0; c < 3; ++c) d[k][c] = mesh.X[3 * t[k + 1] + c] - mesh.X[3 * t[0] + c];
+      vol += (d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1]) - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0]) +
+              d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0])) / 6.0;
+    }
+    return vol;
+  };
+  const double sphere = 4.0 / 3.0 * M_PI * 0.05 * 0.05 * 0.05;
+  EXPECT_NEAR(volume(m) / sphere, 1.0, 0.01);
+  write("sphere.obj", sphere_stl(false, true));  // OBJ goes through an OFF file
+  const Result o = incise("mesh tetrahedralize " + path("sphere.obj") + " --size 0.01 --order 1 --out " + path("o4.vtu"));
+  ASSERT_EQ(o.code, 0) << o.out;
+  const incise::Mesh m4 = incise::read_mesh(path("o4.vtu"));
+  EXPECT_EQ(m4.order, 1);
+  EXPECT_NEAR(volume(m4) / sphere, 1.0, 0.01);
   write("open.stl", sphere_stl(true));
   const Result bad = incise("mesh tetrahedralize " + path("open.stl") + " --size 0.01 --out " + path("o.msh"));
   EXPECT_NE(bad.code, 0);

@@ -276,7 +276,19 @@ TEST_F(MeshIo, NonFiniteCoordinatesAreRejected) {
 // A one-tet .vtu with appended raw data, as VTK writes it: each array a
 // block (header: byte count, or for zlib [nblocks, block size, last size,
 // compressed size]) at its offset after the '_'.
-std::string appended_vtu(bool zlib, bool uint64, std::string* truncated = nullptr) {
+std::string base64(const std::string& bytes) {
+  static const char* k = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (size_t i = 0; i < bytes.size(); i += 3) {
+    uint32_t w = 0;
+    const size_t n = std::min<size_t>(3, bytes.size() - i);
+    for (size_t j = 0; j < 3; ++j) w = (w << 8) | (j < n ? static_cast<unsigned char>(bytes[i + j]) : 0);
+    for (size_t j = 0; j < 4; ++j) out += j <= n ? k[(w >> (18 - 6 * j)) & 63] : '=';
+  }
+  return out;
+}
+
+std::string appended_vtu(bool zlib, bool uint64, std::string* truncated = nullptr, bool b64 = false) {
   const double pts[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
   const int64_t conn[4] = {0, 1, 2, 3};
   const int32_t offs[1] = {4};
@@ -290,8 +302,14 @@ std::string appended_vtu(bool zlib, bool uint64, std::string* truncated = nullpt
       blob.append(reinterpret_cast<const char*>(&w), 4);
     }
   };
+  std::string text;  // base64: each block encoded on its own, header and data separately
   auto add = [&](const void* data, size_t n) {
-    at.push_back(blob.size());
+    if (b64) {
+      at.push_back(text.size());
+      blob.clear();
+    } else {
+      at.push_back(blob.size());
+    }
     if (!zlib) {
       header(n);
       blob.append(static_cast<const char*>(data), n);
@@ -303,7 +321,13 @@ std::string appended_vtu(bool zlib, bool uint64, std::string* truncated = nullpt
     header(1), header(n), header(n), header(cn);
     blob.append(reinterpret_cast<const char*>(c.data()), cn);
   };
-  add(pts, sizeof pts), add(conn, sizeof conn), add(offs, sizeof offs), add(types, sizeof types);
+  auto flush = [&](size_t header_bytes) {  // base64 text of the block just added
+    if (b64) text += base64(blob.substr(0, header_bytes)) + base64(blob.substr(header_bytes));
+  };
+  const size_t hb = (uint64 ? 8 : 4) * (zlib ? 4 : 1);
+  add(pts, sizeof pts), flush(hb), add(conn, sizeof conn), flush(hb), add(offs, sizeof offs), flush(hb);
+  add(types, sizeof types), flush(hb);
+  if (b64) blob = text;
   auto arr = [&](const char* type, const char* name, int k, int ncomp = 1) {
     return std::string("<DataArray type=\"") + type + "\" Name=\"" + name + "\" NumberOfComponents=\"" +
            std::to_string(ncomp) + "\" format=\"appended\" offset=\"" + std::to_string(at[static_cast<size_t>(k)]) + "\"/>\n";
@@ -313,7 +337,7 @@ std::string appended_vtu(bool zlib, bool uint64, std::string* truncated = nullpt
                      ">\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\">\n<Points>\n" +
                      arr("Float64", "Points", 0, 3) + "</Points>\n<Cells>\n" + arr("Int64", "connectivity", 1) +
                      arr("Int32", "offsets", 2) + arr("UInt8", "types", 3) +
-                     "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
+                     "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"" + (b64 ? "base64" : "raw") + "\">\n_";
   if (truncated) *truncated = head + blob.substr(0, at[1] + 6) + "\n</AppendedData>\n</VTKFile>\n";
   return head + blob + "\n</AppendedData>\n</VTKFile>\n";
 }
@@ -340,9 +364,10 @@ TEST_F(MeshIo, BinaryAndAsciiVtuWritesReadBackTheSameMesh) {
 }
 
 TEST_F(MeshIo, AppendedRawAndZlibVtuReadAsTheAsciiOne) {
+  for (bool b64 : {false, true})
   for (bool zlib : {false, true})
     for (bool u64 : {false, true}) {
-      const std::string p = write("a.vtu", appended_vtu(zlib, u64));
+      const std::string p = write("a.vtu", appended_vtu(zlib, u64, nullptr, b64));
       const Mesh m = read_mesh(p);
       EXPECT_EQ(m.order, 1);
       EXPECT_EQ(m.tet, (std::vector<int>{0, 1, 2, 3})) << "zlib " << zlib << " uint64 " << u64;
