@@ -14,6 +14,7 @@
 #include "engine/dynamics/step.h"
 #include "engine/runtime/timing_stats.h"
 #include "tools/commands.h"
+#include "tools/frame_list.h"
 #include "tools/frame_loop.h"
 #include "tools/solver_report.h"
 
@@ -49,22 +50,6 @@ std::vector<ScenePatch> policy_patches(const CompareOptions& o, const Scene& fil
       out.push_back({key, "null", "compare --policy " + policy});
     }
   out.push_back({"solver.policy", policy, "--policy " + policy});
-  return out;
-}
-
-std::vector<int> parse_frames(const std::string& text) {
-  std::vector<int> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const long v = std::strtol(item.c_str(), &end, 10);
-    if (item.empty() || *end != '\0' || v < 1 || v > 1000000)
-      throw Error("compare: --frames must be a comma-separated list of frame numbers >= 1, got \"" + text + "\"");
-    out.push_back(static_cast<int>(v));
-  }
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
 }
 
@@ -149,7 +134,7 @@ nlohmann::json run_policy(const CompareOptions& o, const std::string& policy, co
 }
 
 void compare(const CompareOptions& o) {
-  const std::vector<int> checkpoints = parse_frames(o.frames);
+  const std::vector<int> checkpoints = parse_frame_list(o.frames, "compare");
   // Every run's scene is resolved (and checked) before the reference starts.
   const Scene file = load_scene(o.scene);
   std::vector<std::string> policies = o.policies;

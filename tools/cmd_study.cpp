@@ -18,6 +18,7 @@
 #include "engine/runtime/timing_stats.h"
 #include "engine/util/error.h"
 #include "tools/commands.h"
+#include "tools/frame_list.h"
 #include "tools/frame_loop.h"
 #include "tools/probe_points.h"
 #include "tools/solver_report.h"
@@ -71,22 +72,6 @@ void write_atomically(const fs::path& p, const std::string& text) {
 
 fs::path point_file(const fs::path& dir, int k) { return dir / "points" / ("point_" + std::to_string(k) + ".json"); }
 
-std::vector<int> parse_frames(const std::string& text) {
-  std::vector<int> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const long v = std::strtol(item.c_str(), &end, 10);
-    if (item.empty() || *end != '\0' || v < 1 || v > 1000000)
-      throw Error("study: --frames must be frame numbers >= 1 (at most 1000000), comma-separated, got \"" + text + "\"");
-    out.push_back(static_cast<int>(v));
-  }
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
-  return out;
-}
-
 // The plan (DIR/study.json): everything a point process needs.
 nlohmann::json make_plan(const StudyOptions& o) {
   if (o.sweeps.empty()) throw Error("study: give at least one --sweep KNOB=V1,V2,...");
@@ -98,7 +83,7 @@ nlohmann::json make_plan(const StudyOptions& o) {
   }
   nlohmann::json plan;
   plan["scene"] = fs::absolute(o.scene).string();
-  plan["frames"] = parse_frames(o.frames);
+  plan["frames"] = parse_frame_list(o.frames, "study");
   plan["sweeps"] = nlohmann::json::array();
   for (const Sweep& s : sweeps) plan["sweeps"].push_back({{"knob", s.knob}, {"key", s.key}, {"values", s.values}});
   plan["points"] = nlohmann::json::array();
