@@ -9,7 +9,11 @@
 # grasper, dragged 5 cm at 0.2 m/s and let go:
 # assets/trajectories/organ_grasp_drag.csv) and haptics-20k
 # (assets/scenes/organ_haptics.json: the probe on the scripted haptic device
-# while the scalpel incises; its bench runs the 1 kHz haptic thread). Each case runs
+# while the scalpel incises; its bench runs the 1 kHz haptic thread), and the
+# second organ, from a real segmentation (assets/meshes/liver_19k.msh, 18,957
+# DOF): hang-liver19k (held at its posterior face, released from rest) and
+# demo-liver19k (assets/scenes/liver_demo.json on it: scalpel, grasper,
+# haptic probe). Each case runs
 #   incise compare  (exact reference, then the policy; error after 1, 30, FRAMES frames)
 #   incise bench    (frame, cut-frame and stage timings of the policy alone)
 # The policy: solver.preset "realtime" (docs/scene-format.md, "Presets"),
@@ -87,6 +91,8 @@ cases=(
   "hang-20k organ_20k 3"
   "drag-20k organ_20k 3"
   "haptics-20k organ_haptics 3"
+  "hang-liver19k liver_19k 3"
+  "demo-liver19k liver_demo 3"
 )
 only="${BENCH_ONLY:-}"
 for c in "${cases[@]}"; do
@@ -95,6 +101,35 @@ for c in "${cases[@]}"; do
   scene="$out/$name.json"
   bench_extra=""
   case "$name" in
+    hang-liver*)
+      # The second organ of issue 20, from a real segmentation (CGAL's liver,
+      # assets/meshes/SOURCES.md): the demo's material, held at its
+      # posterior face, released from rest under gravity.
+      cat >"$scene" <<JSON
+{"mesh": {"file": "$(realpath --relative-to="$out" "assets/meshes/$mesh.msh")", "order": 2},
+ "material": {"model": "corotated", "young": 2e4, "poisson": 0.45, "density": 1060,
+              "rayleigh": {"mass": 1.0, "stiffness": 0.005}},
+ "mass": "lumped", "gravity": [0, 0, -9.81],
+ "fixed": [{"box": [[-0.2, 0.035, -0.2], [0.2, 0.2, 0.2]]}]}
+JSON
+      ;;
+    demo-liver*)
+      # The liver demo (scalpel, grasper, haptic probe) on the 19k mesh.
+      [ "${name%%-*}" = demo ] && bench_extra="--haptics"
+      python3 - "assets/scenes/$mesh.json" "$scene" <<'PY2'
+import json, os, sys
+src, dst = sys.argv[1], sys.argv[2]
+d = json.load(open(src))
+rel = lambda f: os.path.relpath(os.path.join(os.path.dirname(src), f), os.path.dirname(dst))
+d["mesh"]["file"] = rel("../meshes/liver_19k.msh")
+for ins in d.get("instruments", []):
+    if "trajectory" in ins:
+        ins["trajectory"] = rel(ins["trajectory"])
+for k in ("output", "render", "run", "solver"):
+    d.pop(k, None)
+json.dump(d, open(dst, "w"), indent=1)
+PY2
+      ;;
     hang-*|drag-*)
       grasper=""
       if [ "${name%%-*}" = drag ]; then
