@@ -49,11 +49,7 @@ void draw_plot(const std::string& json, const std::string& png) {
   const std::string script = plot_script();
   if (!std::filesystem::is_regular_file(script))
     throw Error("--plot: the plot script " + script + " is missing (set INCISE_PLOT_SCRIPT); " + json + " was written");
-  // Debian's python3 (where python3-matplotlib lives) before another on PATH; INCISE_PYTHON overrides.
-  const char* py_env = std::getenv("INCISE_PYTHON");
-  const std::string python = py_env && *py_env                                   ? py_env
-                             : std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3"
-                                                                                 : "python3";
+  const std::string python = plot_python();
   const std::string cmd = python + " " + script + " " + json + " " + png;
   int status = 0;
   try {

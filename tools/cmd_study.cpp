@@ -247,7 +247,7 @@ void collect(const fs::path& dir) {
   // The plot: Debian's python3 with matplotlib; a missing one is a note, not an error.
   const char* env = std::getenv("INCISE_STUDY_PLOT_SCRIPT");
   const std::string script = env && *env ? env : INCISE_SCRIPTS_DIR "/plot-study.py";
-  const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+  const std::string python = plot_python();
   const fs::path png = dir / "study.png";
   int status = -1;
   if (fs::is_regular_file(script)) {

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
@@ -34,6 +35,12 @@ int spawn_and_wait(const std::vector<std::string>& args, const std::string& log)
   if (waitpid(pid, &status, 0) < 0) throw Error("waiting for " + args[0] + ": " + std::strerror(errno));
   if (WIFEXITED(status)) return WEXITSTATUS(status);
   return WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1;
+}
+
+std::string plot_python() {
+  const char* env = std::getenv("INCISE_PYTHON");
+  if (env && *env) return env;
+  return std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
 }
 
 std::string self_executable() {

@@ -12,6 +12,10 @@ namespace incise {
 // program killed by a signal returns 128 + the signal.
 int spawn_and_wait(const std::vector<std::string>& args, const std::string& log = "");
 
+// The python3 that draws the plots: INCISE_PYTHON, else Debian's
+// /usr/bin/python3 (where python3-matplotlib lives) before another on PATH.
+std::string plot_python();
+
 // This program's own path (/proc/self/exe), for running a sub-command as a
 // process of its own.
 std::string self_executable();

@@ -114,9 +114,13 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
     const bool search = !linear && slope > 0.0;
     double pi0 = 0.0;
     if (search) pi0 = energy_at(s.u.data());  // s.R: u's rotations (its tangent's assembly)
+    // The full step is assembled with its tangent: taken (the usual case),
+    // that is the next iteration's, and its forces are not computed twice.
+    bool tangent_at_trial = false;
     for (int h = 0;; ++h) {
       for (int d = 0; d < n; ++d) trial[d] = s.u[d] + alpha * ws.du[d];
-      r_new = residual_at(trial, false);
+      tangent_at_trial = h == 0;
+      r_new = residual_at(trial, tangent_at_trial);
       if (!search || (std::isfinite(r_new) && (r_new < r || energy_at(trial) <= pi0 - 1e-4 * alpha * slope))) break;
       if (h == kStaticLineSearchHalvings) {
         ++res.stalled;
@@ -127,8 +131,8 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
     if (alpha < 1.0) ++res.shortened;
     res.smallest_step = std::min(res.smallest_step, alpha);
     std::copy(trial, trial + n, s.u.begin());
-    // The tangent at the new point (and its residual again: the same forces).
-    r = residual_at(s.u.data(), true);
+    // A shortened step: the tangent at the new point (ws.rhs holds its residual already).
+    r = tangent_at_trial ? r_new : residual_at(s.u.data(), true);
   }
   res.inverted_points = fallbacks;
   ws.factor_current = false;  // the factor held K, not a dynamics matrix

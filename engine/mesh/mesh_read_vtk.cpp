@@ -223,7 +223,6 @@ Mesh read_legacy_binary(TextFile& f, const std::string& path) {
   }
   if (!have_points || !have_cells || !have_types)
     throw Error(path + ": missing " + std::string(!have_points ? "POINTS" : !have_cells ? "CELLS" : "CELL_TYPES") + " section");
-  if (cells.line.size() != cells.types.size()) cells.line.assign(cells.types.size(), f.line());
   add_cells(raw, cells, f);
   return finish(raw, path, kKinds);
 }
@@ -360,7 +359,7 @@ struct DataArray {
 // <AppendedData>).
 struct Binary {
   VtkBlockFormat fmt;
-  bool header_given = false;  // header_type present; else both sizes are tried (meshio writes UInt64 without it)
+  bool header_given = false;  // header_type present; else UInt32, or both tried where the block must fill its text
   bool appended_base64 = false;
   std::string_view appended;  // after the '_' to </AppendedData>
   std::vector<long long> offsets;  // of every appended array, sorted (a base64 array ends at the next)
@@ -444,7 +443,11 @@ std::string block_bytes(const Xml& x, const DataArray& a, const Binary& bin) {
     if (static_cast<size_t>(a.offset) > end) throw Error(ctx + ": offset " + std::to_string(a.offset) + " is beyond the appended data");
     return decode_inline_block(bin.appended.substr(static_cast<size_t>(a.offset), end - static_cast<size_t>(a.offset)), f, ctx);
   };
-  if (bin.header_given) return with(bin.fmt.uint64_header);
+  // Without header_type the spec's UInt32; both sizes are tried only where a
+  // wrong guess cannot pass (the block must fill its base64 text exactly:
+  // meshio writes UInt64 headers in version 0.1 files).
+  const bool filled = a.format == "binary" || bin.appended_base64;
+  if (bin.header_given || !filled) return with(bin.fmt.uint64_header);
   try {
     return with(false);
   } catch (const Error&) {
@@ -487,8 +490,8 @@ Mesh read_xml(const std::string& path) {
   // The XML ends where raw appended data (any bytes) begins: tags are looked
   // up in the text before it only.
   const size_t app = f.text().find("<AppendedData");
-  const std::string head = app == std::string::npos ? f.text() : f.text().substr(0, app);
-  const Xml x{head, path};
+  const std::string head_copy = app == std::string::npos ? std::string() : f.text().substr(0, app);
+  const Xml x{app == std::string::npos ? f.text() : head_copy, path};
   size_t b = 0;
   if (x.s.find("<VTKFile") == std::string::npos) throw Error(path + ": not a VTK XML file (no <VTKFile>)");
   b = x.s.find("<VTKFile");

@@ -69,35 +69,26 @@ TEST(Grasp, AGrasperLiftsAFlapAndLetsItFallBack) {
   while (sim->state.time < 0.85) {
     const FrameTiming t = advance_frame(*sim);
     if (sim->state.time > 0.75) {
-      EXPECT_EQ(t.grasp_rows, 6) << "three translation and three rotation rows";
+      EXPECT_GT(t.grasp_rows, 0);
       held_lift = flap_end_lift(*sim);
       ++held_frames;
     }
   }
   EXPECT_GT(held_frames, 0);
-  // The held patch is where the jaws carry it: its area-weighted mean to
-  // roundoff (the translation rows), each point to within the patch's own deformation
-  // (the force is spread over the points, which do not move as one body).
+  // The held points are where the jaws carry them, to roundoff.
   const CollisionData& cd = *collision_data(*sim);
   ASSERT_TRUE(cd.grasps[0].holding);
-  ASSERT_GE(cd.grasps[0].held.size(), 3u);
+  ASSERT_FALSE(cd.grasps[0].held.empty());
   CollisionModel now(2);
   now.sync(sim->model, sim->state, sim->model_version);
-  double mean_x[3] = {0, 0, 0}, mean_goal[3] = {0, 0, 0};
-  double area = 0.0;
-  for (const HeldPoint& h : cd.grasps[0].held) area += h.area;
   for (const HeldPoint& h : cd.grasps[0].held) {
     const PointWeights w = now.surface().point_weights(h.elem, h.piece, h.rst);
     double X[3], x[3];
     now.surface().reference_position(h.elem, h.rst, X);
     point_position(w, X, sim->state.u.data(), x);
     const auto goal = tool_to_world(grasper_pose(sim->state.time), {h.local[0], h.local[1], h.local[2]});
-    for (int d = 0; d < 3; ++d) {
-      EXPECT_NEAR(x[d], goal[d], 0.02 * kLift);
-      mean_x[d] += x[d] * h.area / area, mean_goal[d] += goal[d] * h.area / area;
-    }
+    for (int d = 0; d < 3; ++d) EXPECT_NEAR(x[d], goal[d], 1e-9 * kLift);
   }
-  for (int d = 0; d < 3; ++d) EXPECT_NEAR(mean_x[d], mean_goal[d], 1e-9 * kLift);
   // The flap's end came up with them (it bends about its hinge).
   EXPECT_GT(held_lift, 0.5 * kLift);
   while (sim->state.time < 3.0) {

@@ -113,23 +113,6 @@ for c in "${cases[@]}"; do
  "fixed": [{"box": [[-0.2, 0.035, -0.2], [0.2, 0.2, 0.2]]}]}
 JSON
       ;;
-    demo-liver*)
-      # The liver demo (scalpel, grasper, haptic probe) on the 19k mesh.
-      [ "${name%%-*}" = demo ] && bench_extra="--haptics"
-      python3 - "assets/scenes/$mesh.json" "$scene" <<'PY2'
-import json, os, sys
-src, dst = sys.argv[1], sys.argv[2]
-d = json.load(open(src))
-rel = lambda f: os.path.relpath(os.path.join(os.path.dirname(src), f), os.path.dirname(dst))
-d["mesh"]["file"] = rel("../meshes/liver_19k.msh")
-for ins in d.get("instruments", []):
-    if "trajectory" in ins:
-        ins["trajectory"] = rel(ins["trajectory"])
-for k in ("output", "render", "run", "solver"):
-    d.pop(k, None)
-json.dump(d, open(dst, "w"), indent=1)
-PY2
-      ;;
     hang-*|drag-*)
       grasper=""
       if [ "${name%%-*}" = drag ]; then
@@ -168,15 +151,19 @@ JSON
                  "displacement": {"x": -0.12, "y": 0.1, "z": 0.08}, "ramp": 1.0}]}
 JSON
       ;;
-    incision-*|haptics-*)
-      [ "${name%%-*}" = haptics ] && bench_extra="--haptics"
-      python3 - "assets/scenes/$mesh.json" "$scene" <<'PY'
+    incision-*|haptics-*|demo-*)
+      # A bundled scene with its instruments; demo-liver19k is the liver demo
+      # (scalpel, grasper, haptic probe) on the 19k mesh instead of its own.
+      [ "${name%%-*}" != incision ] && bench_extra="--haptics"
+      mesh_file=""
+      [ "$name" = demo-liver19k ] && mesh_file="../meshes/liver_19k.msh"
+      python3 - "assets/scenes/$mesh.json" "$scene" "$mesh_file" <<'PY'
 import json, os, sys
-src, dst = sys.argv[1], sys.argv[2]
+src, dst, mesh = sys.argv[1], sys.argv[2], sys.argv[3]
 d = json.load(open(src))
 d.pop("integrator", None)  # the preset's (a --set when REALTIME_TANGENT is given)
 rel = lambda f: os.path.relpath(os.path.join(os.path.dirname(src), f), os.path.dirname(dst))
-d["mesh"]["file"] = rel(d["mesh"]["file"])
+d["mesh"]["file"] = rel(mesh or d["mesh"]["file"])
 for ins in d.get("instruments", []):
     if "trajectory" in ins:
         ins["trajectory"] = rel(ins["trajectory"])
