@@ -9,6 +9,7 @@
 
 #include "cutting/exact_sign.h"
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 
 namespace incise {
 
@@ -94,11 +95,10 @@ bool CutSurface::covers(const double y[3], double tol) const {
 }
 
 std::vector<Facet> read_triangle_surface(const std::string& path) {
-  std::ifstream is(path);
-  if (!is) throw Error(path + ": cannot open triangle surface");
   const bool stl = path.size() > 4 && (path.substr(path.size() - 4) == ".stl" || path.substr(path.size() - 4) == ".STL");
   const bool obj = path.size() > 4 && (path.substr(path.size() - 4) == ".obj" || path.substr(path.size() - 4) == ".OBJ");
   if (!stl && !obj) throw Error(path + ": unsupported cut surface format; allowed: .obj, .stl (ASCII)");
+  std::istringstream is(read_input_file(path, kMaxTableBytes, "cut surface"));
   std::vector<Facet> facets;
   std::vector<V> verts;
   std::string line;

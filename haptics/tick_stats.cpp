@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "engine/mesh/mesh_text.h"  // write_atomic
+#include "engine/util/file_io.h"
 
 namespace incise {
 namespace {
@@ -80,7 +80,7 @@ void write_force_log(const std::string& path, const std::vector<TickRecord>& rec
                   static_cast<double>(r.compute_us), 1e6 * (r.t - r.deadline));
     out += line;
   }
-  meshio::write_atomic(path, out);
+  write_file_atomic(path, out);
 }
 
 void write_device_stream(const std::string& path, const std::vector<TickRecord>& records) {
@@ -93,7 +93,7 @@ void write_device_stream(const std::string& path, const std::vector<TickRecord>&
                   p.p[2], p.q[0], p.q[1], p.q[2], p.q[3], p.jaw, r.raw.buttons);
     out += line;
   }
-  meshio::write_atomic(path, out);
+  write_file_atomic(path, out);
 }
 
 std::string format_event(const HapticEvent& e) {
@@ -145,7 +145,7 @@ void write_event_log(const std::string& path, const std::vector<HapticEvent>& ev
                   e.value[2]);
     out += line;
   }
-  meshio::write_atomic(path, out);
+  write_file_atomic(path, out);
 }
 
 }  // namespace incise

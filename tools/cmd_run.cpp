@@ -21,7 +21,7 @@
 #include "tools/timing_json.h"
 #include "haptics/haptic_stage.h"
 #include "haptics/tick_stats.h"
-#include "engine/mesh/mesh_text.h"  // write_atomic
+#include "engine/util/file_io.h"
 #include "tools/frame_outputs.h"
 #include "tools/haptics_report.h"
 #include "tools/progress_bar.h"
@@ -52,7 +52,7 @@ void finish_haptics(HapticLoop& loop, std::vector<TickRecord>& records, std::vec
   write_force_log(file("haptics_force.csv"), records);
   write_device_stream(file("haptics_device.csv"), records);
   write_event_log(file("haptics_events.csv"), events);
-  meshio::write_atomic(file("haptics.json"), j.dump(2) + "\n");
+  write_file_atomic(file("haptics.json"), j.dump(2) + "\n");
   std::printf("wrote %s, haptics_device.csv, haptics_events.csv, haptics.json\n", file("haptics_force.csv").c_str());
 }
 

@@ -6,12 +6,12 @@
 #include <sstream>
 
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 
 namespace incise {
 
 std::vector<std::array<double, 3>> read_probe_points(const std::string& path) {
-  std::ifstream is(path);
-  if (!is) throw Error(path + ": cannot open probe file");
+  std::istringstream is(read_input_file(path, kMaxTableBytes, "probe file"));
   std::vector<std::array<double, 3>> pts;
   std::string line;
   for (int lineno = 1; std::getline(is, line); ++lineno) {

@@ -15,6 +15,7 @@
 
 #include "engine/util/error.h"
 #include "engine/mesh/mesh_text.h"
+#include "engine/util/file_io.h"
 
 namespace incise {
 namespace {
@@ -89,7 +90,7 @@ void write_vtk_legacy(const Mesh& m, const std::string& path) {
   }
   appendf(s, "CELL_TYPES %d\n", ntet);
   for (int e = 0; e < ntet; ++e) s += npe == 10 ? "24\n" : "10\n";
-  meshio::write_atomic(path, s);
+  write_file_atomic(path, s);
 }
 
 // Gmsh 4.1 with one volume entity holding all nodes and elements, tags 1-based.
@@ -116,7 +117,7 @@ void write_msh41(const Mesh& m, const std::string& path) {
     s += '\n';
   }
   s += "$EndElements\n";
-  meshio::write_atomic(path, s);
+  write_file_atomic(path, s);
 }
 
 void check_field(const VtuField& f, size_t n, const char* where, const std::string& path) {
@@ -212,7 +213,7 @@ void write_vtu_binary(const VtuGrid& g, const std::string& path) {
   s += "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   _";
   s += app.blob;
   s += "\n  </AppendedData>\n</VTKFile>\n";
-  meshio::write_atomic(path, s);
+  write_file_atomic(path, s);
 }
 
 }  // namespace
@@ -266,7 +267,7 @@ void write_vtu(const VtuGrid& g, const std::string& path, VtuEncoding encoding) 
   s += "        </DataArray>\n        <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
   for (size_t c = 0; c < ncell; ++c) appendf(s, "%d\n", g.types[c]);
   s += "        </DataArray>\n      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
-  meshio::write_atomic(path, s);
+  write_file_atomic(path, s);
 }
 
 PvdSeries::PvdSeries(std::string pvd_path, VtuEncoding encoding) : pvd_path_(std::move(pvd_path)), encoding_(encoding) {
@@ -291,7 +292,7 @@ void PvdSeries::add(double time, const VtuGrid& grid) {
     s += xml_escape(files_[i]) + "\"/>\n";
   }
   s += "  </Collection>\n</VTKFile>\n";
-  meshio::write_atomic(pvd_path_, s);
+  write_file_atomic(pvd_path_, s);
 }
 
 }  // namespace incise

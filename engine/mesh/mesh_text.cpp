@@ -13,15 +13,12 @@
 #include <unistd.h>
 
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 
 namespace incise::meshio {
 
 TextFile::TextFile(std::string path) : path_(std::move(path)) {
-  std::ifstream in(path_, std::ios::binary);
-  if (!in) throw Error(path_ + ": cannot open: " + std::strerror(errno));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  text_ = std::move(ss).str();
+  text_ = read_input_file(path_, kMaxMeshBytes, "mesh file");
 }
 
 TextFile TextFile::from_text(std::string path, std::string text) {
@@ -157,26 +154,6 @@ Mesh finish(const RawMesh& raw, const std::string& path, const std::string& kind
   for (int& v : tet) v = newid[v];
   m.tet = std::move(tet);
   return m;
-}
-
-void write_atomic(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
-  std::FILE* fp = std::fopen(tmp.c_str(), "wb");
-  if (!fp) throw Error(path + ": cannot write: " + std::strerror(errno));
-  bool ok = std::fwrite(content.data(), 1, content.size(), fp) == content.size();
-  int err = errno;
-  if (std::fclose(fp) != 0 && ok) {
-    ok = false;
-    err = errno;
-  }
-  if (ok && std::rename(tmp.c_str(), path.c_str()) != 0) {
-    ok = false;
-    err = errno;
-  }
-  if (!ok) {
-    std::remove(tmp.c_str());
-    throw Error(path + ": cannot write: " + std::strerror(err));
-  }
 }
 
 void appendf(std::string& out, const char* fmt, ...) {

@@ -1,7 +1,7 @@
 #pragma once
 // Internal to the mesh readers/writers (not a public interface): line access
 // with line numbers, number parsing that reports FILE:LINE, collection of
-// nodes and elements by file tag, and atomic file writes.
+// nodes and elements by file tag (atomic writes: engine/util/file_io.h).
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -69,9 +69,6 @@ struct RawMesh {
 // the file holds no tetrahedra. `kinds` names what was looked for.
 Mesh finish(const RawMesh& raw, const std::string& path, const std::string& kinds);
 
-// Writes `content` to `path` through a temporary file in the same folder and
-// std::rename, so readers never see a half-written file.
-void write_atomic(const std::string& path, const std::string& content);
 // Appends printf-formatted text (one number or a short piece) to out.
 void appendf(std::string& out, const char* fmt, ...) __attribute__((format(printf, 2, 3)));
 

@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 
 namespace incise {
 namespace {
@@ -43,15 +44,7 @@ std::string number_text(double x) {
 }  // namespace
 
 Trajectory Trajectory::read(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw Error(path + ": trajectory file not found");
-  if (std::filesystem::is_directory(path, ec)) throw Error(path + ": is a directory, not a trajectory file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open trajectory file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw Error(path + ": cannot read trajectory file");
-  return parse(text.str(), path);
+  return parse(read_input_file(path, kMaxTableBytes, "trajectory file"), path);
 }
 
 Trajectory Trajectory::parse(const std::string& text, const std::string& path) {

@@ -15,6 +15,7 @@
 
 #include "engine/scene/scene_patch.h"
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 
 namespace incise {
 namespace {
@@ -950,14 +951,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
 }
 
 Scene load_scene(const std::string& path, const std::vector<ScenePatch>& patches) {
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) throw Error(path + ": cannot open scene file (it is a directory)");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path + ": cannot open scene file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw Error(path + ": cannot read scene file");
-  return parse_scene(text.str(), path, patches);
+  return parse_scene(read_input_file(path, kMaxSceneBytes, "scene file"), path, patches);
 }
 
 namespace {

@@ -169,7 +169,7 @@ TEST_F(TrajectoryTest, MissingFile) {
     Trajectory::read(path);
     ADD_FAILURE() << "no error";
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()), path + ": trajectory file not found");
+    EXPECT_EQ(std::string(e.what()), path + ": cannot open trajectory file: No such file or directory");
   }
 }
 

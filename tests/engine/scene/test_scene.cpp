@@ -223,7 +223,7 @@ TEST_F(SceneTest, MissingSceneFile) {
     incise::load_scene(path);
     FAIL() << "no error";
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()), path + ": cannot open scene file");
+    EXPECT_EQ(std::string(e.what()), path + ": cannot open scene file: No such file or directory");
   }
 }
 
