@@ -18,10 +18,19 @@ struct Vertex {
   std::vector<double> phi;  // every cut's level set here
 };
 
-struct Tet {
-  std::array<int, 4> v;                  // into the vertex pool
-  std::array<signed char, 4> face;       // tags, face k opposite vertex k
-  std::vector<signed char> side;         // per cut processed so far
+// A planar convex polygon on the boundary of a cell, with its tag.
+struct Face {
+  std::vector<int> v;  // pool ids, in order around the polygon
+  signed char tag;
+};
+
+// A convex part of the element: the intersection of the tetrahedron with one
+// side of every cut applied so far. Cutting keeps it convex, so k cuts make at
+// most sum_{i<=3} C(k, i) cells (the cells of an arrangement of k planes), not
+// 2^k, whatever the cuts' order or how close they lie to one another.
+struct Cell {
+  std::vector<Face> faces;
+  std::vector<signed char> side;  // per cut processed so far
 };
 
 // Outward-ordered corners of face k of a tet (opposite corner k).
@@ -35,124 +44,136 @@ class Splitter {
  public:
   Splitter(std::vector<Vertex>& pool, double zero_tol) : pool_(pool), tol_(zero_tol) {}
 
-  // Splits tet t by cut c into tets on the + side and the - side.
-  void split(const Tet& t, int c, std::vector<Tet>& out) {
-    std::array<double, 4> f;
-    std::array<int, 4> s;
+  void start_cut(int c) {
+    cut_ = c;
+    edge_point_.clear();  // crossings are shared by the cells of one cut
+  }
+
+  // Splits cell `cell` by the current cut into its + and - parts (or passes it
+  // on whole, with its side, when the plane does not cross it).
+  void split(const Cell& cell, std::vector<Cell>& out) {
     int npos = 0, nneg = 0;
-    for (int k = 0; k < 4; ++k) {
-      f[k] = pool_[t.v[k]].phi[c];
-      s[k] = std::abs(f[k]) <= tol_ ? 0 : (f[k] > 0 ? 1 : -1);
-      npos += s[k] > 0;
-      nneg += s[k] < 0;
-    }
+    for (const Face& f : cell.faces)
+      for (int i : f.v) {
+        const int s = sign(i);
+        npos += s > 0;
+        nneg += s < 0;
+      }
     if (npos == 0 || nneg == 0) {
-      Tet u = t;
+      Cell u = cell;
       u.side.push_back(npos > 0 ? 1 : (nneg > 0 ? -1 : 1));
-      out.push_back(u);
+      out.push_back(std::move(u));
       return;
     }
-    edge_point_.clear();
-    for (int sgn : {1, -1}) part(t, f, s, sgn, out);
+    for (int sgn : {1, -1}) out.push_back(part(cell, sgn));
   }
 
  private:
   std::vector<Vertex>& pool_;
   double tol_;
+  int cut_ = 0;
   std::map<std::pair<int, int>, int> edge_point_;  // crossing point of an edge (pool ids)
 
-  int crossing(int a, int b, double fa, double fb) {
-    const auto key = std::make_pair(std::min(a, b), std::max(a, b));
-    if (auto it = edge_point_.find(key); it != edge_point_.end()) return it->second;
+  int sign(int i) const {
+    const double f = pool_[i].phi[cut_];
+    return std::abs(f) <= tol_ ? 0 : (f > 0 ? 1 : -1);
+  }
+
+  int crossing(int a, int b) {
     // Interpolate from the lower id so both faces sharing the edge get the same point.
-    if (a > b) {
-      std::swap(a, b);
-      std::swap(fa, fb);
-    }
+    if (a > b) std::swap(a, b);
+    const auto key = std::make_pair(a, b);
+    if (auto it = edge_point_.find(key); it != edge_point_.end()) return it->second;
+    const double fa = pool_[a].phi[cut_], fb = pool_[b].phi[cut_];
     const double t = fa / (fa - fb);
     Vertex v;
     v.r = pool_[a].r + t * (pool_[b].r - pool_[a].r);
     v.phi.resize(pool_[a].phi.size());
     for (size_t k = 0; k < v.phi.size(); ++k) v.phi[k] = pool_[a].phi[k] + t * (pool_[b].phi[k] - pool_[a].phi[k]);
+    v.phi[cut_] = 0.0;
     pool_.push_back(std::move(v));
     const int id = static_cast<int>(pool_.size()) - 1;
     edge_point_[key] = id;
     return id;
   }
 
-  void part(const Tet& t, const std::array<double, 4>& f, const std::array<int, 4>& s, int sgn,
-            std::vector<Tet>& out) {
-    struct Poly {
-      std::vector<int> v;
-      signed char tag;
-    };
-    std::vector<Poly> polys;
-    std::vector<int> on_plane;  // zero vertices and crossings: the cut polygon
-    std::vector<int> all;
-    for (int k = 0; k < 4; ++k) {
-      // Sutherland-Hodgman clip of face k to sgn * phi >= 0.
-      Poly p{{}, t.face[k]};
-      for (int j = 0; j < 3; ++j) {
-        const int a = kFace[k][j], b = kFace[k][(j + 1) % 3];
-        const bool ina = sgn * s[a] >= 0, inb = sgn * s[b] >= 0;
-        if (ina) p.v.push_back(t.v[a]);
-        if (s[a] * s[b] < 0) p.v.push_back(crossing(t.v[a], t.v[b], f[a], f[b]));
-        (void)inb;
-      }
-      if (p.v.size() >= 3) polys.push_back(p);
-    }
-    for (int k = 0; k < 4; ++k) {
-      if (s[k] == 0) on_plane.push_back(t.v[k]);
-      if (sgn * s[k] >= 0) all.push_back(t.v[k]);
-      for (int j = k + 1; j < 4; ++j)
-        if (s[k] * s[j] < 0) {
-          const int x = crossing(t.v[k], t.v[j], f[k], f[j]);
+  // The part of a cell on side sgn: each face clipped (Sutherland-Hodgman),
+  // closed by the cut polygon made of the vertices on the plane.
+  Cell part(const Cell& cell, int sgn) {
+    Cell out;
+    out.side = cell.side;
+    out.side.push_back(static_cast<signed char>(sgn));
+    std::vector<int> on_plane;
+    for (const Face& f : cell.faces) {
+      Face p{{}, f.tag};
+      const size_t n = f.v.size();
+      for (size_t j = 0; j < n; ++j) {
+        const int a = f.v[j], b = f.v[(j + 1) % n];
+        const int sa = sign(a), sb = sign(b);
+        if (sgn * sa >= 0) p.v.push_back(a);
+        if (sa == 0) on_plane.push_back(a);
+        if (sa * sb < 0) {
+          const int x = crossing(a, b);
+          p.v.push_back(x);
           on_plane.push_back(x);
-          all.push_back(x);
         }
+      }
+      if (p.v.size() >= 3) out.faces.push_back(std::move(p));
     }
+    std::sort(on_plane.begin(), on_plane.end());
+    on_plane.erase(std::unique(on_plane.begin(), on_plane.end()), on_plane.end());
     if (on_plane.size() >= 3) {
-      // Order the cut polygon by angle around its centroid in the plane.
+      // The cut polygon is convex: order it by angle around its centroid.
       V cen = V::Zero();
       for (int i : on_plane) cen += pool_[i].r;
       cen /= static_cast<double>(on_plane.size());
-      V n = (pool_[on_plane[1]].r - pool_[on_plane[0]].r).cross(pool_[on_plane[2]].r - pool_[on_plane[0]].r);
-      for (size_t i = 3; i < on_plane.size() && n.norm() == 0; ++i)
-        n = (pool_[on_plane[1]].r - pool_[on_plane[0]].r).cross(pool_[on_plane[i]].r - pool_[on_plane[0]].r);
-      V e1 = (pool_[on_plane[0]].r - cen);
-      if (e1.norm() == 0 && on_plane.size() > 1) e1 = pool_[on_plane[1]].r - cen;
-      e1.normalize();
+      int far = on_plane[0];
+      for (int i : on_plane)
+        if ((pool_[i].r - cen).squaredNorm() > (pool_[far].r - cen).squaredNorm()) far = i;
+      const V e1 = (pool_[far].r - cen).normalized();
+      V n = V::Zero();  // Newell-free: the largest cross product about the centroid
+      for (int i : on_plane) {
+        const V c = e1.cross(pool_[i].r - cen);
+        if (c.squaredNorm() > n.squaredNorm()) n = c;
+      }
       const V e2 = n.normalized().cross(e1);
       std::sort(on_plane.begin(), on_plane.end(), [&](int a, int b) {
         const V da = pool_[a].r - cen, db = pool_[b].r - cen;
         return std::atan2(da.dot(e2), da.dot(e1)) < std::atan2(db.dot(e2), db.dot(e1));
       });
-      polys.push_back({on_plane, kSubFaceCut});
+      out.faces.push_back({on_plane, kSubFaceCut});
     }
-    V q = V::Zero();
-    for (int i : all) q += pool_[i].r;
-    q /= static_cast<double>(all.size());
-    Vertex qv;
-    qv.r = q;
-    qv.phi.assign(pool_[t.v[0]].phi.size(), 0.0);
-    for (int i : all)
-      for (size_t k = 0; k < qv.phi.size(); ++k) qv.phi[k] += pool_[i].phi[k] / all.size();
-    pool_.push_back(qv);
-    const int qi = static_cast<int>(pool_.size()) - 1;
-    for (const Poly& p : polys)
-      for (size_t j = 1; j + 1 < p.v.size(); ++j) {
-        Tet u;
-        u.v = {p.v[0], p.v[j], p.v[j + 1], qi};
-        u.face = {kSubFaceInside, kSubFaceInside, kSubFaceInside, p.tag};
-        const double vol = tet_volume(pool_[u.v[0]].r, pool_[u.v[1]].r, pool_[u.v[2]].r, pool_[u.v[3]].r);
-        if (vol == 0.0) continue;
-        if (vol < 0) std::swap(u.v[1], u.v[2]);  // face 3 stays opposite q
-        u.side = t.side;
-        u.side.push_back(static_cast<signed char>(sgn));
-        out.push_back(u);
-      }
+    return out;
   }
 };
+
+// Tetrahedralizes a convex cell by coning its faces (fans) to the mean of its
+// vertices; face 3 of each sub-tet (opposite the apex) lies on the cell face.
+void cone(const Cell& cell, std::vector<Vertex>& pool, SubTets& out) {
+  std::vector<int> ids;
+  for (const Face& f : cell.faces) ids.insert(ids.end(), f.v.begin(), f.v.end());
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  V q = V::Zero();
+  for (int i : ids) q += pool[i].r;
+  q /= static_cast<double>(ids.size());
+  for (const Face& p : cell.faces)
+    for (size_t j = 1; j + 1 < p.v.size(); ++j) {
+      std::array<V, 4> x = {pool[p.v[0]].r, pool[p.v[j]].r, pool[p.v[j + 1]].r, q};
+      double vol = tet_volume(x[0], x[1], x[2], x[3]);
+      if (vol == 0.0) continue;
+      if (vol < 0) {
+        std::swap(x[1], x[2]);  // face 3 stays opposite q
+        vol = -vol;
+      }
+      for (const V& r : x)
+        for (int d = 0; d < 3; ++d) out.rst.push_back(r[d]);
+      const signed char tags[4] = {kSubFaceInside, kSubFaceInside, kSubFaceInside, p.tag};
+      out.face.insert(out.face.end(), tags, tags + 4);
+      out.side.insert(out.side.end(), cell.side.begin(), cell.side.end());
+      out.volume.push_back(vol);
+    }
+}
 
 }  // namespace
 
@@ -171,31 +192,25 @@ SubTets subdivide_tet(const std::vector<double>& phi, int ncut, const std::vecto
   // Interpolated values this close to zero are on the plane: it keeps the
   // second cut from making slivers of roundoff size at the first cut's points.
   Splitter splitter(pool, 1e-14 * scale);
-  std::vector<Tet> tets(1);
-  tets[0].v = {0, 1, 2, 3};
-  tets[0].face = {0, 1, 2, 3};
+  std::vector<Cell> cells(1);
+  for (int k = 0; k < 4; ++k) cells[0].faces.push_back({{kFace[k][0], kFace[k][1], kFace[k][2]}, static_cast<signed char>(k)});
   for (int c = 0; c < ncut; ++c) {
-    std::vector<Tet> next;
-    for (const Tet& t : tets) {
+    splitter.start_cut(c);
+    std::vector<Cell> next;
+    next.reserve(cells.size() * 2);
+    for (Cell& t : cells) {
       if (!only.empty() && only[2 * c] >= 0 && t.side[only[2 * c]] != only[2 * c + 1]) {
-        Tet u = t;
-        u.side.push_back(0);
-        next.push_back(u);
+        t.side.push_back(0);
+        next.push_back(std::move(t));
         continue;
       }
-      splitter.split(t, c, next);
+      splitter.split(t, next);
     }
-    tets.swap(next);
+    cells.swap(next);
   }
   SubTets out;
   out.ncut = ncut;
-  for (const Tet& t : tets) {
-    for (int k = 0; k < 4; ++k)
-      for (int d = 0; d < 3; ++d) out.rst.push_back(pool[t.v[k]].r[d]);
-    out.face.insert(out.face.end(), t.face.begin(), t.face.end());
-    out.side.insert(out.side.end(), t.side.begin(), t.side.end());
-    out.volume.push_back(tet_volume(pool[t.v[0]].r, pool[t.v[1]].r, pool[t.v[2]].r, pool[t.v[3]].r));
-  }
+  for (const Cell& cell : cells) cone(cell, pool, out);
   return out;
 }
 

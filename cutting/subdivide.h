@@ -3,9 +3,13 @@
 // 5.2: sub-elements per side, each integrated, eq. (52)). The cut planes are
 // given by level-set values at the four corners, interpolated linearly in the
 // element's local coordinates, so the decomposition is done in the reference
-// tetrahedron and holds for curved tet10 elements too. Each part on one side
-// of every plane is convex; it is tetrahedralized by coning its boundary
-// polygons (clipped element faces and the cut polygon) to its centroid.
+// tetrahedron and holds for curved tet10 elements too. The parts are kept as
+// convex cells (polygon faces) while the planes are applied one after the
+// other, and only then tetrahedralized, each by coning its faces to its
+// vertex centroid. k planes make at most sum_{i<=3} C(k, i) = O(k^3) cells
+// (the cells of an arrangement of k planes; k + 1 slabs for near-parallel
+// cuts) and O(k^3) sub-tetrahedra in all, whereas splitting sub-tetrahedra
+// cut by cut grew as about 4^k (issue 24: 6 cuts took 3.4 s and 385 MB).
 #include <vector>
 
 namespace incise {

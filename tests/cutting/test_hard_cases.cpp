@@ -80,6 +80,36 @@ TEST(HardCases, TinyFragmentFallsOffWithoutNaN) {
   }
 }
 
+TEST(HardCases, TwentyRepeatedCutsThroughOneBoxMakeSlabsThatFallFreely) {
+  // Issue 24: a surgeon cutting again and again in one place. 20 near-parallel
+  // planes through a one-cell box (6 elements, each crossed by every plane):
+  // 21 slabs, each node gets one enriched DOF node per slab but its home
+  // (DOFs linear in the number of cuts), and the free slabs fall at g.
+  for (int order : {1, 2}) {
+    Scene s = test::block_scene(order);
+    s.fixed.push_back(box({-1, -1, -1}, {0, 2, 2}));
+    const int k = 20;
+    for (int i = 0; i < k; ++i) {
+      const double a = 1e-3 * ((i % 3) - 1);  // tilts that keep neighbours apart inside the box
+      s.cuts.push_back(test::plane_cut({0.2 + 0.6 * i / (k - 1), 0.5, 0.5}, {1, a, -a}, "cuts[" + std::to_string(i) + "]"));
+    }
+    auto sim = test::make_sim(make_beam(1, 1, 1, 1, 1, 1, order), s);
+    const int nnode = sim->model.nnode;
+    const CutUpdate up = update_cuts(*sim, 0, 0);
+    EXPECT_EQ(up.report.bodies, k + 1);
+    EXPECT_EQ(sim->model.ndofnode, nnode * (k + 1));
+    for (int f = 0; f < 5; ++f) step(sim->model, sim->state, sim->ws);
+    for (double x : sim->state.u) ASSERT_TRUE(std::isfinite(x));
+    const double t = sim->state.time;
+    for (double x : {0.5, 0.7}) {  // inside free slabs
+      const double p[3] = {x, 0.5, 0.5};
+      const ProbeHit h = locate_point(sim->model, p);
+      EXPECT_NEAR(interpolate_displacement(sim->model, sim->state.u.data(), h)[2] / (-0.5 * 9.81 * t * t), 1.0, 0.01)
+          << "order " << order << ", x = " << x;
+    }
+  }
+}
+
 TEST(HardCases, ProgressiveCutWithTheBladeTipInsideAnElement) {
   // A blade edge along y sweeping down (-z) through x = 2.3 of the beam.
   Scene s = test::block_scene(2);
