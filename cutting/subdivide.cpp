@@ -194,7 +194,33 @@ SubTets subdivide_tet(const std::vector<double>& phi, int ncut, const std::vecto
   Splitter splitter(pool, 1e-14 * scale);
   std::vector<Cell> cells(1);
   for (int k = 0; k < 4; ++k) cells[0].faces.push_back({{kFace[k][0], kFace[k][1], kFace[k][2]}, static_cast<signed char>(k)});
+  // A cut within kMergeGap of an earlier one over the whole element is that
+  // cut here (same or opposite orientation): it takes the earlier cut's sides
+  // instead of splitting off a slab 1e-12 thick, whose DOFs would have a
+  // support of roundoff size (cutting twice in one place is ordinary use).
+  constexpr double kMergeGap = 1e-9;
+  std::vector<int> twin(ncut, -1), twin_sign(ncut, 1);
+  for (int c = 0; c < ncut; ++c)
+    for (int e = 0; e < c && twin[c] < 0; ++e) {
+      if (!only.empty() && (only[2 * c] >= 0 || only[2 * e] >= 0)) continue;
+      for (int sg : {1, -1}) {
+        double gap = 0.0, size = 0.0;
+        for (int k = 0; k < 4; ++k) {
+          gap = std::max(gap, std::abs(phi[4 * c + k] - sg * phi[4 * e + k]));
+          size = std::max({size, std::abs(phi[4 * c + k]), std::abs(phi[4 * e + k])});
+        }
+        if (gap <= kMergeGap * size) {
+          twin[c] = twin[e] >= 0 ? twin[e] : e;
+          twin_sign[c] = sg * (twin[e] >= 0 ? twin_sign[e] : 1);
+          break;
+        }
+      }
+    }
   for (int c = 0; c < ncut; ++c) {
+    if (twin[c] >= 0) {
+      for (Cell& t : cells) t.side.push_back(static_cast<signed char>(twin_sign[c] * t.side[twin[c]]));
+      continue;
+    }
     splitter.start_cut(c);
     std::vector<Cell> next;
     next.reserve(cells.size() * 2);

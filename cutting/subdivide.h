@@ -10,6 +10,10 @@
 // (the cells of an arrangement of k planes; k + 1 slabs for near-parallel
 // cuts) and O(k^3) sub-tetrahedra in all, whereas splitting sub-tetrahedra
 // cut by cut grew as about 4^k (issue 24: 6 cuts took 3.4 s and 385 MB).
+// A cut whose corner values differ from an earlier cut's (or their negatives)
+// by at most 1e-9 of the largest |phi| is that cut inside this element: it
+// takes the earlier cut's sides and splits nothing (no slab of roundoff
+// thickness).
 #include <vector>
 
 namespace incise {

@@ -110,6 +110,31 @@ TEST(HardCases, TwentyRepeatedCutsThroughOneBoxMakeSlabsThatFallFreely) {
   }
 }
 
+TEST(HardCases, TheSameCutTwiceAndACutWithinRoundoffOfItStayTwoBodies) {
+  // Cutting again exactly where one cut, or 1e-12 beside it: no sliver piece
+  // of roundoff size is made, the DOFs do not grow, no NaN.
+  for (int order : {1, 2}) {
+    for (double shift : {0.0, 1e-12}) {
+      Scene s = test::block_scene(order);
+      s.fixed.push_back(box({-1, -1, -1}, {0, 2, 2}));
+      s.cuts = {test::plane_cut({0.43, 0.5, 0.5}, {1, 0.2, 0.1}),
+                test::plane_cut({0.43 + shift, 0.5, 0.5}, {1, 0.2, 0.1}, "cuts[1]")};
+      auto sim = test::make_sim(make_beam(1, 1, 1, 2, 2, 2, 1), s);
+      Scene once = s;
+      once.cuts.pop_back();
+      auto ref = test::make_sim(make_beam(1, 1, 1, 2, 2, 2, 1), once);
+      const CutUpdate up = update_cuts(*sim, 0, 0);
+      update_cuts(*ref, 0, 0);
+      EXPECT_EQ(up.report.bodies, 2) << "order " << order << ", shift " << shift;
+      if (shift == 0.0) {
+        EXPECT_EQ(sim->model.ndof(), ref->model.ndof()) << "order " << order;
+      }
+      for (int f = 0; f < 5; ++f) step(sim->model, sim->state, sim->ws);
+      for (double x : sim->state.u) ASSERT_TRUE(std::isfinite(x));
+    }
+  }
+}
+
 TEST(HardCases, ProgressiveCutWithTheBladeTipInsideAnElement) {
   // A blade edge along y sweeping down (-z) through x = 2.3 of the beam.
   Scene s = test::block_scene(2);
