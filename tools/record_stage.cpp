@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 #include "tools/build_info.h"
 
 namespace incise {
@@ -16,11 +17,7 @@ std::shared_ptr<ReplayWriter> install_record_stage(Simulation& sim, const std::s
   m.engine_version = engine_version();
   m.build = build_flags() + " on " + machine_name();
   m.scene_path = std::filesystem::absolute(sim.scene.path).lexically_normal().string();
-  std::ifstream is(sim.scene.path, std::ios::binary);
-  std::ostringstream text;
-  text << is.rdbuf();
-  if (!is) throw Error(sim.scene.path + ": cannot read the scene again to record it");
-  m.scene_text = text.str();
+  m.scene_text = read_input_file(sim.scene.path, kMaxSceneBytes, "scene file");
   for (const ScenePatch& p : patches) m.patches.push_back({p.key, p.value, p.given});
   m.mesh_file = sim.scene.mesh_file;
   m.mesh_hash = replay_file_hash(sim.scene.mesh_file, "mesh");

@@ -10,6 +10,7 @@
 
 #include "engine/mesh/mesh_io.h"
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 #include "tools/spawn.h"
 
 namespace incise {
@@ -26,8 +27,7 @@ std::string lower_ext(const std::string& path) {
 // OBJ (v and f lines; "f a/b/c ..." and negative indices; polygons fanned)
 // as OFF, which TetGen reads.
 void obj_to_off(const std::string& obj, const std::string& off) {
-  std::ifstream in(obj);
-  if (!in) throw Error(obj + ": cannot open");
+  std::istringstream in(read_input_file(obj, kMaxTableBytes, "surface file"));
   std::vector<double> v;
   std::vector<std::vector<long>> faces;
   std::string line;
