@@ -5,53 +5,84 @@
 #include <cstdio>
 
 #include "engine/util/file_io.h"
+#include "haptics/tick_log.h"
 
 namespace incise {
 namespace {
 
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(std::ceil(p * static_cast<double>(v.size()))) - (p > 0 ? 1 : 0));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
-  return v[k];
-}
-
 double norm3(const std::array<double, 3>& f) { return std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]); }
+
+constexpr double kLow = 1e-3;       // below: bin 0
+constexpr double kRatio = 1.001;    // bin width
+constexpr int kBins = 27632;        // up to kLow * kRatio^(kBins-1) ~ 1e9: larger values go to the last bin
 
 }  // namespace
 
-TickStats summarize_ticks(const std::vector<TickRecord>& r, double force_limit) {
-  TickStats s;
-  s.ticks = static_cast<long>(r.size());
-  std::vector<double> period, late, compute;
-  for (size_t i = 0; i < r.size(); ++i) {
-    if (i > 0) period.push_back(1e3 * (r[i].t - r[i - 1].t));
-    const double l = 1e6 * (r[i].t - r[i].deadline);
-    late.push_back(l);
-    if (l > 500.0) ++s.late_over_half_ms;
-    compute.push_back(r[i].compute_us);
-    s.allocations += r[i].allocations;
-    s.max_allocations = std::max(s.max_allocations, r[i].allocations);
-    const double f = norm3(r[i].force);
-    s.force_max = std::max(s.force_max, f);
-    if (f >= force_limit * (1.0 - 1e-9)) ++s.clamped;
-    if (i > 0) {
-      const std::array<double, 3> d{r[i].force[0] - r[i - 1].force[0], r[i].force[1] - r[i - 1].force[1],
-                                    r[i].force[2] - r[i - 1].force[2]};
-      s.jump_max = std::max(s.jump_max, norm3(d));
-    }
-    if (r[i].have_reading && r[i].raw.fresh) ++s.readings;
+void TickSummary::Histogram::add(double v) {
+  if (bins.empty()) bins.assign(kBins, 0);
+  int b = 0;
+  if (v >= kLow) b = std::min(kBins - 1, 1 + static_cast<int>(std::log(v / kLow) / std::log(kRatio)));
+  ++bins[static_cast<size_t>(b)];
+  min = n == 0 ? v : std::min(min, v);
+  max = n == 0 ? v : std::max(max, v);
+  ++n;
+}
+
+double TickSummary::Histogram::percentile(double p) const {
+  if (n == 0) return 0.0;
+  if (p >= 1.0) return max;
+  // nearest rank: the k-th smallest, k = ceil(p n) (at least 1)
+  const long k = std::max(1L, static_cast<long>(std::ceil(p * static_cast<double>(n))));
+  long seen = 0;
+  for (int b = 0; b < kBins; ++b) {
+    seen += bins[static_cast<size_t>(b)];
+    if (seen < k) continue;
+    const double mid = b == 0 ? 0.0 : kLow * std::pow(kRatio, b - 0.5);
+    return std::clamp(mid, min, max);
   }
-  s.period_median_ms = percentile(period, 0.5);
-  s.period_p99_ms = percentile(period, 0.99);
-  s.period_max_ms = percentile(period, 1.0);
-  s.late_median_us = percentile(late, 0.5);
-  s.late_p99_us = percentile(late, 0.99);
-  s.late_max_us = percentile(late, 1.0);
-  s.compute_median_us = percentile(compute, 0.5);
-  s.compute_p99_us = percentile(compute, 0.99);
-  s.compute_max_us = percentile(compute, 1.0);
+  return max;
+}
+
+void TickSummary::add(const TickRecord& r) {
+  ++s_.ticks;
+  if (have_prev_) period_.add(1e3 * (r.t - prev_t_));
+  const double l = 1e6 * (r.t - r.deadline);
+  late_.add(l);
+  if (l > 500.0) ++s_.late_over_half_ms;
+  compute_.add(r.compute_us);
+  s_.allocations += r.allocations;
+  s_.max_allocations = std::max(s_.max_allocations, r.allocations);
+  const double f = norm3(r.force);
+  s_.force_max = std::max(s_.force_max, f);
+  if (f >= force_limit_ * (1.0 - 1e-9)) ++s_.clamped;
+  if (have_prev_) {
+    const std::array<double, 3> d{r.force[0] - prev_force_[0], r.force[1] - prev_force_[1], r.force[2] - prev_force_[2]};
+    s_.jump_max = std::max(s_.jump_max, norm3(d));
+  }
+  if (r.have_reading && r.raw.fresh) ++s_.readings;
+  have_prev_ = true;
+  prev_t_ = r.t;
+  prev_force_ = r.force;
+}
+
+TickStats TickSummary::stats() const {
+  TickStats s = s_;
+  s.period_median_ms = period_.percentile(0.5);
+  s.period_p99_ms = period_.percentile(0.99);
+  s.period_max_ms = period_.percentile(1.0);
+  s.late_median_us = late_.percentile(0.5);
+  s.late_p99_us = late_.percentile(0.99);
+  s.late_max_us = late_.percentile(1.0);
+  s.compute_median_us = compute_.percentile(0.5);
+  s.compute_p99_us = compute_.percentile(0.99);
+  s.compute_max_us = compute_.percentile(1.0);
   return s;
+}
+
+TickStats summarize_ticks(const std::vector<TickRecord>& r, double force_limit) {
+  TickSummary sum(force_limit);
+  for (const TickRecord& x : r) sum.add(x);
+  return sum.stats();
 }
 
 std::string format_tick_stats(const TickStats& s) {
@@ -72,28 +103,15 @@ std::string format_tick_stats(const TickStats& s) {
 }
 
 void write_force_log(const std::string& path, const std::vector<TickRecord>& records) {
-  std::string out = "t,fx,fy,fz,tick_us,late_us\n";
-  out.reserve(64 * records.size() + 32);
-  char line[192];
-  for (const TickRecord& r : records) {
-    std::snprintf(line, sizeof line, "%.6f,%.9g,%.9g,%.9g,%.2f,%.2f\n", r.t, r.force[0], r.force[1], r.force[2],
-                  static_cast<double>(r.compute_us), 1e6 * (r.t - r.deadline));
-    out += line;
-  }
-  write_file_atomic(path, out);
+  TickLogWriter w(path, "");
+  w.append(records);
+  w.finish();
 }
 
 void write_device_stream(const std::string& path, const std::vector<TickRecord>& records) {
-  std::string out = "# device readings as received (haptics/replay_device.h)\nt,x,y,z,qw,qx,qy,qz,jaw,buttons\n";
-  char line[320];
-  for (const TickRecord& r : records) {
-    if (!r.have_reading || !r.raw.fresh) continue;
-    const ToolPose& p = r.raw.pose;
-    std::snprintf(line, sizeof line, "%.9f,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%u\n", r.t, p.p[0], p.p[1],
-                  p.p[2], p.q[0], p.q[1], p.q[2], p.q[3], p.jaw, r.raw.buttons);
-    out += line;
-  }
-  write_file_atomic(path, out);
+  TickLogWriter w("", path);
+  w.append(records);
+  w.finish();
 }
 
 std::string format_event(const HapticEvent& e) {

@@ -112,7 +112,9 @@ void bench(const BenchOptions& o) {
   }
   nlohmann::json extra = nlohmann::json::object();
   if (haptic) {
-    extra["haptics"] = finish_haptic_loop(*haptic, records, events);
+    haptic->stop();
+    haptic->drain(records, events);
+    extra["haptics"] = report_haptic_loop(*haptic, summarize_ticks(records, haptic->force_limit()), events);
     nlohmann::json& ticks = extra["haptic_ticks"];  // the plot's second panel
     ticks["t"] = nlohmann::json::array();
     ticks["period_ms"] = nlohmann::json::array();

@@ -22,6 +22,7 @@
 #include "haptics/haptic_stage.h"
 #include "haptics/tick_stats.h"
 #include "engine/util/file_io.h"
+#include "haptics/tick_log.h"
 #include "tools/frame_outputs.h"
 #include "tools/haptics_report.h"
 #include "tools/progress_bar.h"
@@ -43,18 +44,39 @@ struct RunOptions {
   int record_states = 30;            // --record-states N: a State snapshot every N frames
 };
 
-// The haptic run's logs and figures (haptics/tick_stats.h), into `dir`.
-void finish_haptics(HapticLoop& loop, std::vector<TickRecord>& records, std::vector<HapticEvent>& events,
-                    const std::string& dir) {
-  const nlohmann::json j = finish_haptic_loop(loop, records, events);
-  if (!dir.empty()) std::filesystem::create_directories(dir);
-  const auto file = [&](const char* name) { return (std::filesystem::path(dir.empty() ? "." : dir) / name).string(); };
-  write_force_log(file("haptics_force.csv"), records);
-  write_device_stream(file("haptics_device.csv"), records);
-  write_event_log(file("haptics_events.csv"), events);
-  write_file_atomic(file("haptics.json"), j.dump(2) + "\n");
-  std::printf("wrote %s, haptics_device.csv, haptics_events.csv, haptics.json\n", file("haptics_force.csv").c_str());
-}
+// A haptic run's ticks as they are drained each frame: handed to the replay
+// record, summed into the figures and appended to the force and device logs,
+// then dropped, so a long run holds none (haptics/tick_log.h).
+struct HapticRunLog {
+  HapticRunLog(const HapticLoop& loop, const std::string& dir)
+      : dir(dir), summary(loop.force_limit()), files((create(dir), file("haptics_force.csv")), file("haptics_device.csv")) {}
+  std::string dir;
+  TickSummary summary;
+  TickLogWriter files;
+  std::vector<TickRecord> records;  // drained, not yet taken
+  std::vector<HapticEvent> events;
+  std::string file(const char* name) const { return (std::filesystem::path(dir.empty() ? "." : dir) / name).string(); }
+  static void create(const std::string& d) {
+    if (!d.empty()) std::filesystem::create_directories(d);
+  }
+  void take(ReplayWriter* record, int frame) {
+    if (record) record_ticks(*record, records, 0, frame);
+    for (const TickRecord& r : records) summary.add(r);
+    files.append(records);
+    records.clear();
+  }
+  // Stops the loop and writes the logs and figures.
+  void finish(HapticLoop& loop, ReplayWriter* record, int frame) {
+    loop.stop();
+    loop.drain(records, events);
+    take(record, frame);
+    const nlohmann::json j = report_haptic_loop(loop, summary.stats(), events);
+    files.finish();
+    write_event_log(file("haptics_events.csv"), events);
+    write_file_atomic(file("haptics.json"), j.dump(2) + "\n");
+    std::printf("wrote %s, haptics_device.csv, haptics_events.csv, haptics.json\n", file("haptics_force.csv").c_str());
+  }
+};
 
 void run(const RunOptions& o) {
   auto sim = load_checked_simulation(o.scene, o.patches);
@@ -72,16 +94,13 @@ void run(const RunOptions& o) {
   std::shared_ptr<ReplayWriter> record;
   if (!o.record.empty()) record = install_record_stage(*sim, o.record, o.patches, o.record_states, frames);
   const double pace = o.pace_hz >= 0.0 ? o.pace_hz : haptic ? 1.0 / sim->model.dt : 0.0;
-  std::vector<TickRecord> records;
-  std::vector<HapticEvent> events;
   size_t events_shown = 0;
-  size_t ticks_recorded = 0;
-  const auto record_drained_ticks = [&] {
-    if (record) record_ticks(*record, records, ticks_recorded, s.frame);
-    ticks_recorded = records.size();
-  };
+  const std::string haptics_dir = !o.haptics_dir.empty() ? o.haptics_dir : out;
+  std::unique_ptr<HapticRunLog> ticks;
   if (haptic) {
-    records.reserve(static_cast<size_t>(frames * sim->model.dt * haptic->settings().rate_hz * 1.1) + 64);
+    ticks = std::make_unique<HapticRunLog>(*haptic, haptics_dir);
+    // a frame's ticks, and twice that for a late frame, without reallocating
+    ticks->records.reserve(static_cast<size_t>(2 * sim->model.dt * haptic->settings().rate_hz) + 64);
     haptic->start();
     std::printf("haptics: %s drives %s at %.0f Hz; %s\n", haptic->device().describe().c_str(),
                 sim->scene.instruments[static_cast<size_t>(sim->scene.haptics.instrument)].name.c_str(),
@@ -95,7 +114,6 @@ void run(const RunOptions& o) {
   timings.reserve(frames);
   Stopwatch wall;
   ProgressBar progress(frames, sim->model.dt);
-  const std::string haptics_dir = !o.haptics_dir.empty() ? o.haptics_dir : out;
   for (int k = 0; k < frames; ++k) {
     if (pace > 0.0) std::this_thread::sleep_until(next);
     FrameTiming t;
@@ -111,9 +129,8 @@ void run(const RunOptions& o) {
       } catch (...) {
       }
       try {
-        if (haptic) finish_haptics(*haptic, records, events, haptics_dir);
+        if (haptic) ticks->finish(*haptic, record.get(), s.frame);
         if (record) {
-          record_drained_ticks();
           record->finish("failed after " + std::to_string(record->frames()) + " recorded frames: " + what);
           std::printf("wrote %s (%d frames, up to the failure)\n", record->path().c_str(), record->frames());
         }
@@ -124,8 +141,9 @@ void run(const RunOptions& o) {
     }
     next = std::max(next + period, clock::now());
     if (haptic) {
-      haptic->drain(records, events);
-      record_drained_ticks();
+      haptic->drain(ticks->records, ticks->events);
+      ticks->take(record.get(), s.frame);
+      const std::vector<HapticEvent>& events = ticks->events;
       for (; events_shown < events.size() && events_shown < 20; ++events_shown)
         std::fprintf(stderr, "haptics: %s%s\n", format_event(events[events_shown]).c_str(),
                      events_shown == 19 ? " (further events: haptics_events.csv)" : "");
@@ -136,9 +154,8 @@ void run(const RunOptions& o) {
   }
   progress.finish();
   const double run_ms = wall.ms();
-  if (haptic) finish_haptics(*haptic, records, events, haptics_dir);
+  if (haptic) ticks->finish(*haptic, record.get(), s.frame);
   if (record) {
-    record_drained_ticks();
     record->finish("");
     std::printf("wrote %s: %d frames, %.1f KB (%.2f KB per frame)\n", record->path().c_str(), record->frames(),
                 record->bytes() / 1024.0, record->bytes() / 1024.0 / std::max(1, record->frames()));

@@ -8,10 +8,7 @@
 
 namespace incise {
 
-nlohmann::json finish_haptic_loop(HapticLoop& loop, std::vector<TickRecord>& records, std::vector<HapticEvent>& events) {
-  loop.stop();
-  loop.drain(records, events);
-  const TickStats st = summarize_ticks(records, loop.force_limit());
+nlohmann::json report_haptic_loop(const HapticLoop& loop, const TickStats& st, const std::vector<HapticEvent>& events) {
   std::printf("%s", format_tick_stats(st).c_str());
   if (loop.dropped() > 0)
     std::printf("haptics: %llu records or events dropped (the main loop drained too late)\n",
