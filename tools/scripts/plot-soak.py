@@ -64,14 +64,17 @@ def energies(path):
     el = 0.0
     ok = V > 0
     for dNl in DNL:
-        J = np.einsum("nai,aj->nij", Xc[ok], dNl)
+        J = np.einsum("nai,aj->nij", Xc, dNl)
+        detJ = np.linalg.det(J)
+        q = ok & (np.abs(detJ) > 1e-12 * np.median(np.abs(detJ)))  # degenerate sub-cells (cut slivers) left out
+        J, detJ = J[q], detJ[q]
         gradN = np.einsum("aj,nji->nai", dNl, np.linalg.inv(J))
-        H = np.einsum("nai,naj->nij", uc[ok], gradN)
+        H = np.einsum("nai,naj->nij", uc[q], gradN)
         eps = 0.5 * (H + H.transpose(0, 2, 1))
         tr = np.trace(eps, axis1=1, axis2=2)
-        w = np.abs(np.linalg.det(J)) / 6.0 * 0.25
+        w = np.abs(detJ) / 6.0 * 0.25
         el += np.sum(w * (mu * np.sum(eps * eps, axis=(1, 2)) + 0.5 * lam * tr**2))
-    return dict(ke=ke, elastic=el, gravity=grav, total=ke + el + grav, vmax=float(np.abs(v).max()),
+    return dict(ke=ke, elastic=el, gravity=grav, total=ke + el + grav, vmax=float(np.linalg.norm(v, axis=1).max()),
                 finite=int(finite), cells=len(C), mass=float(mass.sum()))
 
 
@@ -152,7 +155,11 @@ def main():
     ticks_so_far = np.searchsorted(ticks_t, r_ep - loop0)
     rss_less_log = rss - ticks_so_far * TICK_BYTES / 2**20
     touching = np.nonzero(fmag > 1e-6)[0]
-    probe_last_frame = int(np.interp(loop0 + ticks_t[touching[-1]], ft_epoch, ft_frame)) if len(touching) else 0
+    probe_force_frame = int(np.interp(loop0 + ticks_t[touching[-1]], ft_epoch, ft_frame)) if len(touching) else 0
+    # The probe's last stroke (wall clock) from its trajectory: below z = 0.06 it can touch.
+    _, pt = read_csv(os.path.join(d, "traj_probe.csv"))
+    probe_wall_end = max([float(r[0]) for r in pt if float(r[3]) < 0.06] + [0.0])
+    probe_last_frame = min(probe_force_frame, int(np.interp(loop0 + probe_wall_end, ft_epoch, ft_frame)) + 1)
     scalpel = [round(1.0 / dt), round(4.5 / dt)]
     grasper = None
     if any(i.get("type") == "grasper" for i in scene.get("instruments", [])):
@@ -160,6 +167,14 @@ def main():
         g_closed = [float(r[0]) for r in g if float(r[8]) > 0]
         if g_closed:
             grasper = [round(2.0 / dt), round((max(g_closed) + 0.6) / dt)]
+            gt = [(float(r[0]), float(r[8])) for r in g]
+            grasps = []  # (first, last) frame with the jaws closing or closed
+            for (t0, j0), (t1, j1) in zip(gt, gt[1:]):
+                if j0 > 0 or j1 > 0:
+                    if grasps and abs(grasps[-1][1] - round(t0 / dt)) <= 1:
+                        grasps[-1][1] = round(t1 / dt)
+                    else:
+                        grasps.append([round(t0 / dt), round(t1 / dt)])
     input_end = max([probe_last_frame, scalpel[1]] + ([grasper[1]] if grasper else []))
 
     # NaN: the .vtu fields, the frame times, the haptic forces, the log.
@@ -184,8 +199,10 @@ def main():
     last_e = ft_frame >= 0.9 * nframes
     print(f"soak: {nframes} frames in {wall:.0f} s of wall time ({nframes / wall:.1f} frames/s), exit code {rc}; "
           f"scene {os.path.join(d, 'soak_scene.json')}")
-    print(f"input: scalpel frames {scalpel[0]}-{scalpel[1]}, haptic probe force until frame ~{probe_last_frame}"
-          + (f", grasper frames {grasper[0]}-{grasper[1]}" if grasper else "") + f"; no input after frame {input_end}")
+    print(f"input: scalpel frames {scalpel[0]}-{scalpel[1]}, haptic probe strokes until frame ~{probe_last_frame} "
+          f"(probe force last seen at frame ~{probe_force_frame})"
+          + (f", grasper closed in frames {', '.join(f'{a}-{b}' for a, b in grasps)}" if grasper else "")
+          + f"; no input after frame {input_end}")
     print(f"RSS: {rss[i_warm]:.1f} MB at frame {r_frame[i_warm]:.0f} (10% warm-up), {rss[i_end]:.1f} MB at the end "
           f"({rss[i_end] - rss[i_warm]:+.1f} MB, {100 * (rss[i_end] / rss[i_warm] - 1):+.1f}%); peak (VmHWM) {hwm.max():.1f} MB")
     print(f"RSS slope after warm-up (linear fit): {slope:+.2f} MB per 1000 frames ({slope_t:+.2f} MB per minute of wall time)")
@@ -202,7 +219,7 @@ def main():
           f"total (kinetic + linear elastic + gravity) max {tot.max():.4g}, last 10% {tot[last_e].min():.4g} .. {tot[last_e].max():.4g}")
     if rest.sum() > 1:
         kr, tr = ke[rest], tot[rest]
-        grow = np.nonzero(np.diff(tr) > 1e-3 * max(abs(tr).max(), 1e-12))[0]
+        grow = np.nonzero(np.diff(tr) > 1e-3 * np.abs(tr[:-1]))[0]
         print(f"without input (frames {ft_frame[rest][0]}-{ft_frame[rest][-1]}, {rest.sum()} samples): kinetic "
               f"{kr[0]:.3g} -> {kr[-1]:.3g} J (max {kr.max():.3g}), total {tr[0]:.6g} -> {tr[-1]:.6g} J, "
               f"increases > 0.1% between samples: {len(grow)}; largest display speed at the end {vmax[-1]:.3g} m/s")
@@ -220,7 +237,8 @@ def main():
     ax[0].set_xlabel("wall time since start (s)")
     ax[0].set_ylabel("MB")
     ax[0].legend(loc="lower right", frameon=False)
-    ax[0].set_title(f"soak: {nframes} frames, organ 10k, realtime preset, scalpel + haptic probe (1 kHz thread)")
+    ax[0].set_title(f"soak: {nframes} frames, organ 10k, realtime preset, scalpel, haptic probe (1 kHz)"
+                    + (" + grasper" if grasper else ""))
     ax[1].plot(r_frame[inrun], rss[inrun], lw=0.8, label="RSS")
     ax[1].plot(r_frame[inrun], rss_less_log[inrun], lw=0.8, label="RSS less the tick log")
     ax[1].axvline(warm, color="k", lw=0.5, ls=":")
@@ -243,18 +261,23 @@ def main():
         a.axvspan(*scalpel, color="C3", alpha=0.2, lw=0)
         a.axvspan(0, probe_last_frame, color="C0", alpha=0.08, lw=0)
         if grasper:
-            a.axvspan(*grasper, color="C2", alpha=0.15, lw=0)
+            for g0, g1 in grasps:
+                a.axvspan(g0, g1, color="C2", alpha=0.3, lw=0)
         a.axvline(input_end, color="r", lw=0.5, ls="--")
     ax[0].semilogy(ft_frame, np.maximum(ke, 1e-16), ".-", lw=0.6, ms=2)
     ax[0].set_ylabel("kinetic energy (J)")
     ax[0].set_title(f"energy every {ft_frame[1] - ft_frame[0] if len(ft_frame) > 1 else 0} frames "
-                    "(red: scalpel, blue: haptic probe active, dashed: no input after)")
-    ax[1].plot(ft_frame, 1e3 * tot, ".-", lw=0.6, ms=2, label="total")
-    ax[1].plot(ft_frame, 1e3 * el, lw=0.6, label="elastic (linear proxy)")
-    ax[1].plot(ft_frame, 1e3 * gr, lw=0.6, label="gravity")
-    ax[1].set_ylabel("mJ")
+                    "(red: scalpel, blue: probe, " + ("green: grasped, " if grasper else "") + "dashed: no input after)")
+    if np.abs(tot).max() > 1.0:  # blown up: the largest speed on a log scale says more
+        ax[1].semilogy(ft_frame, np.maximum(vmax, 1e-9), ".-", lw=0.6, ms=2)
+        ax[1].set_ylabel("largest point speed (m/s)")
+    else:
+        ax[1].plot(ft_frame, 1e3 * tot, ".-", lw=0.6, ms=2, label="total")
+        ax[1].plot(ft_frame, 1e3 * el, lw=0.6, label="elastic (linear proxy)")
+        ax[1].plot(ft_frame, 1e3 * gr, lw=0.6, label="gravity")
+        ax[1].set_ylabel("mJ")
+        ax[1].legend(loc="upper right", frameon=False, ncol=3)
     ax[1].set_xlabel("frame")
-    ax[1].legend(loc="upper right", frameon=False, ncol=3)
     fig.tight_layout()
     fig.savefig(os.path.join(img, "soak_energy.png"))
     plt.close(fig)
