@@ -69,6 +69,13 @@ struct Reader {
     } while (trim(line).empty());
     split(line, tok);
   }
+  // An entity block's header: exactly 4 values (a data line here means the
+  // previous block's count is wrong).
+  void need_block_header(const char* what, long long b) {
+    if (tok.size() != 4)
+      f.fail(std::string("expected entity block ") + std::to_string(b + 1) + "'s header " + what + " (4 values), got " +
+             std::to_string(tok.size()) + (b > 0 ? "; does the previous block's count match its data?" : ""));
+  }
   void need_tokens(size_t n, const char* what) {
     if (tok.size() < n)
       f.fail(std::string("expected ") + what + " (" + std::to_string(n) + " values), got " +
@@ -190,7 +197,7 @@ struct Reader {
     std::vector<long long> tags;
     for (long long b = 0; b < nblocks; ++b) {
       need_item("'entityDim entityTag parametric numNodesInBlock'", H + " (numEntityBlocks)", hline, nblocks, b, "entity blocks");
-      need_tokens(4, "'entityDim entityTag parametric numNodesInBlock'");
+      need_block_header("'entityDim entityTag parametric numNodesInBlock'", b);
       const long long n = count(tok[3], "numNodesInBlock");
       const int bline = f.line();
       if (n > total - seen)
@@ -228,7 +235,7 @@ struct Reader {
     long long seen = 0;
     for (long long b = 0; b < nblocks; ++b) {
       need_item("'entityDim entityTag elementType numElementsInBlock'", H + " (numEntityBlocks)", hline, nblocks, b, "entity blocks");
-      need_tokens(4, "'entityDim entityTag elementType numElementsInBlock'");
+      need_block_header("'entityDim entityTag elementType numElementsInBlock'", b);
       long long type = get_long(f, tok[2], "an element type");
       const long long n = count(tok[3], "numElementsInBlock");
       const int bline = f.line();

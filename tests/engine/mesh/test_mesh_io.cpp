@@ -503,6 +503,10 @@ TEST_F(MeshIo, GmshHeaderCountsAreCheckedAgainstTheData) {
              "b41.msh:29: $Nodes (numEntityBlocks) on line 10 says 3 entity blocks, but the data ends after 2 (at '$EndNodes')");
   EXPECT_ERR(read_mesh(write("p41.msh", replaced(v41, "$Nodes\n2 8 10 59\n", "$Nodes\n2 7 10 59\n"))),
              "p41.msh:18: this block's 5 nodes bring the count past numNodes = 7 on line 10");
+  // A block count one too high swallowed the next block's header as a skipped triangle.
+  EXPECT_ERR(read_mesh(write("k41.msh", replaced(v41, "2 7 1 7\n2 1 2 1\n", "2 7 1 7\n2 1 2 2\n"))),
+             "expected entity block 2's header 'entityDim entityTag elementType numElementsInBlock' (4 values), got 5; "
+             "does the previous block's count match its data?");
   const size_t el = v41.find("$Elements\n");
   const std::string el_head = v41.substr(el + 10, v41.find('\n', el + 10) - el - 10);  // "nblocks n min max"
   std::istringstream hs(el_head);
