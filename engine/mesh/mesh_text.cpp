@@ -160,6 +160,8 @@ Mesh finish(const RawMesh& raw, const std::string& path, const std::string& kind
   }
   for (int& v : tet) v = newid[v];
   m.tet = std::move(tet);
+  m.elem_file_id = raw.id;
+  m.elem_line = raw.line;
   return m;
 }
 
