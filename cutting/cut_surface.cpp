@@ -44,8 +44,9 @@ double triangle_distance(const V& x, const V& a, const V& b, const V& c) {
 }
 
 // Exact power-of-two scaling: 2^-e with e the exponent of m (m > 0, finite),
-// so values of any magnitude land near 1 without rounding.
-double unit_scale(double m) { return std::ldexp(1.0, -std::ilogb(m)); }
+// so values of any magnitude land near 1 without rounding. e is kept above
+// -1000: 2^1074 (a subnormal m) would overflow; such values land near 2^-74.
+double unit_scale(double m) { return std::ldexp(1.0, -std::max(std::ilogb(m), -1000)); }
 
 // Unnormalized normal (b - a) x (c - a) computed in scaled coordinates: the
 // corners are scaled so their differences cannot overflow, the differences so

@@ -104,7 +104,7 @@ TEST(CutSurface, StlFacetsHaveExactlyThreeVertices) {
 }
 
 TEST(CutSurface, TinyAndHugeTrianglesGetUnitNormals) {
-  for (double s : {1e-200, 1e-30, 1.0, 1e30, 1e200}) {
+  for (double s : {4e-323, 1e-310, 1e-200, 1e-30, 1.0, 1e30, 1e200}) {  // (the first two subnormal)
     char text[256];
     std::snprintf(text, sizeof text, "v 0 0 0\nv %.17g 0 0\nv 0 %.17g 0\nf 1 2 3\n", s, s);
     const std::string p = temp_file("scale.obj", text);
@@ -135,7 +135,7 @@ TEST(CutSurface, PolygonsMustBeSimpleConvexPlanarWithArea) {
              "cuts[0].points: polygon repeats a point: points[1] and the next one coincide");
   EXPECT_HAS(polygon_error({{0, 0, 0}, {1, 0, 0}, {1, 1, 0.5}, {0, 1, 0}}), "cuts[0].points[0]: polygon is not planar");
   // Tiny and huge squares: valid, with a unit normal (no underflow, no NaN).
-  for (double s : {1e-200, 1e-150, 1e150, 1e300}) {
+  for (double s : {1e-315, 1e-200, 1e-150, 1e150, 1e300}) {
     CutSpec c;
     c.type = CutSpec::Type::Polygon;
     c.json_path = "cuts[0]";
