@@ -430,7 +430,12 @@ std::vector<DataArray> arrays_in(const Xml& x, size_t from, size_t to) {
       a.offset = off;
     }
     std::string nc = attr(tag, "NumberOfComponents");
-    if (!nc.empty()) a.ncomp = std::atoi(nc.c_str());
+    if (!nc.empty()) {  // (atoi wrapped on overflow)
+      long long v = 0;
+      if (!parse_long(nc, v) || v < 1 || v > 1000)
+        x.fail(p, "DataArray '" + a.name + "' has NumberOfComponents=\"" + nc.substr(0, 40) + "\"; allowed: 1 to 1000");
+      a.ncomp = static_cast<int>(v);
+    }
     a.begin = gt + 1;
     if (tag.back() == '/') {
       a.end = a.begin;

@@ -571,6 +571,8 @@ TEST_F(MeshIo, VtuPieceCountsAreCheckedAgainstTheArrays) {
              "p.vtu:7: <Piece NumberOfPoints=\"9\"> but the Points DataArray holds 8 points");
   EXPECT_ERR(read_mesh(write("c.vtu", replaced(v, "NumberOfCells=\"7\"", "NumberOfCells=\"6\""))),
              "<Piece NumberOfCells=\"6\"> but the offsets DataArray holds 7 values");
+  EXPECT_ERR(read_mesh(write("nc.vtu", replaced(v, "NumberOfComponents=\"3\"", "NumberOfComponents=\"4294967299\""))),
+             "nc.vtu:7: DataArray 'Points' has NumberOfComponents=\"4294967299\"; allowed: 1 to 1000");
   EXPECT_ERR(read_mesh(write("n.vtu", replaced(v, "NumberOfCells=\"7\"", ""))),
              "n.vtu:4: <Piece> needs NumberOfCells=\"n\" (n >= 0), got ''");
 }
