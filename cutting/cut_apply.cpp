@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <memory>
 #include <thread>
@@ -308,6 +309,7 @@ CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_chan
 }
 
 CutUpdate apply_all_cuts(Simulation& sim) {
+  warn_cuts_that_cut_nothing(sim);
   std::vector<double> progress(sim.scene.cuts.size(), 1.0);
   double t_end = 0.0;
   for (const CutSpec& c : sim.scene.cuts) t_end = std::max(t_end, c.at_time + c.duration);
@@ -315,6 +317,28 @@ CutUpdate apply_all_cuts(Simulation& sim) {
   take_ahead(sim, {}, 0.0, 0, &dropped);
   Stopwatch clock;
   return commit_cut(sim, prepare_cut(sim, progress, t_end, sim.state.swept, sim.state.swept_tool), clock);
+}
+
+}  // namespace incise
+
+namespace incise {
+
+std::vector<std::string> cuts_that_cut_nothing(const Simulation& sim) {
+  std::vector<std::string> out;
+  for (const CutSpec& c : sim.scene.cuts) {
+    // The complete surface (a swept cut at the end of its sweep), alone.
+    const auto surf = make_cut_surface(c, c.at_time + c.duration);
+    CutReport rep;
+    if (surf) compute_cut_layout(sim.model, {surf.get()}, &rep);
+    if (!surf || (rep.cut_elements == 0 && rep.front_elements == 0 && rep.separated_faces == 0))
+      out.push_back((sim.scene.path.empty() ? std::string() : sim.scene.path + ": ") + c.json_path +
+                    " does not cross the body: it cuts nothing");
+  }
+  return out;
+}
+
+void warn_cuts_that_cut_nothing(const Simulation& sim) {
+  for (const std::string& w : cuts_that_cut_nothing(sim)) std::fprintf(stderr, "warning: %s\n", w.c_str());
 }
 
 }  // namespace incise

@@ -6,6 +6,8 @@
 // cutting stage (cut_stage.h) calls update_cuts and start_cut_ahead.
 #include "cutting/xfem_layout.h"
 #include <array>
+#include <string>
+#include <vector>
 
 #include "engine/runtime/simulation.h"
 #include "engine/runtime/timing.h"
@@ -38,6 +40,13 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep);
 
 // Applies every scene cut completely (static solves).
 CutUpdate apply_all_cuts(Simulation& sim);
+
+// The scene cuts that, once complete, cross no element of sim.model, one
+// message each ("scene.json: cuts[1] does not cross the body: it cuts
+// nothing"), so a misplaced cut is not silently a no-op.
+std::vector<std::string> cuts_that_cut_nothing(const Simulation& sim);
+// Prints them to stderr as warnings; called once when cutting is set up.
+void warn_cuts_that_cut_nothing(const Simulation& sim);
 
 struct Kinematics {
   std::vector<double> u, v, a;  // (to.ndof) the transferred fields

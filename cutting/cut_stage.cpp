@@ -25,6 +25,7 @@ void install_cutting_stage(Simulation& sim) {
   bool scalpel = false;
   for (const InstrumentSpec& i : sim.scene.instruments) scalpel = scalpel || i.kind == InstrumentSpec::Kind::Scalpel;
   if (!sim.scene.cuts.empty() || scalpel) sim.pipeline.set(kStageCutting, cutting_stage);
+  warn_cuts_that_cut_nothing(sim);
 }
 
 }  // namespace incise

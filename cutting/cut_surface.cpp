@@ -1,7 +1,10 @@
 #include "cutting/cut_surface.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <fstream>
 #include <sstream>
 
@@ -40,14 +43,113 @@ double triangle_distance(const V& x, const V& a, const V& b, const V& c) {
   return (x - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
 }
 
+// Exact power-of-two scaling: 2^-e with e the exponent of m (m > 0, finite),
+// so values of any magnitude land near 1 without rounding. e is kept above
+// -1000: 2^1074 (a subnormal m) would overflow; such values land near 2^-74.
+double unit_scale(double m) { return std::ldexp(1.0, -std::max(std::ilogb(m), -1000)); }
+
+// Unnormalized normal (b - a) x (c - a) computed in scaled coordinates: the
+// corners are scaled so their differences cannot overflow, the differences so
+// the cross product cannot underflow or overflow. Zero for collinear corners.
+// *rel: |normal| / (longest edge)^2 in the scaled units (0 for zero area).
+V scaled_normal(const V& a, const V& b, const V& c, double* rel = nullptr) {
+  if (rel) *rel = 0;
+  const double m = std::max({a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff(), c.cwiseAbs().maxCoeff()});
+  if (!(m > 0) || !std::isfinite(m)) return V::Zero();
+  const double s = unit_scale(m);
+  V ab = b * s - a * s, ac = c * s - a * s;
+  const double d = std::max(ab.cwiseAbs().maxCoeff(), ac.cwiseAbs().maxCoeff());
+  if (!(d > 0)) return V::Zero();
+  const double t = unit_scale(d);
+  ab *= t, ac *= t;
+  const V n = ab.cross(ac);
+  if (rel) *rel = n.norm() / std::max({ab.squaredNorm(), ac.squaredNorm(), (ac - ab).squaredNorm()});
+  return n;
+}
+
 Facet triangle_facet(const V& a, const V& b, const V& c) {
   Facet f;
   f.v = {arr(a), arr(b), arr(c)};
   f.p = arr(a);
-  const V n = (b - a).cross(c - a);
-  f.n = arr(n.norm() > 0 ? V(n.normalized()) : n);
+  const V n = scaled_normal(a, b, c);
+  f.n = arr(n.norm() > 0 ? V(n.normalized()) : V::Zero());
   return f;
 }
+
+// Relative area below which a cut facet counts as degenerate: |n| / (longest
+// edge)^2 = 2 area / edge^2, i.e. its smallest angle is below about 1e-12 rad.
+constexpr double kMinFacetShape = 1e-12;
+
+// A planar polygon validated as a cut (simple, convex, planar, positive area):
+// its centroid and unit normal. Computed in scaled coordinates so a tiny or a
+// huge polygon gives the same answer as one of unit size. fail(k, what)
+// reports a problem at point k (-1: the polygon as a whole) and does not
+// return; point(k) names point k inside a message ("points[3]").
+template <class Fail, class Point>
+void polygon_plane(const std::vector<V>& pts, V& cen_out, V& n_out, Fail fail, Point point) {
+  const size_t np = pts.size();
+  double m = 0;
+  for (const V& q : pts) m = std::max(m, q.cwiseAbs().maxCoeff());
+  if (!(m > 0)) fail(-1, "polygon has zero area (all its points are at the origin)");
+  const double s = unit_scale(m);
+  V cen = V::Zero();
+  for (const V& q : pts) cen += q * s;
+  cen /= static_cast<double>(np);
+  std::vector<V> d(np);
+  double dm = 0;
+  for (size_t k = 0; k < np; ++k) dm = std::max(dm, (d[k] = pts[k] * s - cen).cwiseAbs().maxCoeff());
+  if (!(dm > 0)) fail(-1, "polygon has zero area (all its points coincide)");
+  const double t = unit_scale(dm);
+  for (V& q : d) q *= t;
+  for (size_t k = 0; k < np; ++k)
+    if (d[k] == d[(k + 1) % np])
+      fail(-1, "polygon repeats a point: " + point(k) + " and the next one coincide; remove one");
+  V n = V::Zero();  // Newell normal
+  for (size_t k = 0; k < np; ++k) {
+    const V& a = d[k];
+    const V& b = d[(k + 1) % np];
+    n += V((a.y() - b.y()) * (a.z() + b.z()), (a.z() - b.z()) * (a.x() + b.x()), (a.x() - b.x()) * (a.y() + b.y()));
+  }
+  double size = 0;
+  for (const V& q : d) size = std::max(size, q.norm());
+  if (!(n.norm() > kMinFacetShape * size * size)) fail(-1, "polygon has zero area (its points are collinear)");
+  n.normalize();
+  for (size_t k = 0; k < np; ++k) {
+    const double off = std::abs(d[k].dot(n));
+    if (off > 1e-6 * size) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.3g of its size", off / size);
+      fail(static_cast<int>(k), std::string("polygon is not planar (off its plane by ") + buf + ")");
+    }
+    // The fan from the centroid covers the polygon only when it is convex.
+    const V& a = d[k];
+    const V& b = d[(k + 1) % np];
+    const V& c = d[(k + 2) % np];
+    if ((b - a).cross(c - b).dot(n) < -1e-12 * size * size)
+      fail(-1, "polygon must be convex; the turn at " + point((k + 1) % np) +
+                   " goes the other way (split a concave cut into convex polygons)");
+  }
+  // Convex turns everywhere and simple only when it winds once around its
+  // centroid (a pentagram turns one way at every point but winds twice).
+  const V u = (std::abs(n.x()) < 0.9 ? V(1, 0, 0) : V(0, 1, 0)).cross(n).normalized(), w = n.cross(u);
+  double turn = 0;
+  for (size_t k = 0; k < np; ++k) {
+    const V& a = d[k];
+    const V& b = d[(k + 1) % np];
+    turn += std::atan2(a.dot(u) * b.dot(w) - a.dot(w) * b.dot(u), a.dot(u) * b.dot(u) + a.dot(w) * b.dot(w));
+  }
+  const double windings = std::abs(turn) / (2 * 3.14159265358979323846);
+  if (!(std::abs(windings - 1.0) < 0.25)) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0f", windings);
+    fail(-1, std::string("polygon is not simple: its edges cross (it winds ") + buf + " times around its centre)");
+  }
+  cen_out = cen / s;
+  n_out = n;
+}
+
+// Largest OBJ face this reader accepts (fan-triangulated; docs/scene-format.md).
+constexpr size_t kMaxObjFaceVertices = 16;
 }  // namespace
 
 CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(std::move(facets)), name_(std::move(name)) {
@@ -102,42 +204,91 @@ std::vector<Facet> read_triangle_surface(const std::string& path) {
   std::vector<Facet> facets;
   std::vector<V> verts;
   std::string line;
-  std::vector<V> tri;
-  for (int lineno = 1; std::getline(is, line); ++lineno) {
+  std::vector<V> tri;  // STL: the vertices of the open facet
+  int tri_line = 0;
+  auto add = [&](const V& a, const V& b, const V& c, const std::function<void(const std::string&)>& fail) {
+    double rel = 0;
+    scaled_normal(a, b, c, &rel);
+    if (!(rel > kMinFacetShape))
+      fail(rel == 0 ? "triangle has zero area (its corners are collinear or repeated); remove it"
+                    : "triangle is degenerate (a sliver: its smallest angle is below 1e-12 rad); remove it");
+    facets.push_back(triangle_facet(a, b, c));
+  };
+  int lineno = 1;
+  for (; std::getline(is, line); ++lineno) {
     std::istringstream ls(line);
     std::string key;
     if (!(ls >> key)) continue;
-    auto fail = [&](const std::string& what) { throw Error(path + ":" + std::to_string(lineno) + ": " + what); };
+    const std::function<void(const std::string&)> fail = [&](const std::string& what) {
+      throw Error(path + ":" + std::to_string(lineno) + ": " + what);
+    };
     if (obj && key == "v") {
       double a, b, c;
       if (!(ls >> a >> b >> c) || !std::isfinite(a) || !std::isfinite(b) || !std::isfinite(c))
         fail("vertex needs three finite coordinates");
       verts.emplace_back(a, b, c);
     } else if (obj && key == "f") {
-      std::vector<int> ids;
+      std::vector<size_t> ids;
       std::string tok;
       while (ls >> tok) {
-        const int id = std::atoi(tok.substr(0, tok.find('/')).c_str());
-        const int idx = id < 0 ? static_cast<int>(verts.size()) + id : id - 1;
-        if (idx < 0 || idx >= static_cast<int>(verts.size()))
-          fail("face references vertex " + tok + ", but only " + std::to_string(verts.size()) + " are defined");
-        ids.push_back(idx);
+        if (ids.size() == kMaxObjFaceVertices)
+          fail("face lists more than " + std::to_string(kMaxObjFaceVertices) +
+               " vertices; allowed: 3 to " + std::to_string(kMaxObjFaceVertices) + " (triangulate larger polygons)");
+        // "v", "v/vt", "v//vn" or "v/vt/vn": 1-based, or negative counting back from the last vertex.
+        const std::string v = tok.substr(0, tok.find('/'));
+        long long id = 0;
+        const auto r = std::from_chars(v.data(), v.data() + v.size(), id);
+        if (r.ec != std::errc() || r.ptr != v.data() + v.size())
+          fail("face vertex " + tok.substr(0, 40) + " is not an integer index in range");
+        const long long n = static_cast<long long>(verts.size());
+        if (id == 0 || id > n || id < -n)
+          fail("face references vertex " + tok.substr(0, 40) + ", but only " + std::to_string(verts.size()) +
+               " are defined (indices are 1.." + std::to_string(n) + ", or -1..-" + std::to_string(n) + " counting back)");
+        ids.push_back(static_cast<size_t>(id < 0 ? n + id : id - 1));
       }
-      if (ids.size() < 3) fail("face needs at least 3 vertices");
-      for (size_t k = 1; k + 1 < ids.size(); ++k) facets.push_back(triangle_facet(verts[ids[0]], verts[ids[k]], verts[ids[k + 1]]));
+      if (ids.size() < 3) fail("face needs at least 3 vertices, got " + std::to_string(ids.size()));
+      if (ids.size() == 3) {
+        add(verts[ids[0]], verts[ids[1]], verts[ids[2]], fail);
+        continue;
+      }
+      // A larger face must be a planar convex polygon, so that its fan covers it.
+      std::vector<V> pts;
+      for (size_t i : ids) pts.push_back(verts[i]);
+      V cen, n;
+      polygon_plane(
+          pts, cen, n,
+          [&](int k, const std::string& what) {
+            fail(k < 0 ? "face: " + what : "face vertex " + std::to_string(k + 1) + ": " + what);
+          },
+          [](size_t k) { return "its vertex " + std::to_string(k + 1); });
+      for (size_t k = 1; k + 1 < ids.size(); ++k) {
+        double rel = 0;
+        scaled_normal(pts[0], pts[k], pts[k + 1], &rel);
+        if (rel > kMinFacetShape) facets.push_back(triangle_facet(pts[0], pts[k], pts[k + 1]));  // (collinear corners: no area)
+      }
     } else if (stl && key == "vertex") {
       double a, b, c;
       if (!(ls >> a >> b >> c) || !std::isfinite(a) || !std::isfinite(b) || !std::isfinite(c))
         fail("vertex needs three finite coordinates");
+      if (tri.size() == 3) fail("a facet lists more than 3 vertices; ASCII STL facets are triangles");
+      if (tri.empty()) tri_line = lineno;
       tri.emplace_back(a, b, c);
-      if (tri.size() == 3) {
-        facets.push_back(triangle_facet(tri[0], tri[1], tri[2]));
-        tri.clear();
-      }
+    } else if (stl && (key == "endloop" || key == "endfacet")) {
+      if (key == "endfacet" && tri.empty()) continue;  // closed at its endloop
+      if (tri.size() != 3)
+        fail("a facet ends after " + std::to_string(tri.size()) + " vertices; ASCII STL facets are triangles (3 vertices)");
+      const int at = lineno;
+      lineno = tri_line;  // degenerate: name the facet's first vertex
+      add(tri[0], tri[1], tri[2], fail);
+      lineno = at;
+      tri.clear();
     } else if (stl && key == "solid" && lineno == 1) {
       continue;
     }
   }
+  if (!tri.empty())
+    throw Error(path + ":" + std::to_string(tri_line) + ": the file ends inside a facet (" + std::to_string(tri.size()) +
+                " of 3 vertices, no endloop)");
   if (facets.empty()) throw Error(path + ": no triangles found");
   return facets;
 }
@@ -154,31 +305,18 @@ std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& c, double t) {
       break;
     }
     case CutSpec::Type::Polygon: {
-      // Newell normal and centroid: one plane for all fan triangles, so the
+      // Centroid and Newell normal: one plane for all fan triangles, so the
       // exact sign is taken against the same plane everywhere.
-      V n = V::Zero(), cen = V::Zero();
+      std::vector<V> pts;
+      for (const Vec3& q : c.points) pts.push_back(vec(q));
+      V cen, n;
+      polygon_plane(
+          pts, cen, n,
+          [&](int k, const std::string& what) {
+            throw Error(c.json_path + (k < 0 ? ".points" : ".points[" + std::to_string(k) + "]") + ": " + what);
+          },
+          [](size_t k) { return "points[" + std::to_string(k) + "]"; });
       const size_t np = c.points.size();
-      for (size_t k = 0; k < np; ++k) {
-        const V a = vec(c.points[k]), b = vec(c.points[(k + 1) % np]);
-        n += V((a.y() - b.y()) * (a.z() + b.z()), (a.z() - b.z()) * (a.x() + b.x()), (a.x() - b.x()) * (a.y() + b.y()));
-        cen += a;
-      }
-      cen /= static_cast<double>(np);
-      if (!(n.norm() > 0)) throw Error(c.json_path + ": polygon has zero area");
-      n.normalize();
-      double size = 0;
-      for (const auto& q : c.points) size = std::max(size, (vec(q) - cen).norm());
-      for (size_t k = 0; k < np; ++k) {
-        const double off = std::abs((vec(c.points[k]) - cen).dot(n));
-        if (off > 1e-6 * size)
-          throw Error(c.json_path + ".points[" + std::to_string(k) + "]: polygon is not planar (off its plane by " +
-                      std::to_string(off) + ")");
-        // The fan from the centroid covers the polygon only when it is convex.
-        const V a = vec(c.points[k]), b = vec(c.points[(k + 1) % np]), d = vec(c.points[(k + 2) % np]);
-        if ((b - a).cross(d - b).dot(n) < -1e-12 * size * size)
-          throw Error(c.json_path + ".points: polygon must be convex; the turn at points[" +
-                      std::to_string((k + 1) % np) + "] goes the other way (split a concave cut into convex polygons)");
-      }
       for (size_t k = 0; k < np; ++k) {
         Facet f;
         f.v = {arr(cen), c.points[k], c.points[(k + 1) % np]};

@@ -8,7 +8,8 @@
 // 't' TetGen, 'a' .inp; any other byte picks by its value mod 5. For TetGen
 // the text is the .node file, then a line "#--ele--", then the .ele file.
 // Only incise::Error may escape (the readers' documented failure); a mesh
-// that is returned must be consistent (ids in range, finite coordinates).
+// that is returned must be consistent (ids in range, finite coordinates), and
+// then goes through check_mesh (engine/mesh/mesh_tools.h).
 #include <dirent.h>
 #include <signal.h>
 #include <sys/stat.h>
@@ -23,6 +24,7 @@
 #include <string>
 
 #include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
 #include "engine/util/error.h"
 
 namespace {
@@ -103,6 +105,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (v < 0 || v >= m.nnode()) bad_mesh("node id out of range");
     for (double x : m.X)
       if (!std::isfinite(x)) bad_mesh("non-finite coordinate");
+    if (!m.elem_line.empty() && m.elem_line.size() != static_cast<size_t>(m.ntet())) bad_mesh("elem_line size");
+    incise::check_mesh(m);  // geometry (volumes, tet10 det J): what every consumer runs next
   } catch (const incise::Error&) {
     // the documented failure: "FILE:LINE: what was wrong"
   }

@@ -24,6 +24,10 @@ struct Mesh {
   std::vector<double> X;     // (nnode, 3) reference positions
   std::vector<int> tet;      // (ntet, npe) node ids, ordering above
   std::string source;        // file it came from (for error messages), may be empty
+  // (ntet) each element's id and starting line in `source`, for messages;
+  // filled by the readers, empty when unknown (a generated mesh).
+  std::vector<long long> elem_file_id;
+  std::vector<int> elem_line;
 
   int npe() const { return order == 2 ? 10 : 4; }
   int nnode() const { return static_cast<int>(X.size() / 3); }

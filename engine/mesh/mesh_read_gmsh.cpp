@@ -69,6 +69,13 @@ struct Reader {
     } while (trim(line).empty());
     split(line, tok);
   }
+  // An entity block's header: exactly 4 values (a data line here means the
+  // previous block's count is wrong).
+  void need_block_header(const char* what, long long b) {
+    if (tok.size() != 4)
+      f.fail(std::string("expected entity block ") + std::to_string(b + 1) + "'s header " + what + " (4 values), got " +
+             std::to_string(tok.size()) + (b > 0 ? "; does the previous block's count match its data?" : ""));
+  }
   void need_tokens(size_t n, const char* what) {
     if (tok.size() < n)
       f.fail(std::string("expected ") + what + " (" + std::to_string(n) + " values), got " +
@@ -77,6 +84,33 @@ struct Reader {
   void expect_end(const std::string& end) {
     need_line(end.c_str());
     if (tok.size() != 1 || tok[0] != end) f.fail("expected " + end + ", got " + quote(tok.empty() ? "" : tok[0]));
+  }
+  // A section's count from its header line (hline): not negative.
+  long long count(std::string_view tok_, const char* what) {
+    const long long n = get_long(f, tok_, what);
+    if (n < 0) f.fail(std::string(what) + " must not be negative, got " + std::to_string(n));
+    return n;
+  }
+  // The next line of a counted section; a section end ("$End...") before the
+  // count is reached names the header and what the data holds.
+  void need_item(const char* what, const std::string& header, int hline, long long n, long long i, const char* items) {
+    need_line(what);
+    if (!tok.empty() && !tok[0].empty() && tok[0][0] == '$')
+      f.fail(header + " on line " + std::to_string(hline) + " says " + std::to_string(n) + " " + items +
+             ", but the data ends after " + std::to_string(i) + " (at " + quote(tok[0]) + ")");
+  }
+  // The end line of a counted section; more data before it contradicts the header.
+  void expect_end_of(const std::string& end, const std::string& header, int hline, long long n, const char* items) {
+    need_line(end.c_str());
+    if (tok.size() != 1 || tok[0] != end)
+      f.fail(header + " on line " + std::to_string(hline) + " says " + std::to_string(n) + " " + items +
+             ", but the data holds more (expected " + end + ", got " + quote(tok.empty() ? "" : tok[0]) + ")");
+  }
+  // A tag of a Gmsh 4.1 section, within the header's [min, max].
+  void in_range(long long tag, long long lo, long long hi, const std::string& header, int hline, const char* what) {
+    if (tag < lo || tag > hi)
+      f.fail(std::string(what) + " " + std::to_string(tag) + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) +
+             "], the range " + header + " on line " + std::to_string(hline) + " gives");
   }
   void skip_to(const std::string& end) {
     std::string_view line;
@@ -121,19 +155,22 @@ struct Reader {
 
   void nodes2() {
     need_line("the number of nodes");
-    long long n = get_long(f, tok[0], "the number of nodes");
+    const long long n = count(tok[0], "the number of nodes");
+    const int hline = f.line();
     for (long long i = 0; i < n; ++i) {
-      need_line("'tag x y z'");
+      need_item("'tag x y z'", "$Nodes", hline, n, i, "nodes");
       need_tokens(4, "'tag x y z'");
       node(get_long(f, tok[0], "a node tag"), 1);
     }
+    expect_end_of("$EndNodes", "$Nodes", hline, n, "nodes");
   }
 
   void elements2() {
     need_line("the number of elements");
-    long long n = get_long(f, tok[0], "the number of elements");
+    const long long n = count(tok[0], "the number of elements");
+    const int hline = f.line();
     for (long long i = 0; i < n; ++i) {
-      need_line("'tag type ntags tags... nodes...'");
+      need_item("'tag type ntags tags... nodes...'", "$Elements", hline, n, i, "elements");
       need_tokens(3, "'tag type ntags ...'");
       long long id = get_long(f, tok[0], "an element tag");
       long long type = get_long(f, tok[1], "an element type");
@@ -146,50 +183,81 @@ struct Reader {
                std::to_string(tet_nodes(type)) + " node tags, got " + std::to_string(tok.size() - std::min(tok.size(), first)));
       tet(id, type, tok, first);
     }
+    expect_end_of("$EndElements", "$Elements", hline, n, "elements");
   }
 
   void nodes4() {
     need_line("'numEntityBlocks numNodes minNodeTag maxNodeTag'");
     need_tokens(4, "'numEntityBlocks numNodes minNodeTag maxNodeTag'");
-    long long nblocks = get_long(f, tok[0], "the number of entity blocks");
+    const int hline = f.line();
+    const long long nblocks = count(tok[0], "numEntityBlocks"), total = count(tok[1], "numNodes");
+    const long long lo = get_long(f, tok[2], "minNodeTag"), hi = get_long(f, tok[3], "maxNodeTag");
+    const std::string H = "$Nodes";
+    long long seen = 0;
     std::vector<long long> tags;
     for (long long b = 0; b < nblocks; ++b) {
-      need_line("'entityDim entityTag parametric numNodesInBlock'");
-      need_tokens(4, "'entityDim entityTag parametric numNodesInBlock'");
-      long long n = get_long(f, tok[3], "numNodesInBlock");
+      need_item("'entityDim entityTag parametric numNodesInBlock'", H + " (numEntityBlocks)", hline, nblocks, b, "entity blocks");
+      need_block_header("'entityDim entityTag parametric numNodesInBlock'", b);
+      const long long n = count(tok[3], "numNodesInBlock");
+      const int bline = f.line();
+      if (n > total - seen)
+        f.fail("this block's " + std::to_string(n) + " nodes bring the count past numNodes = " + std::to_string(total) +
+               " on line " + std::to_string(hline));
+      seen += n;
       tags.clear();
       while (static_cast<long long>(tags.size()) < n) {  // one tag a line, but be lenient
-        need_line("a node tag");
-        for (auto t : tok) tags.push_back(get_long(f, t, "a node tag"));
+        need_item("a node tag", "the entity block", bline, n, static_cast<long long>(tags.size()), "node tags");
+        for (auto t : tok) {
+          tags.push_back(get_long(f, t, "a node tag"));
+          in_range(tags.back(), lo, hi, H, hline, "node tag");
+        }
       }
       if (static_cast<long long>(tags.size()) != n) f.fail("more node tags than numNodesInBlock = " + std::to_string(n));
       for (long long i = 0; i < n; ++i) {
-        need_line("'x y z'");
+        need_item("'x y z'", "the entity block", bline, n, i, "node coordinates");
         need_tokens(3, "'x y z'");  // parametric coordinates may follow
         node(tags[i], 0);
       }
     }
+    if (seen != total)
+      f.fail(H + " on line " + std::to_string(hline) + " says numNodes = " + std::to_string(total) + ", but its " +
+             std::to_string(nblocks) + " entity blocks hold " + std::to_string(seen));
+    expect_end_of("$EndNodes", H + " (numEntityBlocks)", hline, nblocks, "entity blocks");
   }
 
   void elements4() {
     need_line("'numEntityBlocks numElements minElementTag maxElementTag'");
     need_tokens(4, "'numEntityBlocks numElements minElementTag maxElementTag'");
-    long long nblocks = get_long(f, tok[0], "the number of entity blocks");
+    const int hline = f.line();
+    const long long nblocks = count(tok[0], "numEntityBlocks"), total = count(tok[1], "numElements");
+    const long long lo = get_long(f, tok[2], "minElementTag"), hi = get_long(f, tok[3], "maxElementTag");
+    const std::string H = "$Elements";
+    long long seen = 0;
     for (long long b = 0; b < nblocks; ++b) {
-      need_line("'entityDim entityTag elementType numElementsInBlock'");
-      need_tokens(4, "'entityDim entityTag elementType numElementsInBlock'");
+      need_item("'entityDim entityTag elementType numElementsInBlock'", H + " (numEntityBlocks)", hline, nblocks, b, "entity blocks");
+      need_block_header("'entityDim entityTag elementType numElementsInBlock'", b);
       long long type = get_long(f, tok[2], "an element type");
-      long long n = get_long(f, tok[3], "numElementsInBlock");
+      const long long n = count(tok[3], "numElementsInBlock");
+      const int bline = f.line();
+      if (n > total - seen)
+        f.fail("this block's " + std::to_string(n) + " elements bring the count past numElements = " +
+               std::to_string(total) + " on line " + std::to_string(hline));
+      seen += n;
       for (long long i = 0; i < n; ++i) {
-        need_line("'elementTag nodeTag...'");
+        need_item("'elementTag nodeTag...'", "the entity block", bline, n, i, "elements");
+        const long long id = get_long(f, tok[0], "an element tag");
+        in_range(id, lo, hi, H, hline, "element tag");
         if (!tet_nodes(type)) continue;
-        long long id = get_long(f, tok[0], "an element tag");
         if (tok.size() != 1 + static_cast<size_t>(tet_nodes(type)))
           f.fail("element " + std::to_string(id) + " of type " + std::to_string(type) + " needs " +
                  std::to_string(tet_nodes(type)) + " node tags, got " + std::to_string(tok.size() - 1));
         tet(id, type, tok, 1);
       }
     }
+    if (seen != total)
+      f.fail(H + " on line " + std::to_string(hline) + " says numElements = " + std::to_string(total) + ", but its " +
+             std::to_string(nblocks) + " entity blocks hold " + std::to_string(seen));
+    expect_end_of("$EndElements", H + " (numEntityBlocks)", hline, nblocks, "entity blocks");
   }
 
   void node_bin(long long tag, const double* x) { raw.add_node(f, tag, x); }
@@ -241,40 +309,67 @@ struct Reader {
   void nodes4_bin() {
     Bin b{f, f.pos()};
     const uint64_t nblocks = b.count(b.get<uint64_t>("numEntityBlocks"), 20, "numEntityBlocks");
-    b.get<uint64_t>("numNodes"), b.get<uint64_t>("minNodeTag"), b.get<uint64_t>("maxNodeTag");
+    const uint64_t total = b.get<uint64_t>("numNodes"), lo = b.get<uint64_t>("minNodeTag"), hi = b.get<uint64_t>("maxNodeTag");
+    uint64_t seen = 0;
     std::vector<long long> tags;
     for (uint64_t k = 0; k < nblocks; ++k) {
       b.get<int32_t>("entityDim"), b.get<int32_t>("entityTag");
       if (b.get<int32_t>("parametric") != 0) f.fail("binary nodes with parametric coordinates are not supported");
       const uint64_t n = b.count(b.get<uint64_t>("numNodesInBlock"), 32, "numNodesInBlock");
+      if (n > total - seen)
+        f.fail("binary $Nodes: entity block " + std::to_string(k) + "'s " + std::to_string(n) +
+               " nodes bring the count past numNodes = " + std::to_string(total));
+      seen += n;
       tags.resize(n);
-      for (auto& t : tags) t = static_cast<long long>(b.get<uint64_t>("a node tag"));
+      for (auto& t : tags) {
+        const uint64_t v = b.get<uint64_t>("a node tag");
+        if (v < lo || v > hi)
+          f.fail("binary $Nodes: node tag " + std::to_string(v) + " is outside [" + std::to_string(lo) + ", " +
+                 std::to_string(hi) + "], the range the header gives");
+        t = static_cast<long long>(v);
+      }
       for (uint64_t i = 0; i < n; ++i) {
         double x[3];
         for (double& c : x) c = b.get<double>("a node coordinate");
         node_bin(tags[i], x);
       }
     }
+    if (seen != total)
+      f.fail("binary $Nodes: the header says numNodes = " + std::to_string(total) + ", but its " + std::to_string(nblocks) +
+             " entity blocks hold " + std::to_string(seen));
     f.seek(b.pos);
   }
 
   void elements4_bin() {
     Bin b{f, f.pos()};
     const uint64_t nblocks = b.count(b.get<uint64_t>("numEntityBlocks"), 20, "numEntityBlocks");
-    b.get<uint64_t>("numElements"), b.get<uint64_t>("minElementTag"), b.get<uint64_t>("maxElementTag");
+    const uint64_t total = b.get<uint64_t>("numElements"), lo = b.get<uint64_t>("minElementTag"),
+                   hi = b.get<uint64_t>("maxElementTag");
+    uint64_t seen = 0;
     for (uint64_t k = 0; k < nblocks; ++k) {
       b.get<int32_t>("entityDim"), b.get<int32_t>("entityTag");
       const long long type = b.get<int32_t>("elementType");
       const int nn = gmsh_nodes(type);
       if (nn == 0) f.fail("binary element type " + std::to_string(type) + " is not one this reader can skip (types 1-19)");
       const uint64_t n = b.count(b.get<uint64_t>("numElementsInBlock"), 8 * (1 + static_cast<uint64_t>(nn)), "numElementsInBlock");
+      if (n > total - seen)
+        f.fail("binary $Elements: entity block " + std::to_string(k) + "'s " + std::to_string(n) +
+               " elements bring the count past numElements = " + std::to_string(total));
+      seen += n;
       for (uint64_t i = 0; i < n; ++i) {
-        const long long id = static_cast<long long>(b.get<uint64_t>("an element tag"));
+        const uint64_t tag = b.get<uint64_t>("an element tag");
+        if (tag < lo || tag > hi)
+          f.fail("binary $Elements: element tag " + std::to_string(tag) + " is outside [" + std::to_string(lo) + ", " +
+                 std::to_string(hi) + "], the range the header gives");
+        const long long id = static_cast<long long>(tag);
         long long g[27];
         for (int a = 0; a < nn; ++a) g[a] = static_cast<long long>(b.get<uint64_t>("an element's node tag"));
         if (tet_nodes(type)) tet_bin(id, type, g);
       }
     }
+    if (seen != total)
+      f.fail("binary $Elements: the header says numElements = " + std::to_string(total) + ", but its " +
+             std::to_string(nblocks) + " entity blocks hold " + std::to_string(seen));
     f.seek(b.pos);
   }
 
@@ -300,14 +395,12 @@ struct Reader {
       }
       if ((name == "Nodes" || name == "Elements") && major == 0)
         f.fail("$" + name + " before $MeshFormat; is this a Gmsh .msh file?");
-      if (name == "Nodes") {
-        if (binary) major == 2 ? nodes2_bin() : nodes4_bin();
+      if (name == "Nodes") {  // (the ASCII readers check their section's end)
+        if (binary) major == 2 ? nodes2_bin() : nodes4_bin(), expect_end("$EndNodes");
         else major == 2 ? nodes2() : nodes4();
-        expect_end("$EndNodes");
       } else if (name == "Elements") {
-        if (binary) major == 2 ? elements2_bin() : elements4_bin();
+        if (binary) major == 2 ? elements2_bin() : elements4_bin(), expect_end("$EndElements");
         else major == 2 ? elements2() : elements4();
-        expect_end("$EndElements");
       } else if (name == "NOD" || name == "ELM") {
         f.fail("Gmsh format 1 is not supported; allowed: 2.2 or 4.1");
       } else if (binary) {

@@ -82,31 +82,53 @@ Mesh read_tetgen(const std::string& path) {
 
   TextFile node(stem + ".node");
   if (!data_line(node, tok)) node.fail("empty .node file");
-  long long n = get_long(node, tok[0], "the number of points");
-  long long dim = tok.size() > 1 ? get_long(node, tok[1], "the dimension") : 3;
+  // Header "n dim [nattr [nmarker]]": each point line holds exactly
+  // index, x, y, z, nattr attributes and nmarker (0 or 1) markers.
+  const int node_hline = node.line();
+  const long long n = get_long(node, tok[0], "the number of points");
+  const long long dim = tok.size() > 1 ? get_long(node, tok[1], "the dimension") : 3;
+  const long long nattr = tok.size() > 2 ? get_long(node, tok[2], "the number of point attributes") : 0;
+  const long long nmark = tok.size() > 3 ? get_long(node, tok[3], "the number of boundary markers") : 0;
   if (dim != 3) node.fail("dimension must be 3, got " + std::to_string(dim));
   if (n <= 0) node.fail("the .node file lists no points (points inside a .poly are not supported)");
+  if (nattr < 0 || nattr > 1000) node.fail("the number of point attributes must be in [0, 1000], got " + std::to_string(nattr));
+  if (nmark != 0 && nmark != 1) node.fail("the number of boundary markers must be 0 or 1, got " + std::to_string(nmark));
+  const size_t node_cols = static_cast<size_t>(4 + nattr + nmark);
   for (long long i = 0; i < n; ++i) {
     if (!data_line(node, tok))
       node.fail("unexpected end of file: " + std::to_string(i) + " of " + std::to_string(n) + " points read");
-    if (tok.size() < 4) node.fail("expected 'index x y z [attributes] [marker]', got " + std::to_string(tok.size()) + " values");
+    if (tok.size() != node_cols)
+      node.fail("expected " + std::to_string(node_cols) + " values (index x y z, " + std::to_string(nattr) +
+                " attributes, " + std::to_string(nmark) + " markers, as the header on line " +
+                std::to_string(node_hline) + " says), got " + std::to_string(tok.size()));
     long long tag = get_long(node, tok[0], "a point index");
     if (i == 0 && tag != 0 && tag != 1) node.fail("the first point index must be 0 or 1, got " + std::to_string(tag));
     double x[3];
     for (int c = 0; c < 3; ++c) x[c] = get_coord(node, tok[1 + c], "a point coordinate");
     raw.add_node(node, tag, x);
   }
+  if (data_line(node, tok))
+    node.fail("the header on line " + std::to_string(node_hline) + " says " + std::to_string(n) +
+              " points, but more data follows");
 
   TextFile ele(stem + ".ele");
   if (!data_line(ele, tok)) ele.fail("empty .ele file");
-  long long ntet = get_long(ele, tok[0], "the number of tetrahedra");
-  long long npe = tok.size() > 1 ? get_long(ele, tok[1], "nodes per tetrahedron") : 4;
+  // Header "ntet [npe [nregion]]": each line holds index, npe nodes and
+  // nregion (0 or 1) region attributes.
+  const int ele_hline = ele.line();
+  const long long ntet = get_long(ele, tok[0], "the number of tetrahedra");
+  const long long npe = tok.size() > 1 ? get_long(ele, tok[1], "nodes per tetrahedron") : 4;
+  const long long nreg = tok.size() > 2 ? get_long(ele, tok[2], "the number of region attributes") : 0;
+  if (ntet < 0) ele.fail("the number of tetrahedra must not be negative, got " + std::to_string(ntet));
   if (npe != 4 && npe != 10) ele.fail("nodes per tetrahedron must be 4 or 10, got " + std::to_string(npe));
+  if (nreg != 0 && nreg != 1) ele.fail("the number of region attributes must be 0 or 1, got " + std::to_string(nreg));
   for (long long e = 0; e < ntet; ++e) {
     if (!data_line(ele, tok))
       ele.fail("unexpected end of file: " + std::to_string(e) + " of " + std::to_string(ntet) + " tetrahedra read");
-    if (static_cast<long long>(tok.size()) < 1 + npe)
-      ele.fail("expected 'index' and " + std::to_string(npe) + " node indices, got " + std::to_string(tok.size()) + " values");
+    if (static_cast<long long>(tok.size()) != 1 + npe + nreg)
+      ele.fail("expected " + std::to_string(1 + npe + nreg) + " values (index, " + std::to_string(npe) + " node indices, " +
+               std::to_string(nreg) + " region attributes, as the header on line " + std::to_string(ele_hline) +
+               " says), got " + std::to_string(tok.size()));
     long long id = get_long(ele, tok[0], "a tetrahedron index");
     long long file[10], ours[10];
     for (int a = 0; a < npe; ++a) file[a] = get_long(ele, tok[1 + a], "a node index");
@@ -116,6 +138,9 @@ Mesh read_tetgen(const std::string& path) {
       for (int a = 0; a < 4; ++a) ours[a] = file[a];
     raw.add_tet(ele, id, ours, static_cast<int>(npe));
   }
+  if (data_line(ele, tok))
+    ele.fail("the header on line " + std::to_string(ele_hline) + " says " + std::to_string(ntet) +
+             " tetrahedra, but more data follows");
   return finish(raw, ele.path(), "tetrahedra in the .ele file");
 }
 

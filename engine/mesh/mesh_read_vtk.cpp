@@ -79,6 +79,16 @@ struct Tokens {
   }
   long long need_long(const char* what) { return get_long(f, need(what), what); }
   void drop_line() { i = tok.size(); }
+  // The value after `i` of the `n` a header (line hline) announced: a keyword
+  // or the end of the file before them names the header and what was there.
+  std::string_view item(const char* what, const std::string& header, int hline, long long n, long long i_) {
+    std::string_view t;
+    double v;
+    if (!next(t) || (!parse_double(t, v) && std::isalpha(static_cast<unsigned char>(t[0]))))
+      f.fail(header + " on line " + std::to_string(hline) + " announces " + std::to_string(n) + " values, but the data ends after " +
+             std::to_string(i_) + " (expected " + what + ", got " + (t.empty() ? std::string("the end of the file") : quote(t)) + ")");
+    return t;
+  }
 };
 
 // Binary legacy .vtk: the keyword lines are text, each array's values
@@ -187,6 +197,9 @@ Mesh read_legacy_binary(TextFile& f, const std::string& path) {
           cells.line.push_back(cells_line);
         }
         if (a == 0) cells.start.assign(1, 0);
+        if (cells.start.back() != sz)
+          f.fail("CELLS says " + std::to_string(sz) + " CONNECTIVITY entries, but the last offset is " +
+                 std::to_string(cells.start.back()));
       } else {
         b.check(static_cast<uint64_t>(sz), 4, "CELLS");
         cells.start.push_back(0);
@@ -201,6 +214,9 @@ Mesh read_legacy_binary(TextFile& f, const std::string& path) {
           cells.start.push_back(static_cast<long long>(cells.conn.size()));
           cells.line.push_back(cells_line);
         }
+        if (used != sz)
+          f.fail("CELLS says the cell list holds " + std::to_string(sz) + " integers, but its " + std::to_string(a) +
+                 " cells hold " + std::to_string(used));
         b.done();
       }
       have_cells = true;
@@ -247,20 +263,27 @@ Mesh read_legacy(const std::string& path) {
   RawMesh raw;
   Cells cells;
   bool have_points = false, have_cells = false, have_types = false;
+  std::string last;  // the last counted section, for values past its count
   std::string_view kw;
   while (t.next(kw)) {
     const std::string key = upper(kw);
     if (key == "POINTS") {
-      long long n = t.need_long("the number of points");
+      const int hline = f.line();
+      const long long n = t.need_long("the number of points");
+      if (n < 0) f.fail("the number of points must not be negative");
       t.need("the point data type");
       for (long long p = 0; p < n; ++p) {
         double x[3];
-        for (int c = 0; c < 3; ++c) x[c] = get_coord(f, t.need("a point coordinate"), "a point coordinate");
+        for (int c = 0; c < 3; ++c)
+          x[c] = get_coord(f, t.item("a point coordinate", "POINTS " + std::to_string(n), hline, 3 * n, 3 * p + c),
+                           "a point coordinate");
         raw.add_node(f, p, x);
       }
       have_points = true;
+      last = "POINTS " + std::to_string(n) + " on line " + std::to_string(hline);
     } else if (key == "CELLS") {
       if (have_cells) f.fail("a second CELLS section; a legacy .vtk file has one");
+      const int hline = f.line();
       long long a = t.need_long("the number of cells");
       long long b = t.need_long("the size of the cell list");
       if (a < 0 || b < 0) f.fail("CELLS sizes must not be negative");
@@ -270,34 +293,50 @@ Mesh read_legacy(const std::string& path) {
       } else if (upper(next) == "OFFSETS") {  // VTK 5.1: a = ncell + 1 offsets, b connectivity entries
         t.need("the offsets data type");
         for (long long i = 0; i < a; ++i) {
-          cells.start.push_back(t.need_long("a cell offset"));
+          cells.start.push_back(get_long(f, t.item("a cell offset", "CELLS (OFFSETS)", hline, a, i), "a cell offset"));
           if (i > 0) cells.line.push_back(f.line());
         }
-        if (upper(t.need("CONNECTIVITY")) != "CONNECTIVITY") f.fail("expected CONNECTIVITY after OFFSETS");
+        if (upper(t.need("CONNECTIVITY")) != "CONNECTIVITY")
+          f.fail("CELLS on line " + std::to_string(hline) + " says " + std::to_string(a) +
+                 " OFFSETS, but more follow (expected CONNECTIVITY)");
         t.need("the connectivity data type");
-        for (long long i = 0; i < b; ++i) cells.conn.push_back(t.need_long("a node index"));
+        for (long long i = 0; i < b; ++i)
+          cells.conn.push_back(get_long(f, t.item("a node index", "CELLS (CONNECTIVITY)", hline, b, i), "a node index"));
         if (cells.start.empty() || cells.start[0] != 0) f.fail("OFFSETS must start with 0");
         for (size_t i = 1; i < cells.start.size(); ++i)
           if (cells.start[i] < cells.start[i - 1] || cells.start[i] > b)
             f.fail("OFFSETS must increase and stay within the " + std::to_string(b) + " CONNECTIVITY entries");
+        if (cells.start.back() != b)
+          f.fail("CELLS on line " + std::to_string(hline) + " says " + std::to_string(b) +
+                 " CONNECTIVITY entries, but the last offset is " + std::to_string(cells.start.back()));
       } else {  // classic: a cells, b integers "npts id id ..." in all
         cells.start.push_back(0);
         long long used = 0;
+        const std::string H = "CELLS " + std::to_string(a) + " " + std::to_string(b) + " (its cells)";
         for (long long c = 0; c < a; ++c) {
-          long long n = get_long(f, c == 0 ? next : t.need("the node count of a cell"), "the node count of a cell");
+          long long n = get_long(f, c == 0 ? next : t.item("the node count of a cell", H, hline, a, c), "the node count of a cell");
           if (n < 0 || n > b - used - 1) f.fail("cell " + std::to_string(c) + " overruns the CELLS size " + std::to_string(b));
           cells.line.push_back(f.line());
-          for (long long k = 0; k < n; ++k) cells.conn.push_back(t.need_long("a node index"));
+          for (long long k = 0; k < n; ++k)
+            cells.conn.push_back(get_long(f, t.item("a node index", "cell " + std::to_string(c) + "'s node count", f.line(), n, k), "a node index"));
           cells.start.push_back(static_cast<long long>(cells.conn.size()));
           used += 1 + n;
         }
+        if (used != b)
+          f.fail("CELLS on line " + std::to_string(hline) + " says the cell list holds " + std::to_string(b) +
+                 " integers, but its " + std::to_string(a) + " cells hold " + std::to_string(used));
       }
       have_cells = true;
+      last = "CELLS on line " + std::to_string(hline);
     } else if (key == "CELL_TYPES") {
       if (have_types) f.fail("a second CELL_TYPES section; a legacy .vtk file has one");
-      long long n = t.need_long("the number of cell types");
-      for (long long c = 0; c < n; ++c) cells.types.push_back(t.need_long("a cell type"));
+      const int hline = f.line();
+      const long long n = t.need_long("the number of cell types");
+      if (n < 0) f.fail("the number of cell types must not be negative");
+      for (long long c = 0; c < n; ++c)
+        cells.types.push_back(get_long(f, t.item("a cell type", "CELL_TYPES " + std::to_string(n), hline, n, c), "a cell type"));
       have_types = true;
+      last = "CELL_TYPES " + std::to_string(n) + " on line " + std::to_string(hline);
     } else if (key == "METADATA") {  // ends at a blank line
       t.drop_line();
       while (f.next(line) && !trim(line).empty()) {
@@ -305,6 +344,9 @@ Mesh read_legacy(const std::string& path) {
     } else if (key == "POINT_DATA" || key == "CELL_DATA" || key == "FIELD") {
       break;  // fields are not part of the mesh
     } else {
+      double v;
+      if (!last.empty() && parse_double(kw, v))
+        f.fail(last + " announces fewer values than follow (" + quote(kw) + " is one too many)");
       f.fail("unexpected keyword " + quote(kw) + "; expected POINTS, CELLS or CELL_TYPES");
     }
   }
@@ -388,7 +430,12 @@ std::vector<DataArray> arrays_in(const Xml& x, size_t from, size_t to) {
       a.offset = off;
     }
     std::string nc = attr(tag, "NumberOfComponents");
-    if (!nc.empty()) a.ncomp = std::atoi(nc.c_str());
+    if (!nc.empty()) {  // (atoi wrapped on overflow)
+      long long v = 0;
+      if (!parse_long(nc, v) || v < 1 || v > 1000)
+        x.fail(p, "DataArray '" + a.name + "' has NumberOfComponents=\"" + nc.substr(0, 40) + "\"; allowed: 1 to 1000");
+      a.ncomp = static_cast<int>(v);
+    }
     a.begin = gt + 1;
     if (tag.back() == '/') {
       a.end = a.begin;
@@ -532,6 +579,15 @@ Mesh read_xml(const std::string& path) {
   size_t pb, pe;
   if (!section(x, "Piece", pb, pe)) x.fail(b, "no <Piece> in the UnstructuredGrid");
   if (x.s.find("<Piece", pe) != std::string::npos) x.fail(pe, "more than one <Piece>; only single-piece .vtu files are supported");
+  // The Piece's counts, checked against the arrays below.
+  const std::string_view piece_tag = std::string_view(x.s).substr(pb, x.s.find('>', pb) - pb);
+  auto piece_count = [&](const char* name) {
+    long long n = -1;
+    if (!parse_long(attr(piece_tag, name), n) || n < 0)
+      x.fail(pb, std::string("<Piece> needs ") + name + "=\"n\" (n >= 0), got " + quote(attr(piece_tag, name)));
+    return n;
+  };
+  const long long npoint = piece_count("NumberOfPoints"), ncell = piece_count("NumberOfCells");
 
   RawMesh raw;
   size_t sb, se;
@@ -541,6 +597,9 @@ Mesh read_xml(const std::string& path) {
   if (parr[0].ncomp != 3) x.fail(parr[0].tag_pos, "Points DataArray must have NumberOfComponents=\"3\"");
   auto pts = numbers<double>(x, parr[0], bin);
   if (pts.size() % 3) x.fail(parr[0].tag_pos, "Points DataArray has " + std::to_string(pts.size()) + " values, not a multiple of 3");
+  if (static_cast<long long>(pts.size() / 3) != npoint)
+    x.fail(parr[0].tag_pos, "<Piece NumberOfPoints=\"" + std::to_string(npoint) + "\"> but the Points DataArray holds " +
+                                std::to_string(pts.size() / 3) + " points");
   for (size_t i = 0; i < pts.size(); ++i)
     if (!std::isfinite(pts[i])) x.fail(parr[0].tag_pos, "point " + std::to_string(i / 3) + " has a non-finite coordinate");
   raw.X = pts;
@@ -559,6 +618,13 @@ Mesh read_xml(const std::string& path) {
   c.conn = numbers<long long>(x, *conn, bin);
   auto off = numbers<long long>(x, *offs, bin);
   c.types = numbers<long long>(x, *types, bin);
+  for (const auto& [arr, n] : {std::pair<const DataArray*, size_t>{offs, off.size()}, {types, c.types.size()}})
+    if (static_cast<long long>(n) != ncell)
+      x.fail(arr->tag_pos, "<Piece NumberOfCells=\"" + std::to_string(ncell) + "\"> but the " + arr->name +
+                               " DataArray holds " + std::to_string(n) + " values");
+  if (!off.empty() && off.back() != static_cast<long long>(c.conn.size()))
+    x.fail(offs->tag_pos, "the last offset is " + std::to_string(off.back()) + ", but the connectivity DataArray holds " +
+                              std::to_string(c.conn.size()) + " values");
   c.start.push_back(0);
   for (size_t i = 0; i < off.size(); ++i) {
     if (off[i] < c.start.back() || off[i] > static_cast<long long>(c.conn.size()))

@@ -76,14 +76,21 @@ std::string quote(std::string_view s) {
   return "'" + std::string(s) + "'";
 }
 
+// Both reject out-of-range values (from_chars reports them) and "+-1".
 bool parse_long(std::string_view s, long long& v) {
-  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  if (!s.empty() && s[0] == '+') {
+    s.remove_prefix(1);
+    if (!s.empty() && s[0] == '-') return false;
+  }
   auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   return r.ec == std::errc() && r.ptr == s.data() + s.size();
 }
 
 bool parse_double(std::string_view s, double& v) {
-  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  if (!s.empty() && s[0] == '+') {
+    s.remove_prefix(1);
+    if (!s.empty() && s[0] == '-') return false;
+  }
   auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   return r.ec == std::errc() && r.ptr == s.data() + s.size();
 }
@@ -153,6 +160,8 @@ Mesh finish(const RawMesh& raw, const std::string& path, const std::string& kind
   }
   for (int& v : tet) v = newid[v];
   m.tet = std::move(tet);
+  m.elem_file_id = raw.id;
+  m.elem_line = raw.line;
   return m;
 }
 

@@ -86,10 +86,58 @@ double tet10_volume(const Mesh& m, int e) {
 
 std::string prefix(const Mesh& m) { return m.source.empty() ? std::string("mesh: ") : m.source + ": "; }
 
+// "FILE:LINE: " of element e when the reader recorded its line, else prefix().
+std::string element_prefix(const Mesh& m, int e) {
+  if (m.source.empty() || static_cast<size_t>(e) >= m.elem_line.size()) return prefix(m);
+  return m.source + ":" + std::to_string(m.elem_line[e]) + ": ";
+}
+
 std::string element_text(const Mesh& m, int e) {
   std::string s = "element " + std::to_string(e) + " (nodes";
   for (int a = 0; a < m.npe(); ++a) s += " " + std::to_string(m.tet[e * m.npe() + a]);
+  if (static_cast<size_t>(e) < m.elem_file_id.size()) s += "; id " + std::to_string(m.elem_file_id[e]) + " in the file";
   return s + ")";
+}
+
+// Where det J of a tet10 must be positive besides its 10 nodes: the 4-point
+// rule the stiffness is integrated with (engine/fem/element.cpp
+// cubature_tet4(); engine/mesh may not include engine/fem, so the points are
+// repeated here and a test compares them) and the 27 points tet10_volume()
+// integrates with. det J is a cubic: positive at the nodes alone does not keep
+// a curved element from folding inside.
+struct DetJPoint {
+  double L[4];
+  const char* kind;
+};
+const std::vector<DetJPoint>& tet10_check_points() {
+  static const std::vector<DetJPoint> pts = [] {
+    std::vector<DetJPoint> p;
+    for (int k = 0; k < 4; ++k) {  // corners
+      DetJPoint q{{0, 0, 0, 0}, "corner"};
+      q.L[k] = 1;
+      p.push_back(q);
+    }
+    for (const auto& ed : kTet10Edge) {  // mid-edge nodes
+      DetJPoint q{{0, 0, 0, 0}, "mid-edge node"};
+      q.L[ed[0]] = q.L[ed[1]] = 0.5;
+      p.push_back(q);
+    }
+    const double a = 0.5854101966249685, b = 0.1381966011250105;  // (5 + 3 sqrt 5) / 20, (5 - sqrt 5) / 20
+    for (int k = 0; k < 4; ++k) {
+      DetJPoint q{{b, b, b, b}, "stiffness quadrature point"};
+      q.L[k] = a;
+      p.push_back(q);
+    }
+    const double g[3] = {0.5 - 0.5 * std::sqrt(0.6), 0.5, 0.5 + 0.5 * std::sqrt(0.6)};
+    for (double u : g)
+      for (double v : g)
+        for (double w : g) {
+          const double xi = u, eta = v * (1 - u), zeta = w * (1 - u) * (1 - v);
+          p.push_back({{1 - xi - eta - zeta, xi, eta, zeta}, "volume quadrature point"});
+        }
+    return p;
+  }();
+  return pts;
 }
 
 std::string num(double v) {
@@ -145,6 +193,8 @@ Mesh lower_to_tet4(const Mesh& mesh) {
   Mesh r;
   r.order = 1;
   r.source = mesh.source;
+  r.elem_file_id = mesh.elem_file_id;  // same elements, same order
+  r.elem_line = mesh.elem_line;
   int n = 0;
   for (int v = 0; v < mesh.nnode(); ++v) {
     if (id[static_cast<size_t>(v)] < 0) continue;
@@ -163,6 +213,8 @@ Mesh raise_to_tet10(const Mesh& mesh) {
   Mesh r;
   r.order = 2;
   r.source = mesh.source;
+  r.elem_file_id = mesh.elem_file_id;  // same elements, same order
+  r.elem_line = mesh.elem_line;
   r.X = mesh.X;
   r.tet.resize(10 * static_cast<size_t>(ntet));
   std::unordered_map<std::uint64_t, int> mid;  // (lower, higher corner id) -> mid-edge node
@@ -249,27 +301,33 @@ void check_mesh(const Mesh& m) {
       l2 = std::max(l2, dot(d, d));
     }
     if (v <= 0)
-      throw Error(pre + element_text(m, e) + " has volume " + num(v) +
+      throw Error(element_prefix(m, e) + element_text(m, e) + " has volume " + num(v) +
                   " <= 0: inverted or degenerate; reorder its nodes or fix the mesh");
     if (v <= 1e-12 * l2 * std::sqrt(l2))
-      throw Error(pre + element_text(m, e) + " has volume " + num(v) + ", nearly zero for its longest edge " +
+      throw Error(element_prefix(m, e) + element_text(m, e) + " has volume " + num(v) + ", nearly zero for its longest edge " +
                   num(std::sqrt(l2)) + ": degenerate; fix the mesh");
     if (npe != 10) continue;
-    for (int p = 0; p < 10; ++p) {  // corners, then mid-edge nodes
-      double L[4] = {0, 0, 0, 0};
-      if (p < 4) {
-        L[p] = 1;
-      } else {
-        L[kTet10Edge[p - 4][0]] = L[kTet10Edge[p - 4][1]] = 0.5;
-      }
-      const double dj = tet10_detJ(m, e, L);
-      if (dj <= 0)
-        throw Error(pre + element_text(m, e) + " has Jacobian determinant " + num(dj) + " <= 0 at its node " +
-                    std::to_string(p) + (p < 4 ? " (corner)" : " (mid-edge)") +
-                    ": mid-edge nodes misplaced or in the wrong order (expected 4:(0,1) 5:(1,2) 6:(0,2) 7:(0,3) "
-                    "8:(1,3) 9:(2,3))");
+    const std::vector<DetJPoint>& pts = tet10_check_points();
+    for (size_t p = 0; p < pts.size(); ++p) {
+      const double dj = tet10_detJ(m, e, pts[p].L);
+      if (dj > 0) continue;
+      char where[128];
+      if (p < 10)
+        std::snprintf(where, sizeof where, "at its node %d (%s)", static_cast<int>(p), pts[p].kind);
+      else
+        std::snprintf(where, sizeof where, "at a %s (barycentric %.4g %.4g %.4g %.4g)", pts[p].kind, pts[p].L[0],
+                      pts[p].L[1], pts[p].L[2], pts[p].L[3]);
+      throw Error(element_prefix(m, e) + element_text(m, e) + " has Jacobian determinant " + num(dj) + " <= 0 " + where +
+                  ": the element folds (mid-edge nodes misplaced, too curved, or in the wrong order; expected "
+                  "4:(0,1) 5:(1,2) 6:(0,2) 7:(0,3) 8:(1,3) 9:(2,3))");
     }
   }
+}
+
+std::vector<std::array<double, 4>> tet10_check_points_barycentric() {
+  std::vector<std::array<double, 4>> out;
+  for (const DetJPoint& p : tet10_check_points()) out.push_back({p.L[0], p.L[1], p.L[2], p.L[3]});
+  return out;
 }
 
 }  // namespace incise

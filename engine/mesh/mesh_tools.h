@@ -1,6 +1,8 @@
 #pragma once
 // Mesh operations: structured beams, tet4 -> tet10, quality report and checks.
+#include <array>
 #include <string>
+#include <vector>
 
 #include "engine/mesh/mesh.h"
 
@@ -33,6 +35,14 @@ std::string format_quality(const MeshQuality& q);  // one human-readable block
 // or degenerate; reorder its nodes or fix the mesh"), an out-of-range node id,
 // or a non-finite coordinate. For tet10 also checks the Jacobian at the corners
 // and mid-edge nodes is positive.
+// For tet10 also det J > 0 at the stiffness and volume quadrature points
+// (a curved element can fold between its nodes). Errors start with
+// "FILE:LINE: " and name the file's element id when the reader recorded them.
 void check_mesh(const Mesh& mesh);
+
+// The barycentric points (L0..L3) where check_mesh() evaluates a tet10's
+// det J: its 4 corners, 6 mid-edge nodes, the 4-point stiffness rule
+// (cubature_tet4()), then the 27 volume points.
+std::vector<std::array<double, 4>> tet10_check_points_barycentric();
 
 }  // namespace incise

@@ -31,7 +31,7 @@ CC=clang-15 CXX=clang++-15 cmake -S fuzz -B "$out" -G Ninja -DCMAKE_BUILD_TYPE=R
 ninja -C "$out" -j "$(nproc)" >"$out/build.log" 2>&1 || { cat "$out/build.log" >&2; echo "fuzz.sh: build failed" >&2; exit 2; }
 echo "fuzz.sh: built in $((SECONDS - start)) s ($out)"
 
-targets=(fuzz_scene fuzz_mesh)
+targets=(fuzz_scene fuzz_mesh fuzz_cut_surface fuzz_csv)
 if [ -x "$out/fuzz_replay" ]; then
   targets+=(fuzz_replay)
 else
@@ -60,6 +60,23 @@ for f in assets/meshes/*.node; do
   [ -f "$ele" ] || continue
   { cat "$f"; echo "#--ele--"; cat "$ele"; } | seed "$(basename "${f%.node}").tetgen" fuzz_mesh t
 done
+# Cut surfaces (selector byte o/s, fuzz/fuzz_cut_surface.cpp): the repository's
+# .obj/.stl under 200 KB, and two small written here (the repository may hold none).
+for f in $(find assets tests -name '*.obj' -o -name '*.stl' 2>/dev/null); do
+  [ "$(stat -c %s "$f")" -lt 204800 ] || continue
+  case $f in *.obj) b=o ;; *) b=s ;; esac
+  seed "$(basename "$f")" fuzz_cut_surface "$b" <"$f"
+done
+printf 'v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 1\nf 1 2 3 4\nf -1 1/1 2//2\nf 2 3 5\n' | seed square.obj fuzz_cut_surface o
+printf 'solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n' |
+  seed tri.stl fuzz_cut_surface s
+# CSVs (selector byte p/t, fuzz/fuzz_csv.cpp): trajectories and probe tables.
+for f in $(find assets tests -name '*.csv' 2>/dev/null); do
+  [ "$(stat -c %s "$f")" -lt 204800 ] || continue
+  if head -c 200 "$f" | grep -q 'qw'; then b=t; else b=p; fi
+  seed "$(basename "$f")" fuzz_csv "$b" <"$f"
+done
+printf 'x,y,z\n0,0,0\n1.5, -2e-3, 7\n# comment\n' | seed probe.csv fuzz_csv p
 if [[ " ${targets[*]} " == *" fuzz_replay "* ]]; then
   replays=$out/seeds/replay
   rm -rf "$replays"
@@ -132,7 +149,7 @@ for t in "${targets[@]}"; do
   last=$(grep -E '^#[0-9]+.*cov: ' "$log" | tail -1 || true)
   cov=$(sed -n 's/.* cov: \([0-9]*\).*/\1/p' <<<"$last")
   ft=$(sed -n 's/.* ft: \([0-9]*\).*/\1/p' <<<"$last")
-  printf '%-12s %s: %s executions, %s exec/s, cov: %s, ft: %s, corpus: %s files (%s)\n' "$t" \
+  printf '%-16s %s: %s executions, %s exec/s, cov: %s, ft: %s, corpus: %s files (%s)\n' "$t" \
     "$([ "$rc" -eq 0 ] && echo ok || echo "FAILED (exit $rc)")" "$(stat_of number_of_executed_units)" \
     "$(stat_of average_exec_per_sec)" "${cov:-?}" "${ft:-?}" "$(find "$out/corpus/$t" -type f | wc -l)" "$log"
   if [ "$rc" -ne 0 ]; then

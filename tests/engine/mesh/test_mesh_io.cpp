@@ -13,6 +13,7 @@
 #include <zlib.h>
 
 #include <cstdint>
+#include <cstring>
 #include <cstdlib>
 
 #include "engine/util/error.h"
@@ -448,6 +449,152 @@ TEST_F(MeshIo, MixedTet4AndTet10IsAnError) {
                         "CELLS 2 16\n4 0 1 2 3\n10 0 1 2 3 4 5 6 7 8 9\nCELL_TYPES 2\n10\n24\n");
   std::string e = error_of([&] { read_mesh(p); });
   EXPECT_NE(e.find("mix.vtk:9: cell 1 has 10 nodes but earlier tetrahedra have 4"), std::string::npos) << e;
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+#define EXPECT_ERR(expr, part)                                             \
+  do {                                                                     \
+    const std::string e_ = error_of([&] { expr; });                        \
+    EXPECT_NE(e_.find(part), std::string::npos) << e_;                     \
+  } while (0)
+
+std::string replaced(std::string s, const std::string& from, const std::string& to) {
+  const size_t at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) s.replace(at, from.size(), to);
+  return s;
+}
+
+const std::string kTet22 =
+    "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n"
+    "$Elements\n1\n1 4 0 1 2 3 4\n$EndElements\n";
+
+// Issue 24: a header count that contradicts the data is an error naming the
+// header's line and value and what the data holds (it was ignored or dropped
+// elements silently).
+TEST_F(MeshIo, GmshHeaderCountsAreCheckedAgainstTheData) {
+  EXPECT_ERR(read_mesh(write("few.msh", replaced(kTet22, "$Nodes\n4\n", "$Nodes\n5\n"))),
+             "few.msh:10: $Nodes on line 5 says 5 nodes, but the data ends after 4 (at '$EndNodes')");
+  EXPECT_ERR(read_mesh(write("more.msh", replaced(kTet22, "$Nodes\n4\n", "$Nodes\n3\n"))),
+             "more.msh:9: $Nodes on line 5 says 3 nodes, but the data holds more (expected $EndNodes, got '4')");
+  EXPECT_ERR(read_mesh(write("el.msh", replaced(kTet22, "$Elements\n1\n1 4 0 1 2 3 4\n", "$Elements\n1\n1 4 0 1 2 3 4\n2 4 0 1 2 4 3\n"))),
+             "el.msh:14: $Elements on line 12 says 1 elements, but the data holds more");
+  EXPECT_ERR(read_mesh(write("ovf.msh", replaced(kTet22, "$Nodes\n4\n", "$Nodes\n99999999999999999999\n"))),
+             "ovf.msh:5: expected the number of nodes (an integer), got '99999999999999999999'");
+  EXPECT_ERR(read_mesh(write("pm.msh", replaced(kTet22, "$Nodes\n4\n", "$Nodes\n+-4\n"))),
+             "pm.msh:5: expected the number of nodes (an integer), got '+-4'");
+  EXPECT_ERR(read_mesh(write("neg.msh", replaced(kTet22, "$Nodes\n4\n", "$Nodes\n-4\n"))),
+             "neg.msh:5: the number of nodes must not be negative, got -4");
+  // An absurd count is refused when the data runs out, with nothing reserved for it.
+  EXPECT_ERR(read_mesh(write("huge.msh", replaced(kTet22, "$Nodes\n4\n", "$Nodes\n1000000000000000\n"))),
+             "$Nodes on line 5 says 1000000000000000 nodes, but the data ends after 4");
+
+  const std::string v41 = slurp(asset("box_tet4_v41.msh"));
+  EXPECT_ERR(read_mesh(write("n41.msh", replaced(v41, "$Nodes\n2 8 10 59\n", "$Nodes\n2 9 10 59\n"))),
+             "n41.msh:28: $Nodes on line 10 says numNodes = 9, but its 2 entity blocks hold 8");
+  EXPECT_ERR(read_mesh(write("t41.msh", replaced(v41, "$Nodes\n2 8 10 59\n", "$Nodes\n2 8 10 50\n"))),
+             "t41.msh:22: node tag 52 is outside [10, 50], the range $Nodes on line 10 gives");
+  EXPECT_ERR(read_mesh(write("b41.msh", replaced(v41, "$Nodes\n2 8 10 59\n", "$Nodes\n3 8 10 59\n"))),
+             "b41.msh:29: $Nodes (numEntityBlocks) on line 10 says 3 entity blocks, but the data ends after 2 (at '$EndNodes')");
+  EXPECT_ERR(read_mesh(write("p41.msh", replaced(v41, "$Nodes\n2 8 10 59\n", "$Nodes\n2 7 10 59\n"))),
+             "p41.msh:18: this block's 5 nodes bring the count past numNodes = 7 on line 10");
+  // A block count one too high swallowed the next block's header as a skipped triangle.
+  EXPECT_ERR(read_mesh(write("k41.msh", replaced(v41, "2 7 1 7\n2 1 2 1\n", "2 7 1 7\n2 1 2 2\n"))),
+             "expected entity block 2's header 'entityDim entityTag elementType numElementsInBlock' (4 values), got 5; "
+             "does the previous block's count match its data?");
+  const size_t el = v41.find("$Elements\n");
+  const std::string el_head = v41.substr(el + 10, v41.find('\n', el + 10) - el - 10);  // "nblocks n min max"
+  std::istringstream hs(el_head);
+  long long nb, ne, lo, hi;
+  hs >> nb >> ne >> lo >> hi;
+  EXPECT_ERR(read_mesh(write("e41.msh", replaced(v41, "$Elements\n" + el_head + "\n",
+                                                "$Elements\n" + std::to_string(nb) + " " + std::to_string(ne + 1) + " " +
+                                                    std::to_string(lo) + " " + std::to_string(hi) + "\n"))),
+             "says numElements = " + std::to_string(ne + 1) + ", but its " + std::to_string(nb) + " entity blocks hold " +
+                 std::to_string(ne));
+  EXPECT_ERR(read_mesh(write("r41.msh", replaced(v41, "$Elements\n" + el_head + "\n",
+                                                "$Elements\n" + std::to_string(nb) + " " + std::to_string(ne) + " " +
+                                                    std::to_string(lo + 1) + " " + std::to_string(hi) + "\n"))),
+             "element tag " + std::to_string(lo) + " is outside [" + std::to_string(lo + 1));
+
+  // Binary 4.1: numNodes of the header (after "$Nodes\n" and numEntityBlocks).
+  std::string b41 = slurp(asset("box_tet10_v41_bin.msh"));
+  const size_t at = b41.find("$Nodes\n") + 7 + 8;
+  uint64_t nn;
+  std::memcpy(&nn, b41.data() + at, 8);
+  const uint64_t more = nn + 1;
+  std::memcpy(&b41[at], &more, 8);
+  EXPECT_ERR(read_mesh(write("nb41.msh", b41)), "binary $Nodes: the header says numNodes = " + std::to_string(nn + 1) +
+                                                    ", but its");
+}
+
+TEST_F(MeshIo, LegacyVtkHeaderCountsAreCheckedAgainstTheData) {
+  const std::string t =
+      "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+      "CELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n";
+  ASSERT_EQ(read_mesh(write("ok.vtk", t)).ntet(), 1);
+  EXPECT_ERR(read_mesh(write("p5.vtk", replaced(t, "POINTS 4", "POINTS 5"))),
+             "p5.vtk:10: POINTS 5 on line 5 announces 15 values, but the data ends after 12 (expected a point coordinate, got 'CELLS')");
+  EXPECT_ERR(read_mesh(write("p3.vtk", replaced(t, "POINTS 4", "POINTS 3"))),
+             "p3.vtk:9: POINTS 3 on line 5 announces fewer values than follow ('0' is one too many)");
+  EXPECT_ERR(read_mesh(write("c6.vtk", replaced(t, "CELLS 1 5", "CELLS 1 6"))),
+             "c6.vtk:11: CELLS on line 10 says the cell list holds 6 integers, but its 1 cells hold 5");
+  EXPECT_ERR(read_mesh(write("c2.vtk", replaced(t, "CELLS 1 5", "CELLS 2 10"))),
+             "c2.vtk:12: CELLS 2 10 (its cells) on line 10 announces 2 values, but the data ends after 1 (expected the node count of a cell, got 'CELL_TYPES')");
+  EXPECT_ERR(read_mesh(write("t2.vtk", replaced(t, "CELL_TYPES 1", "CELL_TYPES 2"))),
+             "t2.vtk:13: CELL_TYPES 2 on line 12 announces 2 values, but the data ends after 1 (expected a cell type, got the end of the file)");
+  EXPECT_ERR(read_mesh(write("huge.vtk", replaced(t, "POINTS 4", "POINTS 1000000000000000"))),
+             "POINTS 1000000000000000 on line 5 announces 3000000000000000 values, but the data ends after 12");
+  // VTK 5.1 layout: the last offset must be the connectivity's size.
+  const std::string v51 = slurp(asset("box_tet4_v51.vtk"));
+  const size_t c = v51.find("CELLS ");
+  std::istringstream cs(v51.substr(c + 6, 40));
+  long long a, b;
+  cs >> a >> b;
+  const std::string head = "CELLS " + std::to_string(a) + " " + std::to_string(b);
+  EXPECT_ERR(read_mesh(write("v51.vtk", replaced(v51, head, "CELLS " + std::to_string(a) + " " + std::to_string(b + 1)))),
+             "CONNECTIVITY");
+  // Binary: CELLS size against the offsets (5.1 layout in this sample).
+  EXPECT_ERR(read_mesh(write("bin.vtk", replaced(slurp(asset("box_tet10_bin.vtk")), "CELLS 7 60", "CELLS 7 61"))),
+             "CELLS says 61 CONNECTIVITY entries, but the last offset is 60");
+}
+
+TEST_F(MeshIo, VtuPieceCountsAreCheckedAgainstTheArrays) {
+  const std::string v = slurp(asset("box_tet4.vtu"));
+  ASSERT_EQ(read_mesh(write("ok.vtu", v)).ntet(), 6);
+  EXPECT_ERR(read_mesh(write("p.vtu", replaced(v, "NumberOfPoints=\"8\"", "NumberOfPoints=\"9\""))),
+             "p.vtu:7: <Piece NumberOfPoints=\"9\"> but the Points DataArray holds 8 points");
+  EXPECT_ERR(read_mesh(write("c.vtu", replaced(v, "NumberOfCells=\"7\"", "NumberOfCells=\"6\""))),
+             "<Piece NumberOfCells=\"6\"> but the offsets DataArray holds 7 values");
+  EXPECT_ERR(read_mesh(write("nc.vtu", replaced(v, "NumberOfComponents=\"3\"", "NumberOfComponents=\"4294967299\""))),
+             "nc.vtu:7: DataArray 'Points' has NumberOfComponents=\"4294967299\"; allowed: 1 to 1000");
+  EXPECT_ERR(read_mesh(write("n.vtu", replaced(v, "NumberOfCells=\"7\"", ""))),
+             "n.vtu:4: <Piece> needs NumberOfCells=\"n\" (n >= 0), got ''");
+}
+
+TEST_F(MeshIo, TetgenHeaderColumnsAndCountsAreChecked) {
+  const std::string node = "4 3 1 1\n1 0 0 0 0.5 0\n2 1 0 0 0.5 0\n3 0 1 0 0.5 0\n4 0 0 1 0.5 0\n";
+  const std::string ele = "1 4 1\n1 1 2 3 4 7\n";
+  write("a.ele", ele);
+  ASSERT_EQ(read_mesh(write("a.node", node)).ntet(), 1);
+  write("b.ele", ele);
+  EXPECT_ERR(read_mesh(write("b.node", replaced(node, "4 3 1 1", "4 3 0 1"))),
+             "b.node:2: expected 5 values (index x y z, 0 attributes, 1 markers, as the header on line 1 says), got 6");
+  write("c.ele", ele);
+  EXPECT_ERR(read_mesh(write("c.node", replaced(node, "4 3 1 1", "3 3 1 1"))),
+             "c.node:5: the header on line 1 says 3 points, but more data follows");
+  write("d.node", node);
+  EXPECT_ERR(read_mesh(write("d.ele", "1 4 0\n1 1 2 3 4 7\n")),
+             "d.ele:2: expected 5 values (index, 4 node indices, 0 region attributes, as the header on line 1 says), got 6");
+  write("e.node", node);
+  EXPECT_ERR(read_mesh(write("e.ele", ele + "2 1 2 4 3 7\n")), "e.ele:3: the header on line 1 says 1 tetrahedra, but more data follows");
+  write("f.node", node);
+  EXPECT_ERR(read_mesh(write("f.ele", "2 4 1\n1 1 2 3 4 7\n")), "unexpected end of file: 1 of 2 tetrahedra read");
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 // Beams, tet4 -> tet10, mesh quality and mesh checks.
 #include <gtest/gtest.h>
+#include <filesystem>
+#include <fstream>
 
 #include <algorithm>
 #include <array>
@@ -12,6 +14,8 @@
 
 #include "engine/util/error.h"
 #include "engine/mesh/mesh_tools.h"
+#include "engine/fem/element.h"
+#include "engine/mesh/mesh_io.h"
 
 namespace incise {
 namespace {
@@ -221,6 +225,78 @@ TEST(MeshTools, MakeBeamRejectsBadArguments) {
   EXPECT_NE(error_of([] { make_beam(1, 1, NAN, 1, 1, 1, 1); }).find("lengths must be positive"), std::string::npos);
   EXPECT_NE(error_of([] { make_beam(1, 1, 1, 1, 0, 1, 1); }).find("cell counts"), std::string::npos);
   EXPECT_NE(error_of([] { make_beam(1, 1, 1, 1, 1, 1, 3); }).find("order must be 1 or 2"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace incise
+
+
+namespace incise {
+namespace {
+
+// The reference tet as a tet10 with its mid-edge nodes at `mid` (6 points).
+Mesh reference_tet10(const std::array<std::array<double, 3>, 6>& mid) {
+  Mesh m;
+  m.order = 2;
+  m.X = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  for (const auto& p : mid) m.X.insert(m.X.end(), p.begin(), p.end());
+  for (int a = 0; a < 10; ++a) m.tet.push_back(a);
+  return m;
+}
+
+const std::array<std::array<double, 3>, 6> kStraightMids = {
+    {{0.5, 0, 0}, {0.5, 0.5, 0}, {0, 0.5, 0}, {0, 0, 0.5}, {0.5, 0, 0.5}, {0, 0.5, 0.5}}};
+
+// Issue 24: a tet10 that folds between its nodes passed (det J was checked
+// at the corners and mid-edge nodes only).
+TEST(MeshTools, CheckMeshRefusesATet10FoldedBetweenItsNodes) {
+  // det J > 0 at all 10 nodes (min 0.162) but -0.162 at a stiffness point.
+  Mesh fold = reference_tet10({{{0.2, -0.08, 0.22}, {0.76, 0.76, 0.25}, {-0.21, 0.23, -0.34},
+                                {0.15, -0.09, 0.19}, {0.71, -0.08, 0.65}, {-0.05, 0.82, 0.5}}});
+  fold.source = "fold.msh";
+  const std::string e = error_of([&] { check_mesh(fold); });
+  EXPECT_EQ(e.rfind("fold.msh: element 0 (nodes 0 1 2 3 4 5 6 7 8 9) has Jacobian determinant -0.162 <= 0 at a "
+                    "stiffness quadrature point (barycentric 0.5854 0.1382 0.1382 0.1382): the element folds",
+                    0),
+            0u)
+      << e;
+  // Curved but valid: one mid-edge node bulging outward.
+  Mesh curved = reference_tet10(kStraightMids);
+  curved.X[3 * 4 + 1] = -0.2;  // node 4 of edge (0,1) at (0.5, -0.2, 0)
+  EXPECT_NO_THROW(check_mesh(curved));
+  EXPECT_GT(mesh_quality(curved).min_volume, 1.0 / 6);
+}
+
+// A mid-edge node pushed past the opposite face, read from a file: the error
+// names the file, the element's line and id, the point and det J.
+TEST(MeshTools, CheckMeshNamesTheFileLineAndIdOfAFoldedTet10) {
+  const std::string p = (std::filesystem::temp_directory_path() / "incise_fold_tet10.msh").string();
+  std::ofstream(p) << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n10\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"
+                      "5 0.5 0.6 0.6\n6 0.5 0.5 0\n7 0 0.5 0\n8 0 0 0.5\n9 0 0.5 0.5\n10 0.5 0 0.5\n$EndNodes\n"
+                      "$Elements\n1\n77 11 2 0 1 1 2 3 4 5 6 7 8 9 10\n$EndElements\n";
+  const Mesh m = read_mesh(p);
+  std::filesystem::remove(p);
+  const std::string e = error_of([&] { check_mesh(m); });
+  EXPECT_EQ(e.rfind(p + ":19: element 0 (nodes 0 1 2 3 4 5 6 7 9 8; id 77 in the file) has Jacobian determinant -3.8 <= 0 "
+                    "at its node 1 (corner)",
+                    0),
+            0u)
+      << e;
+}
+
+// The stiffness points check_mesh() uses are the engine's 4-point rule.
+TEST(MeshTools, Tet10CheckPointsIncludeTheStiffnessRule) {
+  const std::vector<std::array<double, 4>> pts = tet10_check_points_barycentric();
+  ASSERT_EQ(pts.size(), 4u + 6u + 4u + 27u);
+  const Cubature& c = cubature_tet4();
+  ASSERT_EQ(c.npoint(), 4);
+  for (int q = 0; q < 4; ++q) {
+    bool found = false;
+    for (int k = 10; k < 14; ++k)
+      found = found || (std::abs(pts[k][1] - c.rst[3 * q]) < 1e-15 && std::abs(pts[k][2] - c.rst[3 * q + 1]) < 1e-15 &&
+                        std::abs(pts[k][3] - c.rst[3 * q + 2]) < 1e-15);
+    EXPECT_TRUE(found) << "cubature_tet4 point " << q;
+  }
 }
 
 }  // namespace

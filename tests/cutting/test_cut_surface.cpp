@@ -1,0 +1,168 @@
+// Cut-surface validation (issue 24): OBJ/STL readers, polygon checks, scaled
+// normals, and the warning for a cut that cuts nothing.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "cutting/cut_apply.h"
+#include "cutting/cut_surface.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/util/error.h"
+#include "engine/dynamics/step.h"
+#include "test_util.h"
+
+namespace incise {
+namespace {
+
+std::string temp_file(const std::string& name, const std::string& text) {
+  const std::string p = (std::filesystem::temp_directory_path() / ("incise_cs_" + name)).string();
+  std::ofstream(p, std::ios::binary) << text;
+  return p;
+}
+
+// The message of the Error read_triangle_surface throws ("" if none).
+std::string read_error(const std::string& name, const std::string& text) {
+  const std::string p = temp_file(name, text);
+  try {
+    read_triangle_surface(p);
+  } catch (const Error& e) {
+    std::filesystem::remove(p);
+    return e.what();
+  }
+  std::filesystem::remove(p);
+  return "";
+}
+
+std::string polygon_error(std::vector<Vec3> pts) {
+  CutSpec c;
+  c.type = CutSpec::Type::Polygon;
+  c.json_path = "cuts[0]";
+  c.points = std::move(pts);
+  try {
+    make_cut_surface(c, 0.0);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+#define EXPECT_HAS(msg, part) EXPECT_NE(std::string(msg).find(part), std::string::npos) << (msg)
+
+TEST(CutSurface, ObjFaceIndicesOverflowAndZeroAreRefused) {
+  const std::string v = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  EXPECT_HAS(read_error("ovf.obj", v + "f 1 2 4294967298\n"), "incise_cs_ovf.obj:4: face references vertex 4294967298, but only 3 are defined");
+  EXPECT_HAS(read_error("ovf2.obj", v + "f 1 2 99999999999999999999999\n"),
+             "incise_cs_ovf2.obj:4: face vertex 99999999999999999999999 is not an integer index in range");
+  EXPECT_HAS(read_error("zero.obj", v + "f 0 1 2\n"), "face references vertex 0, but only 3 are defined (indices are 1..3, or -1..-3 counting back)");
+  EXPECT_HAS(read_error("junk.obj", v + "f 1 2 x3\n"), "face vertex x3 is not an integer index in range");
+  EXPECT_HAS(read_error("neg.obj", v + "f -1 -2 -4\n"), "face references vertex -4");
+  EXPECT_EQ(read_error("rel.obj", v + "f -3/1/1 -2//2 -1\n"), "");  // relative indices and v/vt/vn forms
+}
+
+TEST(CutSurface, ObjFaceArityIsBounded) {
+  std::string v, f = "f";
+  for (int k = 0; k < 17; ++k) {
+    const double a = 2 * 3.141592653589793 * k / 17;
+    v += "v " + std::to_string(std::cos(a)) + " " + std::to_string(std::sin(a)) + " 0\n";
+    f += " " + std::to_string(k + 1);
+  }
+  EXPECT_HAS(read_error("big.obj", v + f + "\n"), ":18: face lists more than 16 vertices; allowed: 3 to 16 (triangulate larger polygons)");
+  // A face listing millions of indices stops at the 17th.
+  std::string huge = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf";
+  for (int k = 0; k < 1000000; ++k) huge += " 1";
+  EXPECT_HAS(read_error("huge.obj", huge + "\n"), "face lists more than 16 vertices");
+  EXPECT_HAS(read_error("two.obj", "v 0 0 0\nv 1 0 0\nf 1 2\n"), ":3: face needs at least 3 vertices, got 2");
+  // Quads are fine when planar and convex; a bow-tie or a bent quad is not.
+  const std::string sq = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+  const std::string p = temp_file("quad.obj", sq + "f 1 2 3 4\n");
+  EXPECT_EQ(read_triangle_surface(p).size(), 2u);
+  std::filesystem::remove(p);
+  EXPECT_HAS(read_error("bow.obj", sq + "f 1 3 2 4\n"), ":5: face: polygon has zero area");  // its halves cancel
+  EXPECT_HAS(read_error("arrow.obj", "v 0 0 0\nv 2 1 0\nv 0 2 0\nv 1 1 0\nf 1 2 3 4\n"),
+             ":5: face: polygon must be convex; the turn at its vertex 4 goes the other way");
+  EXPECT_HAS(read_error("bent.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0.5\nv 0 1 0\nf 1 2 3 4\n"), "polygon is not planar");
+}
+
+TEST(CutSurface, DegenerateTrianglesAreRefused) {
+  EXPECT_HAS(read_error("col.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n"),
+             ":4: triangle has zero area (its corners are collinear or repeated); remove it");
+  EXPECT_HAS(read_error("rep.obj", "v 0 0 0\nv 1 0 0\nf 1 2 2\n"), "triangle has zero area");
+  EXPECT_HAS(read_error("col.stl", "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 1 1\nvertex 2 2 2\n"
+                                   "endloop\nendfacet\nendsolid s\n"),
+             "incise_cs_col.stl:4: triangle has zero area");
+}
+
+TEST(CutSurface, StlFacetsHaveExactlyThreeVertices) {
+  const std::string head = "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n";
+  EXPECT_HAS(read_error("four.stl", head + "vertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\n"),
+             ":7: a facet lists more than 3 vertices; ASCII STL facets are triangles");
+  EXPECT_HAS(read_error("two.stl", head + "endloop\nendfacet\n"), ":6: a facet ends after 2 vertices");
+  EXPECT_HAS(read_error("cut.stl", head), ":4: the file ends inside a facet (2 of 3 vertices, no endloop)");
+}
+
+TEST(CutSurface, TinyAndHugeTrianglesGetUnitNormals) {
+  for (double s : {4e-323, 1e-310, 1e-200, 1e-30, 1.0, 1e30, 1e200}) {  // (the first two subnormal)
+    char text[256];
+    std::snprintf(text, sizeof text, "v 0 0 0\nv %.17g 0 0\nv 0 %.17g 0\nf 1 2 3\n", s, s);
+    const std::string p = temp_file("scale.obj", text);
+    const std::vector<Facet> f = read_triangle_surface(p);
+    std::filesystem::remove(p);
+    ASSERT_EQ(f.size(), 1u) << s;
+    EXPECT_DOUBLE_EQ(f[0].n[2], 1.0) << s;
+    EXPECT_EQ(f[0].n[0], 0.0) << s;
+  }
+  // Far from the origin: the corners' differences would overflow.
+  const std::string p = temp_file("far.obj", "v -1e308 -1e308 0\nv 1e308 -1e308 0\nv -1e308 1e308 0\nf 1 2 3\n");
+  const std::vector<Facet> f = read_triangle_surface(p);
+  std::filesystem::remove(p);
+  EXPECT_DOUBLE_EQ(f[0].n[2], 1.0);
+}
+
+TEST(CutSurface, PolygonsMustBeSimpleConvexPlanarWithArea) {
+  // A pentagram turns the same way at every point but crosses itself.
+  std::vector<Vec3> star;
+  for (int k = 0; k < 5; ++k) {
+    const double a = 2 * 3.141592653589793 * (2 * k) / 5;
+    star.push_back({std::cos(a), std::sin(a), 0.5});
+  }
+  EXPECT_HAS(polygon_error(star), "cuts[0].points: polygon is not simple: its edges cross (it winds 2 times around its centre)");
+  EXPECT_HAS(polygon_error({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}), "cuts[0].points: polygon has zero area (its points are collinear)");
+  EXPECT_HAS(polygon_error({{1, 1, 1}, {1, 1, 1}, {1, 1, 1}}), "polygon has zero area (all its points coincide)");
+  EXPECT_HAS(polygon_error({{0, 0, 0}, {1, 0, 0}, {1, 0, 0}, {0, 1, 0}}),
+             "cuts[0].points: polygon repeats a point: points[1] and the next one coincide");
+  EXPECT_HAS(polygon_error({{0, 0, 0}, {1, 0, 0}, {1, 1, 0.5}, {0, 1, 0}}), "cuts[0].points[0]: polygon is not planar");
+  // Tiny and huge squares: valid, with a unit normal (no underflow, no NaN).
+  for (double s : {1e-315, 1e-200, 1e-150, 1e150, 1e300}) {
+    CutSpec c;
+    c.type = CutSpec::Type::Polygon;
+    c.json_path = "cuts[0]";
+    c.points = {{0, 0, 0}, {s, 0, 0}, {s, s, 0}, {0, s, 0}};
+    const auto surf = make_cut_surface(c, 0.0);
+    ASSERT_TRUE(surf) << s;
+    ASSERT_EQ(surf->facets().size(), 4u) << s;
+    EXPECT_DOUBLE_EQ(surf->facets()[0].n[2], 1.0) << s;
+  }
+}
+
+TEST(CutSurface, ACutThatCutsNothingIsReported) {
+  Scene s = test::block_scene(1);
+  s.path = "scene.json";
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  s.cuts = {test::plane_cut({2.3, 0, 0}, {1, 0, 0}), test::plane_cut({9, 0, 0}, {1, 0, 0}, "cuts[1]")};
+  CutSpec poly;  // in the plane x = 2.5 but beside the body (y in [3, 4])
+  poly.type = CutSpec::Type::Polygon;
+  poly.json_path = "cuts[2]";
+  poly.points = {{2.5, 3, 0}, {2.5, 4, 0}, {2.5, 4, 1}, {2.5, 3, 1}};
+  s.cuts.push_back(poly);
+  auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
+  const std::vector<std::string> w = cuts_that_cut_nothing(*sim);
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_EQ(w[0], "scene.json: cuts[1] does not cross the body: it cuts nothing");
+  EXPECT_EQ(w[1], "scene.json: cuts[2] does not cross the body: it cuts nothing");
+}
+
+}  // namespace
+}  // namespace incise
