@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 
 namespace incise::meshio {
 
@@ -88,7 +89,9 @@ std::string read_vtk_block(std::string_view in, size_t& pos, const VtkBlockForma
   need((3 + nblocks) * hs, "the compressed block header");
   const uint64_t total = nblocks == 0 ? 0 : (nblocks - 1) * bsize + (last == 0 ? bsize : last);
   if (nblocks > 0 && (bsize == 0 || total / nblocks > bsize)) throw Error(context + ": inconsistent compressed block sizes");
-  if (total > (uint64_t{1} << 36)) throw Error(context + ": a block of " + std::to_string(total) + " bytes is beyond the 64 GiB limit");
+  if (total > kMaxMeshBytes)
+    throw Error(context + ": a block of " + std::to_string(total) + " bytes is beyond the limit of " +
+                std::to_string(kMaxMeshBytes >> 30) + " GiB for mesh data");
   std::vector<uint64_t> csize(nblocks);
   uint64_t compressed = 0;
   for (uint64_t b = 0; b < nblocks; ++b) {
@@ -102,11 +105,18 @@ std::string read_vtk_block(std::string_view in, size_t& pos, const VtkBlockForma
     throw Error(context + ": the header claims " + std::to_string(total) + " bytes from " + std::to_string(compressed) +
                 " compressed, more than zlib can expand");
   pos += (3 + nblocks) * hs;
-  std::string out(total, '\0');
+  // Grown block by block, each checked against its own compressed size, so
+  // memory follows the data actually there, not what the header claims.
+  std::string out;
   size_t at = 0;
   for (uint64_t b = 0; b < nblocks; ++b) {
     need(csize[b], "a compressed block");
-    uLongf len = static_cast<uLongf>(b + 1 == nblocks && last != 0 ? last : bsize);
+    const uint64_t want = b + 1 == nblocks && last != 0 ? last : bsize;
+    if (want > 1100 * csize[b] + 1024)
+      throw Error(context + ": zlib block " + std::to_string(b) + " claims " + std::to_string(want) + " bytes from " +
+                  std::to_string(csize[b]) + " compressed, more than zlib can expand");
+    out.resize(at + want);
+    uLongf len = static_cast<uLongf>(want);
     const int rc = uncompress(reinterpret_cast<Bytef*>(&out[at]), &len, reinterpret_cast<const Bytef*>(in.data() + pos),
                               static_cast<uLong>(csize[b]));
     if (rc != Z_OK || len != (b + 1 == nblocks && last != 0 ? last : bsize))
