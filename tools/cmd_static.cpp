@@ -8,6 +8,7 @@
 
 #include "cutting/cut_apply.h"
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 #include "engine/output/probe.h"
 #include "engine/output/result_grid.h"
 #include "engine/runtime/simulation.h"
@@ -72,11 +73,7 @@ void run_static(const StaticOptions& o) {
     if (o.out.empty()) {
       std::printf("%s", os.str().c_str());
     } else {
-      const std::string tmp = o.out + ".tmp";
-      std::ofstream f(tmp);
-      f << os.str();
-      f.close();
-      if (!f || std::rename(tmp.c_str(), o.out.c_str()) != 0) throw Error(o.out + ": cannot write the probe result");
+      write_file_atomic(o.out, os.str());
       std::printf("wrote %s (%zu points)\n", o.out.c_str(), pts.size());
     }
   }

@@ -17,6 +17,8 @@
 #include "engine/runtime/simulation.h"
 #include "engine/runtime/timing_stats.h"
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
+#include "engine/util/json_depth.h"
 #include "tools/commands.h"
 #include "tools/frame_list.h"
 #include "tools/frame_loop.h"
@@ -40,35 +42,20 @@ struct StudyOptions {
 
 constexpr size_t kMaxSamples = 2000;  // body samples per field (the base mesh's corner nodes, strided)
 
+// The plan and the point results: regular files, nested at most
+// kMaxJsonDepth levels (nlohmann's dump and comparison recurse per level).
 nlohmann::json read_json(const fs::path& p) {
-  std::ifstream is(p);
-  if (!is) throw Error(p.string() + ": cannot open");
+  const std::string text = read_input_file(p.string(), kMaxTableBytes, "study file");
+  check_json_depth(text, p.string());
   try {
-    return nlohmann::json::parse(is);
+    return nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     throw Error(p.string() + ": not a study file (" + e.what() + ")");
   }
 }
 
 // Written whole or not at all: a killed point leaves no result to resume from.
-void write_atomically(const fs::path& p, const std::string& text) {
-  const fs::path tmp = p.string() + ".tmp";
-  {
-    std::ofstream os(tmp);
-    os << text;
-    if (!os.flush()) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw Error(p.string() + ": cannot write");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, p, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw Error(p.string() + ": cannot write (" + ec.message() + ")");
-  }
-}
+void write_atomically(const fs::path& p, const std::string& text) { write_file_atomic(p.string(), text); }
 
 fs::path point_file(const fs::path& dir, int k) { return dir / "points" / ("point_" + std::to_string(k) + ".json"); }
 

@@ -16,6 +16,7 @@
 #include "engine/scene/scene_patch.h"
 #include "engine/util/error.h"
 #include "engine/util/file_io.h"
+#include "engine/util/json_depth.h"
 
 namespace incise {
 namespace {
@@ -846,6 +847,7 @@ std::string strip_id(const std::string& what) {
 
 // Parses text, rejecting duplicate keys (nlohmann would keep the last one silently).
 json parse_text(const std::string& text, const std::string& path) {
+  check_json_depth(text, path);  // before anything recurses over the document
   std::vector<std::set<std::string>> open;  // keys seen in each enclosing object
   auto callback = [&](int, json::parse_event_t ev, json& parsed) -> bool {
     switch (ev) {
