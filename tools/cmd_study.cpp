@@ -20,6 +20,7 @@
 #include "engine/util/file_io.h"
 #include "engine/util/json_depth.h"
 #include "tools/commands.h"
+#include "tools/option_checks.h"
 #include "tools/frame_list.h"
 #include "tools/frame_loop.h"
 #include "tools/probe_points.h"
@@ -317,7 +318,7 @@ void add_study_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", opts->out, "Study folder: study.json (the plan), points/, logs/, study.csv, study.md, study.png (default study)");
   cmd->add_option("--point", opts->point, "Run only point K of the plan in --out (GNU parallel, Slurm arrays: docs/study.md)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(integer_in(0, 1000000000));
   cmd->add_flag("--list", opts->list, "Print the command of each point not done yet, one per line, and stop");
   cmd->add_option("--collect", opts->collect, "Gather the point results in DIR into the table and the plot");
   add_set_option(*cmd, opts->patches);

@@ -538,7 +538,11 @@ void parse_run(const Parser& p, const json& v, Scene& s) {
   const std::string at = "run";
   p.object(v, at);
   p.allowed_keys(v, at, {"frames"});
-  if (auto it = v.find("frames"); it != v.end()) s.frames = p.at_least_one(*it, at + ".frames");
+  if (auto it = v.find("frames"); it != v.end()) {
+    s.frames = p.at_least_one(*it, at + ".frames");
+    if (s.frames > kMaxFrames)
+      p.fail(at + ".frames", " must be at most " + std::to_string(kMaxFrames) + " (9.3 h at 30 Hz), got " + show(*it));
+  }
 }
 
 void parse_output(const Parser& p, const json& v, Scene& s) {

@@ -2,14 +2,17 @@
 // JSON, absurd or non-finite options, outputs that cannot be written or come
 // from a failed run, numerical failures; each must end in a clear error and
 // leave nothing half-written.
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "engine/util/error.h"
 #include "tests/tools/cli_test_util.h"
 #include "tests/tools/temp_dir_test.h"
+#include "tools/frame_outputs.h"
 
 namespace fs = std::filesystem;
 
@@ -68,6 +71,126 @@ TEST_F(CliErrors, OutputPathThatIsAFolderLeavesNoTemporaryFile) {
     EXPECT_NE(r.out.find(path("taken") + ": cannot write: it is a directory"), std::string::npos) << args << "\n" << r.out;
     EXPECT_TRUE(files_with(".tmp").empty()) << args << ": " << files_with(".tmp").front();
   }
+}
+
+// NaN, inf, overflowing and absurd values of options are refused with the
+// range allowed, before anything is allocated (--frames 1000000000 and mesh
+// beam --cells 100000 100000 100000 ran out of memory: std::bad_alloc).
+TEST_F(CliErrors, NonFiniteAndAbsurdOptionsAreRefusedWithTheRange) {
+  beam_scene();
+  const std::string scene = path("scene.json");
+  const std::pair<std::string, std::string> cases[] = {
+      {"run " + scene + " --frames 1000000000", "--frames: must be an integer from 1 to 1000000 (9.3 h at 30 Hz), got 1000000000"},
+      {"run " + scene + " --frames 99999999999999999999", "--frames: must be an integer from 1 to 1000000"},
+      {"run " + scene + " --frames nan", "--frames: must be an integer from 1 to 1000000"},
+      {"run " + scene + " --pace nan", "--pace: must be 0 (back to back) or a rate from 0.001 to 100000 Hz, got nan"},
+      {"run " + scene + " --pace inf", "--pace: must be 0 (back to back) or a rate from 0.001 to 100000 Hz, got inf"},
+      {"run " + scene + " --pace 1e-300", "--pace: must be 0 (back to back) or a rate from 0.001 to 100000 Hz, got 1e-300"},
+      {"bench " + scene + " --bandwidth-gbs 1e400", "--bandwidth-gbs: must be a finite number from 0.01 to 100000, got 1e400"},
+      {"bench " + scene + " --warmup -1", "--warmup: must be an integer from 0 to 1000000"},
+      {"replay " + scene + " --tolerance nan", "--tolerance: must be a finite number from 0 to 1000000, got nan"},
+      {"render " + scene + " --frame 2147483648 --out x.png", "--frame: must be an integer from 0 to 1000000"},
+      {"mesh beam --size nan 1 1 --cells 1 1 1 --out " + path("b.vtu"), "--size: must be a finite number from 1e-06 to 1000000, got nan"},
+      {"mesh beam --size 1 inf 1 --cells 1 1 1 --out " + path("b.vtu"), "--size: must be a finite number from 1e-06 to 1000000, got inf"},
+      {"mesh beam --size 1 1 1 --cells 100000 100000 100000 --out " + path("b.vtu"),
+       "mesh beam: --cells 100000 100000 100000 makes 6e+15 tetrahedra (6 a cell), more than the 10000000 allowed"},
+      {"mesh beam --size 1 1 1 --cells 1 1 3000000000 --out " + path("b.vtu"), "--cells: must be an integer from 1 to 1666666"},
+      {"mesh tetrahedralize " + scene + " --size nan --out " + path("b.vtu"), "--size: must be a finite number from 1e-09 to 1000000000, got nan"},
+      {"mesh tetrahedralize " + scene + " --size 1 --quality 0.5 --out " + path("b.vtu"), "--quality: must be a finite number from 1.1 to 10"},
+  };
+  for (const auto& [args, want] : cases) {
+    const Result r = incise(args);
+    EXPECT_NE(r.code, 0) << args;
+    EXPECT_NE(r.out.find(want), std::string::npos) << args << "\n" << r.out;
+  }
+  EXPECT_FALSE(fs::exists(path("b.vtu")));
+  // the scene's run.frames has the same bound
+  const Result r = incise("run " + scene + " --set run.frames=1000000000");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("--set run.frames=1000000000: run.frames must be at most 1000000 (9.3 h at 30 Hz), got 1000000000"),
+            std::string::npos) << r.out;
+}
+
+// A run that fails (here in its first step: a density whose mass term
+// overflows) removes the series it started: frame 0's .vtu and the .pvd
+// listing it were left behind. The error names the node and the value.
+TEST_F(CliErrors, FailedRunRemovesItsOutputsAndNamesTheInput) {
+  beam_scene(R"("young": 1e5, "poisson": 0.3, "density": 1e300)");
+  const Result r = incise("run " + path("scene.json") + " --frames 3 --out " + path("out"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("incise: error: step: non-finite residual at frame 0 (t = 0) at DOF "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("; at node "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("; check material.density = 1e+300 (extreme: materials are 1 to 2e4 kg/m^3), material.young = "
+                       "100000, material.poisson = 0.3, integrator.dt = 0.0333333"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("removed the 2 output file(s) of the failed run"), std::string::npos) << r.out;
+  ASSERT_TRUE(fs::is_directory(path("out")));
+  EXPECT_TRUE(fs::is_empty(path("out"))) << fs::directory_iterator(path("out"))->path();
+}
+
+// "not positive definite" names the node and, first, the value out of range:
+// a modulus of 1e30 against a density of 1 leaves the mass term below
+// roundoff (the dynamic step), and nothing holds the body (static).
+TEST_F(CliErrors, NotPositiveDefiniteNamesTheNodeAndTheExtremeValue) {
+  beam_scene(R"("young": 1e30, "poisson": 0.3, "density": 1)");
+  write("free.json", R"({"mesh": {"file": "beam.vtu", "order": 1},
+    "material": {"model": "linear", "young": 1e30, "poisson": 0.3, "density": 1}, "gravity": [0, 0, -1]})");
+  const std::string extreme = "; check material.young = 1e+30 (extreme: tissues to steel are 1e2 to 2e11 Pa), "
+                              "material.poisson = 0.3, material.density = 1, integrator.dt = 0.0333333";
+  const Result dyn = incise("run " + path("free.json") + " --frames 2");
+  EXPECT_EQ(dyn.code, 1) << dyn.out;
+  EXPECT_NE(dyn.out.find("incise: error: frame 0: CHOLMOD: the system matrix is not positive definite at DOF "),
+            std::string::npos) << dyn.out;
+  EXPECT_NE(dyn.out.find("; at node "), std::string::npos) << dyn.out;
+  EXPECT_NE(dyn.out.find(" (x = "), std::string::npos) << dyn.out;
+  EXPECT_NE(dyn.out.find(extreme), std::string::npos) << dyn.out;
+  const Result st = incise("static " + path("free.json"));
+  EXPECT_EQ(st.code, 1) << st.out;
+  EXPECT_NE(st.out.find("incise: error: " + path("free.json") + ": CHOLMOD: the system matrix is not positive definite"),
+            std::string::npos) << st.out;
+  EXPECT_NE(st.out.find(extreme), std::string::npos) << st.out;
+}
+
+// static that does not converge writes nothing unless --keep-unconverged
+// asks for the last iterate; it exits 1 either way, with the iterations and
+// the residual.
+TEST_F(CliErrors, UnconvergedStaticWritesOnlyWithKeepUnconverged) {
+  beam_scene(R"("young": 1e5, "poisson": 0.3, "density": 1)", R"(, "static": {"max_iterations": 1})");
+  write("p.csv", "1,0.5,0.5\n");
+  const std::string args = "static " + path("scene.json") + " --probe " + path("p.csv") + " --out " + path("u.csv") +
+                           " --vtu " + path("u.vtu");
+  const Result r = incise(args);
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(": static solve did not reach static.tolerance 1e-08 in 1 iterations (relative residual "),
+            std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("; nothing was written (--keep-unconverged writes the last iterate)"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(path("u.csv")));
+  EXPECT_FALSE(fs::exists(path("u.vtu")));
+  const Result k = incise(args + " --keep-unconverged");
+  EXPECT_EQ(k.code, 1) << k.out;
+  EXPECT_NE(k.out.find("; --keep-unconverged wrote the last iterate"), std::string::npos) << k.out;
+  EXPECT_TRUE(fs::exists(path("u.csv")));
+  EXPECT_TRUE(fs::exists(path("u.vtu")));
+  EXPECT_NE(incise("static --help").out.find("--keep-unconverged"), std::string::npos);
+}
+
+// A non-finite value never reaches an output file.
+TEST(FrameOutputs, NonFiniteFieldIsRefused) {
+  incise::VtuGrid g;
+  g.points = {0, 0, 0, 1, 0, 0};
+  g.point_data.push_back({"displacement", 3, {0, 0, 0, 0, std::nan(""), 0}});
+  try {
+    incise::check_output_finite(g, "out/s_000001.vtu");
+    FAIL() << "no error";
+  } catch (const incise::Error& e) {
+    EXPECT_EQ(std::string(e.what()), "out/s_000001.vtu: the output field displacement at point 1 is not finite; it is not written");
+  }
+  g.point_data[0].values[4] = 0;
+  g.points[3] = INFINITY;
+  EXPECT_THROW(incise::check_output_finite(g, "x"), incise::Error);
+  g.points[3] = 1;
+  EXPECT_NO_THROW(incise::check_output_finite(g, "x"));
 }
 
 }  // namespace
