@@ -3,6 +3,7 @@
 // Pareto front marked (tools/study.h; docs/study.md).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -53,6 +54,48 @@ nlohmann::json read_json(const fs::path& p) {
   } catch (const nlohmann::json::exception& e) {
     throw Error(p.string() + ": not a study file (" + e.what() + ")");
   }
+}
+
+// study.json as make_plan writes it. The plan is read through const
+// operator[], which asserts on a missing key: anything else is an error
+// naming the file.
+nlohmann::json read_plan(const fs::path& dir) {
+  const fs::path p = dir / "study.json";
+  const nlohmann::json plan = read_json(p);
+  const auto bad = [&](const std::string& what) { throw Error(p.string() + ": not a study plan: " + what); };
+  const auto strings = [](const nlohmann::json& a, size_t n) {
+    if (!a.is_array() || (n != SIZE_MAX && a.size() != n)) return false;
+    for (const auto& v : a)
+      if (!v.is_string()) return false;
+    return true;
+  };
+  if (!plan.is_object()) bad("not a JSON object");
+  for (const char* k : {"scene", "probe", "reference"})
+    if (!plan.contains(k) || !plan[k].is_string()) bad(std::string(k) + " must be a string");
+  if (!plan.contains("frames") || !plan["frames"].is_array() || plan["frames"].empty()) bad("frames must be a non-empty array");
+  for (const auto& f : plan["frames"])
+    if (!f.is_number_integer() || f.get<long long>() < 1 || f.get<long long>() > kMaxFrames)
+      bad("frames must be frame numbers from 1 to " + std::to_string(kMaxFrames));
+  if (!plan.contains("sweeps") || !plan["sweeps"].is_array()) bad("sweeps must be an array");
+  for (const auto& s : plan["sweeps"])
+    if (!s.is_object() || !s.contains("knob") || !s["knob"].is_string() || !s.contains("key") || !s["key"].is_string() ||
+        !s.contains("values") || !strings(s["values"], SIZE_MAX))
+      bad("each sweep must be {knob, key, values: [strings]}");
+  if (!plan.contains("points") || !plan["points"].is_array() || plan["points"].empty()) bad("points must be a non-empty array");
+  for (const auto& pt : plan["points"])
+    if (!strings(pt, plan["sweeps"].size())) bad("each point must list one string per sweep");
+  if (!plan.contains("set") || !plan["set"].is_array()) bad("set must be an array");
+  for (const auto& s : plan["set"])
+    if (!s.is_object() || !s.contains("key") || !s["key"].is_string() || !s.contains("value") || !s["value"].is_string())
+      bad("each set entry must be {key, value} strings");
+  if (plan.contains("reference_file")) {
+    if (!plan["reference_file"].is_string()) bad("reference_file must be a string");
+  } else if (!plan.contains("reference_point") || !plan["reference_point"].is_number_integer() ||
+             plan["reference_point"].get<long long>() < 0 ||
+             plan["reference_point"].get<long long>() >= static_cast<long long>(plan["points"].size())) {
+    bad("reference_point must be the index of a point");
+  }
+  return plan;
 }
 
 // Written whole or not at all: a killed point leaves no result to resume from.
@@ -151,7 +194,7 @@ nlohmann::json sample(const Simulation& sim, const std::vector<std::array<double
 
 // One point, in this process: its result file (a failure is a result too).
 void run_point(const fs::path& dir, int k) {
-  const nlohmann::json plan = read_json(dir / "study.json");
+  const nlohmann::json plan = read_plan(dir);
   if (k < 0 || k >= static_cast<int>(plan["points"].size()))
     throw Error("study: --point " + std::to_string(k) + " is not in " + (dir / "study.json").string() + " (points 0-" +
                 std::to_string(plan["points"].size() - 1) + ")");
@@ -212,7 +255,7 @@ std::string describe(const nlohmann::json& plan, int k) {
 }
 
 void collect(const fs::path& dir) {
-  const nlohmann::json plan = read_json(dir / "study.json");
+  const nlohmann::json plan = read_plan(dir);
   const int n = static_cast<int>(plan["points"].size());
   std::vector<nlohmann::json> results(static_cast<size_t>(n));
   int missing = 0;
@@ -262,7 +305,7 @@ void study(const StudyOptions& o) {
   nlohmann::json plan = make_plan(o);
   // Resume: the same plan in DIR keeps its points; a different one is an error.
   if (fs::exists(dir / "study.json")) {
-    if (read_json(dir / "study.json") != plan)
+    if (read_plan(dir) != plan)
       throw Error("study: " + dir.string() + " holds a different study (" + (dir / "study.json").string() +
                   "); give another --out or remove it");
   } else {
@@ -322,7 +365,14 @@ void add_study_command(CLI::App& app) {
   cmd->add_flag("--list", opts->list, "Print the command of each point not done yet, one per line, and stop");
   cmd->add_option("--collect", opts->collect, "Gather the point results in DIR into the table and the plot");
   add_set_option(*cmd, opts->patches);
-  cmd->callback([opts] { study(*opts); });
+  cmd->callback([opts] {
+    try {
+      study(*opts);
+    } catch (const nlohmann::json::exception& e) {  // a point result of another shape (the plan is checked)
+      throw Error("study: a point result in " + (opts->collect.empty() ? opts->out : opts->collect) +
+                  "/points is malformed: " + e.what());
+    }
+  });
 }
 
 }  // namespace incise

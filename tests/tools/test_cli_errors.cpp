@@ -175,6 +175,31 @@ TEST_F(CliErrors, UnconvergedStaticWritesOnlyWithKeepUnconverged) {
   EXPECT_NE(incise("static --help").out.find("--keep-unconverged"), std::string::npos);
 }
 
+// study.json and the point results are read with a depth limit and checked:
+// a plan of another shape failed an assertion in nlohmann's operator[]
+// (abort), a malformed point was an internal error.
+TEST_F(CliErrors, MalformedStudyFilesAreErrorsNamingTheFile) {
+  fs::create_directories(path("st/points"));
+  write("st/study.json", R"({"points": 3, "frames": [1]})");
+  Result r = incise("study --collect " + path("st"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(path("st/study.json") + ": not a study plan: scene must be a string"), std::string::npos) << r.out;
+  r = incise("study --point 0 --out " + path("st"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(path("st/study.json") + ": not a study plan"), std::string::npos) << r.out;
+  write("st/study.json", std::string(100000, '[') + std::string(100000, ']'));
+  r = incise("study --collect " + path("st"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(path("st/study.json") + ":1: nested deeper than 64 levels"), std::string::npos) << r.out;
+  // a real study, then a point result of another shape
+  beam_scene();
+  ASSERT_EQ(incise("study " + path("scene.json") + " --sweep dt=0.02,0.03 --frames 1 --out " + path("s2")).code, 0);
+  write("s2/points/point_1.json", R"({"point": 1, "frame_ms": 3})");
+  r = incise("study --collect " + path("s2"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("study: a point result in " + path("s2") + "/points is malformed: "), std::string::npos) << r.out;
+}
+
 // A non-finite value never reaches an output file.
 TEST(FrameOutputs, NonFiniteFieldIsRefused) {
   incise::VtuGrid g;
