@@ -71,6 +71,16 @@ TEST_F(CliErrors, OutputPathThatIsAFolderLeavesNoTemporaryFile) {
     EXPECT_NE(r.out.find(path("taken") + ": cannot write: it is a directory"), std::string::npos) << args << "\n" << r.out;
     EXPECT_TRUE(files_with(".tmp").empty()) << args << ": " << files_with(".tmp").front();
   }
+  // a file where an output folder should be made: an error, not an internal one
+  write("afile", "");
+  const Result r = incise("run " + path("scene.json") + " --frames 1 --out " + path("afile"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("incise: error: " + path("afile") + ": cannot create directories: Not a directory"), std::string::npos)
+      << r.out;
+  const Result rec = incise("run " + path("scene.json") + " --frames 1 --record " + path("taken"));
+  EXPECT_EQ(rec.code, 1) << rec.out;
+  EXPECT_NE(rec.out.find(path("taken") + ": cannot move the replay into place"), std::string::npos) << rec.out;
+  EXPECT_TRUE(files_with(".tmp").empty()) << files_with(".tmp").front();
 }
 
 // NaN, inf, overflowing and absurd values of options are refused with the
