@@ -139,6 +139,18 @@ TEST_F(CliErrors, FailedRunRemovesItsOutputsAndNamesTheInput) {
   EXPECT_TRUE(fs::is_empty(path("out"))) << fs::directory_iterator(path("out"))->path();
 }
 
+// The initial static solve (initial: "static") names the value too.
+TEST_F(CliErrors, InitialStaticFailureNamesTheInput) {
+  beam_scene(R"("young": 1e5, "poisson": 0.3, "density": 1e300)", R"(, "initial": "static")");
+  const Result r = incise("run " + path("scene.json") + " --frames 1 --out " + path("out"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("incise: error: " + path("scene.json") + ": initial \"static\": static: non-finite residual at "
+                       "iteration 0 at DOF "),
+            std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("; check material.density = 1e+300 (extreme"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(path("out")));
+}
+
 // "not positive definite" names the node and, first, the value out of range:
 // a modulus of 1e30 against a density of 1 leaves the mass term below
 // roundoff (the dynamic step), and nothing holds the body (static).
