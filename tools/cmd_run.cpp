@@ -82,8 +82,7 @@ void run(const RunOptions& o) {
     ticks_recorded = records.size();
   };
   if (haptic) {
-    // (at most 70 min of ticks up front: a long run grows the log as it goes)
-    records.reserve(static_cast<size_t>(std::min(frames * sim->model.dt * haptic->settings().rate_hz * 1.1, 4e6)) + 64);
+    records.reserve(static_cast<size_t>(frames * sim->model.dt * haptic->settings().rate_hz * 1.1) + 64);
     haptic->start();
     std::printf("haptics: %s drives %s at %.0f Hz; %s\n", haptic->device().describe().c_str(),
                 sim->scene.instruments[static_cast<size_t>(sim->scene.haptics.instrument)].name.c_str(),
