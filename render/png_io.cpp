@@ -4,6 +4,7 @@
 #include <string>
 
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 #include "render/image.h"
 
 namespace incise {
@@ -28,34 +29,36 @@ struct File {
 void write_png(const Image& img, const std::string& path) {
   if (img.width <= 0 || img.height <= 0 || img.rgb.size() != 3u * img.width * img.height)
     throw Error(path + ": cannot write an empty or inconsistent image");
-  const std::string tmp = path + ".tmp";
-  {
-    File file{std::fopen(tmp.c_str(), "wb")};
-    if (!file.f) throw Error(path + ": cannot open for writing");
-    std::string why;
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &why, on_error, on_warning);
-    png_infop info = png ? png_create_info_struct(png) : nullptr;
-    if (!info) {
-      png_destroy_write_struct(&png, nullptr);
-      throw Error(path + ": libpng could not start");
-    }
-    std::vector<png_bytep> rows(img.height);
-    for (int y = 0; y < img.height; ++y)
-      rows[y] = const_cast<png_bytep>(img.rgb.data() + 3 * static_cast<size_t>(y) * img.width);
-    if (setjmp(png_jmpbuf(png))) {
-      png_destroy_write_struct(&png, &info);
-      throw Error(path + ": libpng write failed: " + why);
-    }
-    png_init_io(png, file.f);
-    png_set_compression_level(png, 3);  // frames are many; speed over the last few percent of size
-    png_set_IHDR(png, info, img.width, img.height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
-                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_set_rows(png, info, rows.data());
-    png_write_png(png, info, PNG_TRANSFORM_IDENTITY, nullptr);
-    png_destroy_write_struct(&png, &info);
-    if (std::fflush(file.f) != 0) throw Error(path + ": write failed");
+  // Encoded in memory, then written atomically (engine/util/file_io.h): a
+  // failed write leaves neither a partial image nor a temporary file.
+  std::string bytes;
+  std::string why;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &why, on_error, on_warning);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  if (!info) {
+    png_destroy_write_struct(&png, nullptr);
+    throw Error(path + ": libpng could not start");
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw Error(path + ": cannot move the image into place");
+  std::vector<png_bytep> rows(img.height);
+  for (int y = 0; y < img.height; ++y)
+    rows[y] = const_cast<png_bytep>(img.rgb.data() + 3 * static_cast<size_t>(y) * img.width);
+  if (setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    throw Error(path + ": libpng write failed: " + why);
+  }
+  png_set_write_fn(
+      png, &bytes,
+      [](png_structp p, png_bytep data, png_size_t n) {
+        static_cast<std::string*>(png_get_io_ptr(p))->append(reinterpret_cast<const char*>(data), n);
+      },
+      [](png_structp) {});
+  png_set_compression_level(png, 3);  // frames are many; speed over the last few percent of size
+  png_set_IHDR(png, info, img.width, img.height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_rows(png, info, rows.data());
+  png_write_png(png, info, PNG_TRANSFORM_IDENTITY, nullptr);
+  png_destroy_write_struct(&png, &info);
+  write_file_atomic(path, bytes);
 }
 
 Image read_png(const std::string& path) {

@@ -17,6 +17,7 @@
 #include "render/render_stage.h"
 #include "engine/runtime/timing_stats.h"
 #include "tools/commands.h"
+#include "tools/option_checks.h"
 #include "tools/spawn.h"
 #include "tools/frame_loop.h"
 #include "tools/frame_trace.h"
@@ -80,7 +81,9 @@ void bench(const BenchOptions& o) {
   std::vector<TickRecord> records;
   std::vector<HapticEvent> events;
   if (haptic) {
-    records.reserve(static_cast<size_t>((o.warmup + o.frames) * sim->model.dt * haptic->settings().rate_hz * 1.5) + 64);
+    // (at most 70 min of ticks up front: a long run grows the log as it goes)
+    records.reserve(
+        static_cast<size_t>(std::min((o.warmup + o.frames) * sim->model.dt * haptic->settings().rate_hz * 1.5, 4e6)) + 64);
     haptic->start();
   }
   std::vector<FrameTiming> timings;
@@ -152,16 +155,17 @@ void add_bench_command(CLI::App& app) {
   auto opts = std::make_shared<BenchOptions>();
   auto* cmd = app.add_subcommand("bench", "Time the frames of a scene: median/p95/p99/max per stage");
   cmd->add_option("scene", opts->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--frames", opts->frames, "Frames to time")->check(CLI::PositiveNumber);
-  cmd->add_option("--warmup", opts->warmup, "Frames stepped before timing starts")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--frames", opts->frames, "Frames to time")->check(integer_in(1, kMaxOptionFrames, kFramesWhy));
+  cmd->add_option("--warmup", opts->warmup, "Frames stepped before timing starts")
+      ->check(integer_in(0, kMaxOptionFrames, kFramesWhy));
   cmd->add_option("--json", opts->json, "Write the summary as JSON");
   cmd->add_option("--bandwidth-gbs", opts->bandwidth_gbs,
                   "Memory bandwidth (GB/s) for the one-substitution limit the frame time is compared with")
-      ->check(CLI::PositiveNumber);
+      ->check(finite_in(0.01, 100000));
   cmd->add_option("--pace", opts->pace_hz,
                   "Start frames at this rate in Hz, as the 30 Hz loop does (0: back to back; default: 1/dt with "
                   "--haptics, else 0); background work gets the rest of each period")
-      ->check(CLI::NonNegativeNumber);
+      ->check(pace_rate());
   cmd->add_option("--plot", opts->plot,
                   "Draw the frame budget to F.png (stages stacked per frame, the 33.3 ms line, cut frames, the haptic "
                   "tick period) with tools/scripts/plot-budget.py (python3-matplotlib); the JSON goes to --json or F.json");

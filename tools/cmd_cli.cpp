@@ -1,3 +1,4 @@
+#include <filesystem>
 #include <iostream>
 
 #include "engine/util/error.h"
@@ -27,6 +28,14 @@ int cli_main(int argc, char** argv) {
     return app.exit(e);
   } catch (const Error& e) {
     std::cerr << "incise: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // An output folder that cannot be made (a file of that name, no
+    // permission) is the user's to fix: "out: cannot create directories: Not a directory".
+    std::string what = e.what();
+    if (what.rfind("filesystem error: ", 0) == 0) what = what.substr(18);
+    if (const size_t at = what.rfind(" ["); at != std::string::npos) what.resize(at);
+    std::cerr << "incise: error: " << (e.path1().empty() ? "" : e.path1().string() + ": ") << what << "\n";
     return 1;
   } catch (const std::exception& e) {
     std::cerr << "incise: internal error: " << e.what() << "\n";

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 #include "engine/runtime/simulation.h"
 #include "engine/dynamics/step.h"
 #include "engine/runtime/timing_stats.h"
@@ -160,9 +161,7 @@ void compare(const CompareOptions& o) {
   j["policies"] = nlohmann::json::array();
   for (size_t r = 0; r < policies.size(); ++r) j["policies"].push_back(run_policy(o, policies[r], runs[r], checkpoints, ref));
   if (!o.json.empty()) {
-    std::ofstream os(o.json);
-    if (!os) throw Error(o.json + ": cannot write the comparison");
-    os << j.dump(2) << "\n";
+    write_file_atomic(o.json, j.dump(2) + "\n");
     std::printf("wrote %s\n", o.json.c_str());
   }
 }

@@ -1,17 +1,15 @@
 #include <cstdio>
-#include <fstream>
+#include <sstream>
 #include <string>
 
-#include "engine/util/error.h"
+#include "engine/util/file_io.h"
 #include "tools/frame_trace.h"
 
 namespace incise {
 
 void write_frame_trace(const std::string& path, const std::vector<FrameTiming>& frames, int first_frame) {
-  const std::string tmp = path + ".tmp";
+  std::ostringstream os;
   {
-    std::ofstream os(tmp);
-    if (!os) throw Error(path + ": cannot write the frame trace (is the folder there and writable?)");
     os << "frame,frame_ms,cut_frame";
     for (const char* s : kStageNames) os << ',' << s << "_ms";
     for (std::string p : kCutPartNames) {
@@ -38,15 +36,8 @@ void write_frame_trace(const std::string& path, const std::vector<FrameTiming>& 
          << t.bvh_rebuilds << ',' << (t.budget_spent ? 1 : 0) << ',' << t.residual << ','
          << t.inverted_points << ',' << t.rotation_change << '\n';
     }
-    if (!os) {
-      std::remove(tmp.c_str());
-      throw Error(path + ": write failed");
-    }
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw Error(path + ": cannot move the frame trace into place");
-  }
+  write_file_atomic(path, os.str());
 }
 
 }  // namespace incise

@@ -7,6 +7,7 @@
 #include "engine/mesh/mesh_io.h"
 #include "engine/mesh/mesh_tools.h"
 #include "tools/commands.h"
+#include "tools/option_checks.h"
 #include "tools/tetrahedralize.h"
 
 namespace incise {
@@ -39,15 +40,23 @@ void add_mesh_command(CLI::App& app) {
 
   auto b = std::make_shared<BeamOptions>();
   auto* beam = mesh->add_subcommand("beam", "Structured beam [0,LX]x[0,LY]x[0,LZ], 6 tetrahedra per cell");
-  beam->add_option("--size", b->size, "LX LY LZ")->required();
-  beam->add_option("--cells", b->cells, "NX NY NZ")->required();
+  beam->add_option("--size", b->size, "LX LY LZ (each from 1e-6 to 1e6)")->required()->check(finite_in(1e-6, 1e6));
+  beam->add_option("--cells", b->cells,
+                   "NX NY NZ: cells along each side, 6 tetrahedra each, at most " + std::to_string(kMaxBeamTets) +
+                       " tetrahedra in all")
+      ->required()
+      ->check(integer_in(1, kMaxBeamTets / 6));
   beam->add_option("--order", b->order, "1 = tet4, 2 = tet10")->check(CLI::IsMember({1, 2}));
   beam->add_option("--out", b->out, "Output mesh (.vtu, .vtk, .msh)")->required();
   beam->callback([b] {
-    for (double v : b->size)
-      if (!(v > 0)) throw Error("mesh beam: --size values must be > 0");
-    for (int v : b->cells)
-      if (v < 1) throw Error("mesh beam: --cells values must be >= 1");
+    // Bounded before anything is allocated: 10^5 cells a side asked for 6e15 tetrahedra.
+    const double tets = 6.0 * b->cells[0] * b->cells[1] * b->cells[2];
+    if (tets > static_cast<double>(kMaxBeamTets)) {
+      char buf[192];
+      std::snprintf(buf, sizeof buf, "mesh beam: --cells %d %d %d makes %.3g tetrahedra (6 a cell), more than the %lld allowed",
+                    b->cells[0], b->cells[1], b->cells[2], tets, kMaxBeamTets);
+      throw Error(buf);
+    }
     const Mesh m = make_beam(b->size[0], b->size[1], b->size[2], b->cells[0], b->cells[1], b->cells[2], b->order);
     write_mesh(m, b->out);
     report(m, b->out);
@@ -73,9 +82,10 @@ void add_mesh_command(CLI::App& app) {
   tet->add_option("surface", t->in, "Closed surface (.stl, .ply, .off, .obj), e.g. from a segmentation")
       ->required()
       ->check(CLI::ExistingFile);
-  tet->add_option("--size", t->size, "Target edge length (the surface's units)")->required();
+  tet->add_option("--size", t->size, "Target edge length (the surface's units)")->required()->check(finite_in(1e-9, 1e9));
   tet->add_option("--order", t->order, "2 = tet10 (default), 1 = tet4")->check(CLI::IsMember({1, 2}));
-  tet->add_option("--quality", t->quality, "Largest radius-edge ratio TetGen may leave (default 1.4)");
+  tet->add_option("--quality", t->quality, "Largest radius-edge ratio TetGen may leave (default 1.4; 1.1 to 10)")
+      ->check(finite_in(1.1, 10));
   tet->add_option("--out", t->out, "Output mesh (.vtu, .vtk, .msh)")->required();
   tet->callback([t] {
     Mesh m = tetrahedralize(t->in, t->size, t->quality);

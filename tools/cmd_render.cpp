@@ -3,6 +3,7 @@
 
 #include "engine/runtime/simulation.h"
 #include "tools/commands.h"
+#include "tools/option_checks.h"
 #include "tools/frame_loop.h"
 #include "render/render_stage.h"
 #include "tools/solver_report.h"
@@ -39,7 +40,7 @@ void add_render_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("render", "Step K frames and render that frame offscreen (EGL) to a PNG");
   cmd->add_option("scene", opts->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--frame", opts->frame, "Frames to step before rendering (0: the initial state)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(integer_in(0, kMaxOptionFrames, kFramesWhy));
   cmd->add_option("--out", opts->out, "PNG file to write")->required();
   cmd->add_option("--width", opts->width, "Width in pixels (default: render.width)")->check(CLI::Range(16, 8192));
   cmd->add_option("--height", opts->height, "Height in pixels (default: render.height)")->check(CLI::Range(16, 8192));

@@ -12,6 +12,7 @@
 #include "engine/util/error.h"
 #include "tools/build_info.h"
 #include "tools/commands.h"
+#include "tools/option_checks.h"
 #include "tools/frame_loop.h"
 #include "tools/frame_outputs.h"
 #include "tools/progress_bar.h"
@@ -184,8 +185,9 @@ void add_replay_command(CLI::App& app) {
   cmd->add_option("--tolerance", opts->tolerance,
                   "Across builds or machines: compare the recorded State snapshots field by field and report the "
                   "largest relative difference per snapshot frame; fail above this")
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--frames", opts->frames, "Replay only the first N frames")->check(CLI::PositiveNumber);
+      ->check(finite_in(0, 1e6));
+  cmd->add_option("--frames", opts->frames, "Replay only the first N frames")
+      ->check(integer_in(1, kMaxOptionFrames, kFramesWhy));
   cmd->add_option("--out", opts->out, "Output folder for a .pvd/.vtu series of the replay");
   cmd->add_option("--render", opts->render_dir, "Render every frame offscreen to DIR/frame_00000.png ... (+ MP4)");
   add_egl_platform_option(*cmd, opts->platform);

@@ -15,6 +15,7 @@
 #include "engine/runtime/timing_stats.h"
 #include "render/video.h"
 #include "tools/commands.h"
+#include "tools/option_checks.h"
 #include "tools/frame_loop.h"
 #include "render/render_stage.h"
 #include "tools/solver_report.h"
@@ -178,7 +179,8 @@ void add_run_command(CLI::App& app) {
   auto opts = std::make_shared<RunOptions>();
   auto* cmd = app.add_subcommand("run", "Step the dynamics at the scene's fixed dt");
   cmd->add_option("scene", opts->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--frames", opts->frames, "Frames to step (default: the scene's run.frames)")->check(CLI::PositiveNumber);
+  cmd->add_option("--frames", opts->frames, "Frames to step (default: the scene's run.frames)")
+      ->check(integer_in(1, kMaxOptionFrames, kFramesWhy));
   cmd->add_option("--out", opts->out, "Output folder for the .pvd/.vtu series and timing.json (default: output.dir)");
   cmd->add_option("--render", opts->render_dir, "Render every frame offscreen to DIR/frame_00000.png ... (+ DIR/frames.mp4 with ffmpeg)");
   add_egl_platform_option(*cmd, opts->platform);
@@ -187,14 +189,14 @@ void add_run_command(CLI::App& app) {
                 "haptics_force.csv (t,fx,fy,fz,tick_us,late_us), haptics_device.csv, haptics_events.csv, haptics.json");
   cmd->add_option("--haptics-dir", opts->haptics_dir, "Folder for the haptic logs (default: --out, else output.dir, else .)");
   cmd->add_option("--pace", opts->pace_hz, "Start frames at this rate in Hz (default: 1/dt with --haptics, else back to back; 0: back to back)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(pace_rate());
   cmd->add_option("--record", opts->record,
                   "Record the run to a replay file F (the scene, every instrument pose and device sample, the "
                   "clock's solver choices, the State's hash after every frame): incise replay F --verify");
   cmd->add_option("--record-states", opts->record_states,
                   "With --record: a full State snapshot every N frames (default 30; 0: only the last), for "
                   "replay --tolerance and for naming the largest difference")
-      ->check(CLI::NonNegativeNumber);
+      ->check(integer_in(0, kMaxOptionFrames));
   add_set_option(*cmd, opts->patches);
   cmd->callback([opts] { run(*opts); });
 }

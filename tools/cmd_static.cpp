@@ -8,13 +8,16 @@
 
 #include "cutting/cut_apply.h"
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 #include "engine/output/probe.h"
 #include "engine/output/result_grid.h"
+#include "engine/runtime/failure_context.h"
 #include "engine/runtime/simulation.h"
 #include "engine/dynamics/static_solve.h"
 #include "tools/commands.h"
 #include "tools/probe_points.h"
 #include "tools/frame_loop.h"
+#include "tools/frame_outputs.h"
 #include "tools/solver_report.h"
 
 namespace incise {
@@ -23,6 +26,7 @@ namespace {
 struct StaticOptions {
   std::string scene, probe, out, vtu;
   std::vector<ScenePatch> patches;  // --set
+  bool keep_unconverged = false;    // --keep-unconverged: write --vtu/--out even when Newton did not converge
 };
 
 void run_static(const StaticOptions& o) {
@@ -54,40 +58,50 @@ void run_static(const StaticOptions& o) {
     }
   }
   Stopwatch clock;
-  const StaticResult r = solve_static(sim->model, sim->state, sim->ws, sim->scene.static_tolerance,
-                                      sim->scene.static_max_iterations);
+  StaticResult r;
+  try {
+    r = solve_static(sim->model, sim->state, sim->ws, sim->scene.static_tolerance, sim->scene.static_max_iterations);
+  } catch (const NumericalError& e) {
+    throw Error(o.scene + ": " + with_failure_context(e, sim->model));
+  }
   std::printf("static: %s after %d Newton iteration(s), relative residual %.3e (tolerance %g), %.1f ms\n",
               r.converged ? "converged" : "NOT converged", r.iterations, r.residual, sim->scene.static_tolerance,
               clock.ms());
   std::printf("  %s\n", static_report(r).c_str());
-  if (!o.vtu.empty()) write_vtu(result_grid(sim->model, sim->state), o.vtu);
+  char unconverged[320];
+  std::snprintf(unconverged, sizeof unconverged,
+                ": static solve did not reach static.tolerance %g in %d iterations (relative residual %g); raise "
+                "static.max_iterations or loosen static.tolerance",
+                sim->scene.static_tolerance, r.iterations, r.residual);
+  // An unconverged result is written only when asked for (and still exits 1).
+  if (!r.converged && !o.keep_unconverged)
+    throw Error(o.scene + unconverged +
+                (!o.vtu.empty() || !pts.empty() ? "; nothing was written (--keep-unconverged writes the last iterate)" : ""));
+  if (!o.vtu.empty()) {
+    const VtuGrid grid = result_grid(sim->model, sim->state);
+    check_output_finite(grid, o.vtu);
+    write_vtu(grid, o.vtu);
+  }
   if (!pts.empty()) {
     std::ostringstream os;
     os.precision(12);
     os << "x,y,z,ux,uy,uz\n";
     for (size_t k = 0; k < pts.size(); ++k) {
       const auto u = interpolate_displacement(sim->model, sim->state.u.data(), hits[k]);
+      for (double c : u)
+        if (!std::isfinite(c))
+          throw Error((o.out.empty() ? std::string("static") : o.out) + ": the displacement at probe point " +
+                      std::to_string(k + 1) + " is not finite; it is not written");
       os << pts[k][0] << "," << pts[k][1] << "," << pts[k][2] << "," << u[0] << "," << u[1] << "," << u[2] << "\n";
     }
     if (o.out.empty()) {
       std::printf("%s", os.str().c_str());
     } else {
-      const std::string tmp = o.out + ".tmp";
-      std::ofstream f(tmp);
-      f << os.str();
-      f.close();
-      if (!f || std::rename(tmp.c_str(), o.out.c_str()) != 0) throw Error(o.out + ": cannot write the probe result");
+      write_file_atomic(o.out, os.str());
       std::printf("wrote %s (%zu points)\n", o.out.c_str(), pts.size());
     }
   }
-  if (!r.converged) {
-    char buf[256];
-    std::snprintf(buf, sizeof buf,
-                  ": static solve did not reach static.tolerance %g in %d iterations (relative residual %g); raise "
-                  "static.max_iterations or loosen static.tolerance",
-                  sim->scene.static_tolerance, sim->scene.static_max_iterations, r.residual);
-    throw Error(o.scene + buf);
-  }
+  if (!r.converged) throw Error(o.scene + unconverged + "; --keep-unconverged wrote the last iterate");
 }
 }  // namespace
 
@@ -98,6 +112,9 @@ void add_static_command(CLI::App& app) {
   cmd->add_option("--probe", opts->probe, "CSV of reference points x,y,z (header allowed)")->check(CLI::ExistingFile);
   cmd->add_option("--out", opts->out, "Probe result CSV x,y,z,ux,uy,uz (default: stdout)");
   cmd->add_option("--vtu", opts->vtu, "Also write the deformed mesh with fields to this .vtu");
+  cmd->add_flag("--keep-unconverged", opts->keep_unconverged,
+                "Write --vtu and --out even when Newton does not reach static.tolerance (the last iterate; the exit "
+                "code is still 1). Without it a solve that does not converge writes nothing");
   add_set_option(*cmd, opts->patches);
   cmd->callback([opts] { run_static(*opts); });
 }

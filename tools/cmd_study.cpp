@@ -3,6 +3,7 @@
 // Pareto front marked (tools/study.h; docs/study.md).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -17,7 +18,10 @@
 #include "engine/runtime/simulation.h"
 #include "engine/runtime/timing_stats.h"
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
+#include "engine/util/json_depth.h"
 #include "tools/commands.h"
+#include "tools/option_checks.h"
 #include "tools/frame_list.h"
 #include "tools/frame_loop.h"
 #include "tools/probe_points.h"
@@ -40,35 +44,62 @@ struct StudyOptions {
 
 constexpr size_t kMaxSamples = 2000;  // body samples per field (the base mesh's corner nodes, strided)
 
+// The plan and the point results: regular files, nested at most
+// kMaxJsonDepth levels (nlohmann's dump and comparison recurse per level).
 nlohmann::json read_json(const fs::path& p) {
-  std::ifstream is(p);
-  if (!is) throw Error(p.string() + ": cannot open");
+  const std::string text = read_input_file(p.string(), kMaxTableBytes, "study file");
+  check_json_depth(text, p.string());
   try {
-    return nlohmann::json::parse(is);
+    return nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     throw Error(p.string() + ": not a study file (" + e.what() + ")");
   }
 }
 
-// Written whole or not at all: a killed point leaves no result to resume from.
-void write_atomically(const fs::path& p, const std::string& text) {
-  const fs::path tmp = p.string() + ".tmp";
-  {
-    std::ofstream os(tmp);
-    os << text;
-    if (!os.flush()) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw Error(p.string() + ": cannot write");
-    }
+// study.json as make_plan writes it. The plan is read through const
+// operator[], which asserts on a missing key: anything else is an error
+// naming the file.
+nlohmann::json read_plan(const fs::path& dir) {
+  const fs::path p = dir / "study.json";
+  const nlohmann::json plan = read_json(p);
+  const auto bad = [&](const std::string& what) { throw Error(p.string() + ": not a study plan: " + what); };
+  const auto strings = [](const nlohmann::json& a, size_t n) {
+    if (!a.is_array() || (n != SIZE_MAX && a.size() != n)) return false;
+    for (const auto& v : a)
+      if (!v.is_string()) return false;
+    return true;
+  };
+  if (!plan.is_object()) bad("not a JSON object");
+  for (const char* k : {"scene", "probe", "reference"})
+    if (!plan.contains(k) || !plan[k].is_string()) bad(std::string(k) + " must be a string");
+  if (!plan.contains("frames") || !plan["frames"].is_array() || plan["frames"].empty()) bad("frames must be a non-empty array");
+  for (const auto& f : plan["frames"])
+    if (!f.is_number_integer() || f.get<long long>() < 1 || f.get<long long>() > kMaxFrames)
+      bad("frames must be frame numbers from 1 to " + std::to_string(kMaxFrames));
+  if (!plan.contains("sweeps") || !plan["sweeps"].is_array()) bad("sweeps must be an array");
+  for (const auto& s : plan["sweeps"])
+    if (!s.is_object() || !s.contains("knob") || !s["knob"].is_string() || !s.contains("key") || !s["key"].is_string() ||
+        !s.contains("values") || !strings(s["values"], SIZE_MAX))
+      bad("each sweep must be {knob, key, values: [strings]}");
+  if (!plan.contains("points") || !plan["points"].is_array() || plan["points"].empty()) bad("points must be a non-empty array");
+  for (const auto& pt : plan["points"])
+    if (!strings(pt, plan["sweeps"].size())) bad("each point must list one string per sweep");
+  if (!plan.contains("set") || !plan["set"].is_array()) bad("set must be an array");
+  for (const auto& s : plan["set"])
+    if (!s.is_object() || !s.contains("key") || !s["key"].is_string() || !s.contains("value") || !s["value"].is_string())
+      bad("each set entry must be {key, value} strings");
+  if (plan.contains("reference_file")) {
+    if (!plan["reference_file"].is_string()) bad("reference_file must be a string");
+  } else if (!plan.contains("reference_point") || !plan["reference_point"].is_number_integer() ||
+             plan["reference_point"].get<long long>() < 0 ||
+             plan["reference_point"].get<long long>() >= static_cast<long long>(plan["points"].size())) {
+    bad("reference_point must be the index of a point");
   }
-  std::error_code ec;
-  fs::rename(tmp, p, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw Error(p.string() + ": cannot write (" + ec.message() + ")");
-  }
+  return plan;
 }
+
+// Written whole or not at all: a killed point leaves no result to resume from.
+void write_atomically(const fs::path& p, const std::string& text) { write_file_atomic(p.string(), text); }
 
 fs::path point_file(const fs::path& dir, int k) { return dir / "points" / ("point_" + std::to_string(k) + ".json"); }
 
@@ -163,7 +194,7 @@ nlohmann::json sample(const Simulation& sim, const std::vector<std::array<double
 
 // One point, in this process: its result file (a failure is a result too).
 void run_point(const fs::path& dir, int k) {
-  const nlohmann::json plan = read_json(dir / "study.json");
+  const nlohmann::json plan = read_plan(dir);
   if (k < 0 || k >= static_cast<int>(plan["points"].size()))
     throw Error("study: --point " + std::to_string(k) + " is not in " + (dir / "study.json").string() + " (points 0-" +
                 std::to_string(plan["points"].size() - 1) + ")");
@@ -224,7 +255,7 @@ std::string describe(const nlohmann::json& plan, int k) {
 }
 
 void collect(const fs::path& dir) {
-  const nlohmann::json plan = read_json(dir / "study.json");
+  const nlohmann::json plan = read_plan(dir);
   const int n = static_cast<int>(plan["points"].size());
   std::vector<nlohmann::json> results(static_cast<size_t>(n));
   int missing = 0;
@@ -274,7 +305,7 @@ void study(const StudyOptions& o) {
   nlohmann::json plan = make_plan(o);
   // Resume: the same plan in DIR keeps its points; a different one is an error.
   if (fs::exists(dir / "study.json")) {
-    if (read_json(dir / "study.json") != plan)
+    if (read_plan(dir) != plan)
       throw Error("study: " + dir.string() + " holds a different study (" + (dir / "study.json").string() +
                   "); give another --out or remove it");
   } else {
@@ -330,11 +361,18 @@ void add_study_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", opts->out, "Study folder: study.json (the plan), points/, logs/, study.csv, study.md, study.png (default study)");
   cmd->add_option("--point", opts->point, "Run only point K of the plan in --out (GNU parallel, Slurm arrays: docs/study.md)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(integer_in(0, 1000000000));
   cmd->add_flag("--list", opts->list, "Print the command of each point not done yet, one per line, and stop");
   cmd->add_option("--collect", opts->collect, "Gather the point results in DIR into the table and the plot");
   add_set_option(*cmd, opts->patches);
-  cmd->callback([opts] { study(*opts); });
+  cmd->callback([opts] {
+    try {
+      study(*opts);
+    } catch (const nlohmann::json::exception& e) {  // a point result of another shape (the plan is checked)
+      throw Error("study: a point result in " + (opts->collect.empty() ? opts->out : opts->collect) +
+                  "/points is malformed: " + e.what());
+    }
+  });
 }
 
 }  // namespace incise

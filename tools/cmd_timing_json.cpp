@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/util/error.h"
+#include "engine/util/file_io.h"
 #include "tools/solver_report.h"
 #include "tools/timing_json.h"
 
@@ -95,14 +96,7 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["plain_frames"] = pct(s.plain_frames);
   j["plain_frames"]["count"] = s.plain_frames.count;
   j.update(extra);
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream os(tmp);
-    if (!os) throw Error(path + ": cannot write timing report");
-    os << j.dump(2) << "\n";
-    if (!os) throw Error(path + ": write failed");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw Error(path + ": cannot move the timing report into place");
+  write_file_atomic(path, j.dump(2) + "\n");
 }
 
 }  // namespace incise

@@ -1,9 +1,11 @@
 #include "tools/frame_outputs.h"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
 #include "engine/output/result_grid.h"
+#include "engine/util/error.h"
 #include "render/video.h"
 
 namespace incise {
@@ -14,30 +16,81 @@ std::string frame_png(const std::string& dir, int frame) {
   return (std::filesystem::path(dir) / name).string();
 }
 
+void check_output_finite(const VtuGrid& g, const std::string& where) {
+  const auto fail = [&](const std::string& what) {
+    throw Error(where + ": the output " + what + " is not finite; it is not written");
+  };
+  for (size_t i = 0; i < g.points.size(); ++i)
+    if (!std::isfinite(g.points[i])) fail("position of point " + std::to_string(i / 3));
+  for (const auto* fields : {&g.point_data, &g.cell_data})
+    for (const VtuField& f : *fields)
+      for (size_t i = 0; i < f.values.size(); ++i)
+        if (!std::isfinite(f.values[i]))
+          fail("field " + f.name + " at " + (fields == &g.point_data ? "point " : "cell ") +
+               std::to_string(i / static_cast<size_t>(std::max(1, f.ncomp))));
+}
+
 FrameOutputs::FrameOutputs(Simulation& sim, const std::string& stem, const std::string& out,
                            const std::string& render_dir, const std::string& platform)
     : render_dir_(render_dir) {
-  if (!out.empty() && sim.scene.output.write_vtu) {
-    std::filesystem::create_directories(out);
-    series_ = std::make_unique<PvdSeries>((std::filesystem::path(out) / (stem + ".pvd")).string(),
-                                          sim.scene.output.vtu_ascii ? VtuEncoding::Ascii : VtuEncoding::Binary);
-    series_->add(sim.state.time, result_grid(sim.model, sim.state));
+  try {
+    if (!out.empty() && sim.scene.output.write_vtu) {
+      std::filesystem::create_directories(out);
+      pvd_path_ = (std::filesystem::path(out) / (stem + ".pvd")).string();
+      series_ = std::make_unique<PvdSeries>(pvd_path_, sim.scene.output.vtu_ascii ? VtuEncoding::Ascii : VtuEncoding::Binary);
+      add_to_series(sim);
+    }
+    if (!render_dir.empty()) {
+      std::filesystem::create_directories(render_dir);
+      renderer_ = make_renderer(sim.scene.render, platform);
+      write_frame_png(render_frame(*renderer_, sim), sim.state.frame);
+      install_render_stage(sim, *renderer_, &image_);
+    }
+  } catch (...) {  // no destructor runs for a constructor that throws
+    remove_files();
+    throw;
   }
-  if (!render_dir.empty()) {
-    std::filesystem::create_directories(render_dir);
-    renderer_ = make_renderer(sim.scene.render, platform);
-    write_png(render_frame(*renderer_, sim), frame_png(render_dir, sim.state.frame));
-    install_render_stage(sim, *renderer_, &image_);
+}
+
+FrameOutputs::~FrameOutputs() {
+  if (!finished_) remove_files();
+}
+
+void FrameOutputs::remove_files() {
+  std::vector<std::string> files = pngs_;
+  if (series_) {
+    files.push_back(pvd_path_);
+    for (const std::string& f : series_->files())
+      files.push_back((std::filesystem::path(pvd_path_).parent_path() / f).string());
   }
+  int removed = 0;
+  for (const std::string& f : files) {
+    std::error_code ec;
+    removed += std::filesystem::remove(f, ec) ? 1 : 0;
+  }
+  if (removed > 0)
+    std::fprintf(stderr, "incise: removed the %d output file(s) of the failed run (%s%s)\n", removed,
+                 series_ ? pvd_path_.c_str() : "", series_ && !pngs_.empty() ? ", PNG frames" : !pngs_.empty() ? "PNG frames" : "");
+}
+
+void FrameOutputs::add_to_series(const Simulation& sim) {
+  const VtuGrid grid = result_grid(sim.model, sim.state);
+  check_output_finite(grid, "frame " + std::to_string(sim.state.frame) + " (t = " + std::to_string(sim.state.time) + ")");
+  series_->add(sim.state.time, grid);
+}
+
+void FrameOutputs::write_frame_png(const Image& image, int frame) {
+  pngs_.push_back(frame_png(render_dir_, frame));
+  write_png(image, pngs_.back());
 }
 
 void FrameOutputs::after_frame(const Simulation& sim) {
-  if (renderer_) write_png(image_, frame_png(render_dir_, sim.state.frame));
-  if (series_ && sim.state.frame % sim.scene.output.every == 0)
-    series_->add(sim.state.time, result_grid(sim.model, sim.state));
+  if (renderer_) write_frame_png(image_, sim.state.frame);
+  if (series_ && sim.state.frame % sim.scene.output.every == 0) add_to_series(sim);
 }
 
 void FrameOutputs::finish(int frames, double fps) {
+  finished_ = true;
   if (!renderer_) return;
   std::printf("wrote %d frames %s\n", frames + 1, frame_png(render_dir_, 0).c_str());
   const std::string video = encode_mp4(render_dir_, fps);

@@ -57,7 +57,19 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
   double* trial = ws.tmp.data();
   double r = residual_at(s.u.data(), true);
   for (int it = 0; it <= max_iterations; ++it) {
-    if (!std::isfinite(r)) throw Error("static: non-finite residual at iteration " + std::to_string(it));
+    if (!std::isfinite(r)) {
+      long bad = -1;  // the first DOF whose residual is not finite, else the largest (its square overflowed)
+      for (int d = 0; d < n && bad < 0; ++d)
+        if (!std::isfinite(ws.rhs[d])) bad = d;
+      if (bad < 0 && n > 0) {
+        bad = 0;
+        for (int d = 1; d < n; ++d)
+          if (std::abs(ws.rhs[d]) > std::abs(ws.rhs[bad])) bad = d;
+      }
+      throw NumericalError("static: non-finite residual at iteration " + std::to_string(it) +
+                               (bad >= 0 ? " at DOF " + std::to_string(bad) : std::string()),
+                           bad);
+    }
     if (it == 0) ref = std::max(fext, r);
     res.iterations = it;
     res.residual = ref > 0 ? r / ref : 0.0;
@@ -93,8 +105,9 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
     ws.solver.solve(ws.rhs.data(), ws.du.data());
     for (int d = 0; d < n; ++d)
       if (!std::isfinite(ws.du[d]))
-        throw Error("static: non-finite Newton step at iteration " + std::to_string(it) + ", DOF node " +
-                    std::to_string(d / 3) + " component " + "xyz"[d % 3] + " (a singular tangent: a piece held by nothing?)");
+        throw NumericalError("static: non-finite Newton step at iteration " + std::to_string(it) + " at DOF " +
+                                 std::to_string(d) + " (a singular tangent: a piece held by nothing?)",
+                             d);
     // Backtracking on the total potential energy Pi(u) = U(u) - f_ext . u
     // (U: the corotated elastic energy, elastic_energy; -r its gradient on
     // the free DOFs): the full step, then halves until Pi drops by at least

@@ -39,9 +39,9 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
   for (size_t d = 0; d < x.size(); ++d)
     if (!std::isfinite(x[d])) {
       std::ostringstream os;
-      os << "step: non-finite " << what << " at frame " << s.frame << " (t = " << s.time << "), DOF node " << d / 3
-         << " component " << "xyz"[d % 3] << "; the simulation was stopped instead of propagating NaN";
-      throw Error(os.str());
+      os << "step: non-finite " << what << " at frame " << s.frame << " (t = " << s.time << ") at DOF " << d
+         << "; the simulation was stopped instead of propagating NaN";
+      throw NumericalError(os.str(), static_cast<long>(d));
     }
 }
 

@@ -3,6 +3,7 @@
 #include <ctime>
 
 #include "engine/dynamics/step.h"
+#include "engine/runtime/failure_context.h"
 #include "engine/runtime/simulation.h"
 #include "engine/util/error.h"
 
@@ -42,7 +43,13 @@ FrameTiming Pipeline::run_frame(Simulation& sim) const {
   run(kStageToolPoses);
   run(kStageCollision);
   run(kStageCutting);
-  step_stages(sim.model, sim.state, sim.ws);  // assembly, factorization, solve (per Newton iteration), integration
+  try {
+    step_stages(sim.model, sim.state, sim.ws);  // assembly, factorization, solve (per Newton iteration), integration
+  } catch (const NumericalError& e) {  // the node and the scene values to look at, once for every caller
+    const std::string what = e.what();
+    throw Error((what.find("at frame ") == std::string::npos ? "frame " + std::to_string(sim.state.frame) + ": " : "") +
+                with_failure_context(e, sim.model));
+  }
   run(kStageContactPublish);
   run(kStageRender);
   run(kStageRecord);

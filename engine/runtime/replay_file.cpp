@@ -10,6 +10,7 @@
 
 #include "engine/util/error.h"
 #include "engine/util/fnv.h"
+#include "engine/util/json_depth.h"
 
 namespace incise {
 
@@ -19,7 +20,6 @@ constexpr char kMagic[8] = {'I', 'N', 'C', 'R', 'E', 'P', 'L', 'Y'};
 constexpr size_t kHeader = sizeof kMagic + 4;
 constexpr size_t kChunkOverhead = 4 + 8 + 8;  // tag, length, checksum
 constexpr std::uint64_t kMaxFileBytes = 16ULL << 30;
-constexpr int kMaxJsonDepth = 64;
 constexpr std::uint64_t kMaxMetaBytes = 64ULL << 20;  // a scene's text is kilobytes; JSON parsing takes ~10x the bytes
 
 template <class T>
@@ -94,28 +94,8 @@ class Cursor {
   std::string context_;
 };
 
-// Depth of [ and { outside strings: nlohmann's parser recurses per level.
-int json_depth(const std::string& s) {
-  int depth = 0, most = 0;
-  bool in_string = false, escaped = false;
-  for (char c : s) {
-    if (in_string) {
-      if (escaped) escaped = false;
-      else if (c == '\\') escaped = true;
-      else if (c == '"') in_string = false;
-    } else if (c == '"') {
-      in_string = true;
-    } else if (c == '[' || c == '{') {
-      most = std::max(most, ++depth);
-    } else if (c == ']' || c == '}') {
-      --depth;
-    }
-  }
-  return most;
-}
-
 ReplayMeta parse_meta(const Cursor& c, const std::string& text) {
-  if (json_depth(text) > kMaxJsonDepth) c.fail("META nests deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+  if (json_too_deep(text)) c.fail("META nests deeper than " + std::to_string(kMaxJsonDepth) + " levels");
   ReplayMeta m;
   try {
     const nlohmann::json j = nlohmann::json::parse(text);
@@ -294,7 +274,13 @@ ReplayWriter::ReplayWriter(std::string path, const ReplayMeta& m) : path_(std::m
                             {"mesh_hash", m.mesh_hash},           {"compliance", m.compliance},
                             {"files", m.files},                   {"snapshot_every", m.snapshot_every}};
   buf_ = j.dump();
-  chunk("META");
+  try {
+    chunk("META");
+  } catch (...) {  // no destructor runs for a constructor that throws
+    os_.close();
+    std::remove(tmp_.c_str());
+    throw;
+  }
 }
 
 ReplayWriter::~ReplayWriter() {

@@ -3,6 +3,7 @@
 #include "engine/dynamics/static_solve.h"
 #include "engine/dynamics/step.h"
 #include "engine/mesh/mesh_io.h"
+#include "engine/runtime/failure_context.h"
 #include "engine/runtime/timing.h"
 #include "engine/util/error.h"
 
@@ -20,9 +21,14 @@ std::unique_ptr<Simulation> load_simulation(Scene scene) {
   sim->model = build_model(sim->mesh, sim->scene);
   sim->ws.runtime = sim->scene.runtime;
   init_state(sim->model, sim->state, sim->ws);
-  if (sim->scene.initial_static)
-    start_at_static_equilibrium(sim->model, sim->state, sim->ws, sim->scene.static_tolerance,
-                                sim->scene.static_max_iterations, sim->scene.path);
+  if (sim->scene.initial_static) {
+    try {
+      start_at_static_equilibrium(sim->model, sim->state, sim->ws, sim->scene.static_tolerance,
+                                  sim->scene.static_max_iterations, sim->scene.path);
+    } catch (const NumericalError& e) {
+      throw Error(sim->scene.path + ": initial \"static\": " + with_failure_context(e, sim->model));
+    }
+  }
   sim->state.cut_progress.assign(sim->scene.cuts.size(), -1.0);
   sim->setup_ms = clock.ms();
   return sim;

@@ -16,6 +16,7 @@
 #include "engine/scene/scene_patch.h"
 #include "engine/util/error.h"
 #include "engine/util/file_io.h"
+#include "engine/util/json_depth.h"
 
 namespace incise {
 namespace {
@@ -537,7 +538,11 @@ void parse_run(const Parser& p, const json& v, Scene& s) {
   const std::string at = "run";
   p.object(v, at);
   p.allowed_keys(v, at, {"frames"});
-  if (auto it = v.find("frames"); it != v.end()) s.frames = p.at_least_one(*it, at + ".frames");
+  if (auto it = v.find("frames"); it != v.end()) {
+    s.frames = p.at_least_one(*it, at + ".frames");
+    if (s.frames > kMaxFrames)
+      p.fail(at + ".frames", " must be at most " + std::to_string(kMaxFrames) + " (9.3 h at 30 Hz), got " + show(*it));
+  }
 }
 
 void parse_output(const Parser& p, const json& v, Scene& s) {
@@ -846,6 +851,7 @@ std::string strip_id(const std::string& what) {
 
 // Parses text, rejecting duplicate keys (nlohmann would keep the last one silently).
 json parse_text(const std::string& text, const std::string& path) {
+  check_json_depth(text, path);  // before anything recurses over the document
   std::vector<std::set<std::string>> open;  // keys seen in each enclosing object
   auto callback = [&](int, json::parse_event_t ev, json& parsed) -> bool {
     switch (ev) {

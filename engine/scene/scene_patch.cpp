@@ -3,6 +3,7 @@
 #include <cctype>
 
 #include "engine/util/error.h"
+#include "engine/util/json_depth.h"
 
 namespace incise {
 namespace {
@@ -28,13 +29,19 @@ std::vector<std::string> split_key(const ScenePatch& p) {
     if (c == '.') out.emplace_back();
     else out.back() += c;
   }
+  if (out.size() > static_cast<size_t>(kMaxJsonDepth))
+    throw Error(p.given + ": the key has " + std::to_string(out.size()) + " parts, more than " +
+                std::to_string(kMaxJsonDepth) + " (a scene nests fewer than 10 levels)");
   for (const auto& c : out)
     if (c.empty()) throw Error(p.given + ": the key \"" + p.key + "\" has an empty part (expected a.b.c, cuts.0.at_time)");
   return out;
 }
 
 // The value as JSON when it is valid JSON, otherwise the text as a string.
-json patch_value(const std::string& text) {
+json patch_value(const ScenePatch& p) {
+  const std::string& text = p.value;
+  if (json_too_deep(text))
+    throw Error(p.given + ": the value is nested deeper than " + std::to_string(kMaxJsonDepth) + " levels of [ and {");
   json v = json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (v.is_discarded()) return json(text);
   return v;
@@ -52,18 +59,21 @@ std::string type_of(const json& v) { return v.is_number() ? "number" : v.type_na
 }  // namespace
 
 ScenePatch parse_scene_patch(const std::string& text) {
+  // Messages quote the patch as given: a long value is shortened there.
+  const std::string shown =
+      text.size() > 100 ? text.substr(0, 80) + "... (" + std::to_string(text.size()) + " characters)" : text;
   const size_t eq = text.find('=');
   if (eq == std::string::npos)
-    throw Error("--set " + text + ": expected KEY=VALUE, e.g. --set solver.policy=lagged or --set integrator.dt=0.01");
-  if (eq == 0) throw Error("--set " + text + ": the key before '=' is empty (expected KEY=VALUE)");
-  return {text.substr(0, eq), text.substr(eq + 1), "--set " + text};
+    throw Error("--set " + shown + ": expected KEY=VALUE, e.g. --set solver.policy=lagged or --set integrator.dt=0.01");
+  if (eq == 0) throw Error("--set " + shown + ": the key before '=' is empty (expected KEY=VALUE)");
+  return {text.substr(0, eq), text.substr(eq + 1), "--set " + shown};
 }
 
 std::vector<AppliedPatch> apply_scene_patches(json& root, const std::vector<ScenePatch>& patches) {
   std::vector<AppliedPatch> applied;
   for (const ScenePatch& p : patches) {
     const std::vector<std::string> parts = split_key(p);
-    json value = patch_value(p.value);
+    json value = patch_value(p);
     json* cur = &root;
     std::string path;
     for (size_t i = 0; i < parts.size(); ++i) {

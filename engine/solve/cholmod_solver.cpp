@@ -675,12 +675,10 @@ void CholmodSolver::factorize(const double* values) {
     const long dof = k < static_cast<size_t>(n_) ? (perm ? perm[k] : static_cast<long>(k)) : -1;
     std::ostringstream os;
     os << "CHOLMOD: the system matrix is not positive definite";
-    if (dof >= 0)
-      os << " at DOF " << dof << " (node " << dof / 3 << " component " << "xyz"[dof % 3] << "; pivot " << k << " of "
-         << n_ << " in the fill-reducing order)";
-    os << "; the model may be unconstrained in a static solve, a material parameter may be invalid, or an "
+    if (dof >= 0) os << " at DOF " << dof << " (pivot " << k << " of " << n_ << " in the fill-reducing order)";
+    os << "; the model may be unconstrained in a static solve, a material parameter may be extreme, or an "
           "element is degenerate";
-    throw Error(os.str());
+    throw NumericalError(os.str(), dof);
   }
   if (c_.status < CHOLMOD_OK) throw Error("CHOLMOD: numeric factorization failed (status " + std::to_string(c_.status) + ")");
   factorized_ = true;

@@ -543,7 +543,13 @@ void lagged_patch(const Model& m, Workspace& ws, const double* A) {
   }
   if (w.patch_dof.empty()) return;  // the mapped factor knows every node: nothing to solve exactly
   for (size_t t = 0; t < w.patch_src.size(); ++t) w.patch_A[t] = A[w.patch_src[t]];
-  w.patch.factorize(w.patch_A.data());
+  try {
+    w.patch.factorize(w.patch_A.data());
+  } catch (const NumericalError& e) {  // the patch's own numbering: its global DOF
+    const bool known = e.dof >= 0 && e.dof < static_cast<long>(w.patch_dof.size());
+    throw NumericalError(std::string(e.what()) + " (the lagged policy's patch matrix)",
+                         known ? w.patch_dof[static_cast<size_t>(e.dof)] : -1);
+  }
 }
 
 // The warped policies' factor of the rest matrix A0, once per model (its own

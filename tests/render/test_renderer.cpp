@@ -2,6 +2,8 @@
 // background, instruments, and PNG round trips.
 #include "render/renderer.h"
 
+#include <filesystem>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -123,6 +125,17 @@ TEST(Png, RoundTripAndErrorsNameTheFile) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("README.md: not a readable PNG"), std::string::npos) << e.what();
   }
+  // A folder as the path: an error naming it, no temporary file beside it (issue 24).
+  const std::filesystem::path folder = output_dir() + "/png_folder";
+  std::filesystem::create_directories(folder);
+  try {
+    write_png(img, folder.string());
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), folder.string() + ": cannot write: it is a directory");
+  }
+  for (const auto& f : std::filesystem::directory_iterator(output_dir()))
+    EXPECT_EQ(f.path().filename().string().find("png_folder.tmp"), std::string::npos) << f.path();
 }
 
 }  // namespace

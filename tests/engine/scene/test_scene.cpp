@@ -242,6 +242,19 @@ TEST_F(SceneTest, TopLevelNotObject) {
   expect_error("[1, 2]", "the scene must be a JSON object, got array [1,2]");
 }
 
+// Issue 24: 100,000 nested arrays overflowed the stack while the error
+// message dumped them; the depth is checked before anything recurses.
+TEST_F(SceneTest, DeepNestingRejectedBeforeParsing) {
+  const int n = 100000;
+  EXPECT_EQ(error_of(std::string(n, '[') + std::string(n, ']')), scene_path_ + ":1: nested deeper than 64 levels of [ and {");
+  // inside the scene's object (one level), on its fourth line; brackets in strings do not count
+  const std::string deep = std::string(64, '[') + std::string(64, ']');
+  const std::string shallow = std::string(63, '[') + std::string(63, ']');
+  EXPECT_EQ(error_of(minimal("\n\"gravity\": \"[[[[[[\",\n \"x\": " + deep)),
+            scene_path_ + ":4: nested deeper than 64 levels of [ and {");
+  expect_error_contains(minimal("\"x\": " + shallow), "x: unknown key");
+}
+
 TEST_F(SceneTest, DuplicateKeyRejected) {
   expect_error_contains(
       with_material(R"({"young": 1, "young": 2, "poisson": 0.3, "density": 1})"),

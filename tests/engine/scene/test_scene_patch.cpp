@@ -105,6 +105,23 @@ TEST_F(ScenePatchTest, ValuesParseAsJsonElseAsString) {
             "--set integrator.dt=nan: integrator.dt must be a number, got string \"nan\"");
 }
 
+// Issue 24: a --set value or key nested without bound is refused before it
+// is parsed (its dump in a message overflowed the stack); the message quotes
+// a long patch shortened.
+TEST_F(ScenePatchTest, DeepValuesAndKeysRefused) {
+  const int n = 100000;
+  const std::string deep = "material.young=" + std::string(n, '[') + std::string(n, ']');
+  EXPECT_EQ(error_of(scene(), sets({deep.c_str()})),
+            "--set " + deep.substr(0, 80) + "... (200015 characters): the value is nested deeper than 64 levels of [ and {");
+  std::string key = "a";
+  for (int i = 0; i < 1000; ++i) key += ".a";
+  const std::string msg = error_of(scene(), sets({(key + "=1").c_str()}));
+  EXPECT_NE(msg.find(": the key has 1001 parts, more than 64"), std::string::npos) << msg;
+  // 64 levels are fine: the parser then says what is wrong with the value
+  const std::string ok = "material.young=" + std::string(64, '[') + std::string(64, ']');
+  EXPECT_NE(error_of(scene(), sets({ok.c_str()})).find("material.young must be a number, got array"), std::string::npos);
+}
+
 TEST_F(ScenePatchTest, NestedKeysAndArrayIndices) {
   const std::string cut = R"("cuts": [{"type": "plane", "point": [0, 0, 0], "normal": [1, 0, 0], "at_time": 1.0}])";
   EXPECT_DOUBLE_EQ(load(scene(cut), sets({"cuts.0.at_time=0.5"})).cuts[0].at_time, 0.5);

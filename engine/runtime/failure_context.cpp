@@ -1,0 +1,75 @@
+#include "engine/runtime/failure_context.h"
+
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+namespace incise {
+
+namespace {
+
+std::string num(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", x);
+  return buf;
+}
+
+}  // namespace
+
+std::string describe_dof(const Model& m, long dof) {
+  if (dof < 0 || dof >= static_cast<long>(m.ndof())) return "";
+  const long node = dof / 3;
+  const char comp = "xyz"[dof % 3];
+  long mesh_node = node;
+  std::string who = "node " + std::to_string(node);
+  if (node >= m.nnode) {  // enriched DOF nodes follow the mesh nodes (engine/model/model.h)
+    const long k = node - m.nnode;
+    mesh_node = k < static_cast<long>(m.cuts.enr_node.size()) ? m.cuts.enr_node[static_cast<size_t>(k)] : -1;
+    who = "enriched DOF node " + std::to_string(node) +
+          (mesh_node >= 0 ? " (a cut piece at mesh node " + std::to_string(mesh_node) + ")" : "");
+  }
+  std::string at;
+  if (mesh_node >= 0 && 3 * mesh_node + 2 < static_cast<long>(m.X.size()))
+    at = " (x = " + num(m.X[3 * mesh_node]) + ", " + num(m.X[3 * mesh_node + 1]) + ", " + num(m.X[3 * mesh_node + 2]) + ")";
+  return who + " component " + comp + at;
+}
+
+std::string likely_inputs(const Model& m) {
+  // Broad bands, in SI units, of what a simulated body has: outside them a
+  // value is the likely cause (a product that overflows, a term lost in
+  // roundoff). Inside them the others are listed for reference.
+  struct Value {
+    std::string text;
+    bool extreme;
+  };
+  const Material& mat = m.material;
+  const auto band = [](double x, double lo, double hi) { return !(x >= lo && x <= hi); };
+  std::vector<Value> v = {
+      {"material.young = " + num(mat.young) +
+           (band(mat.young, 1.0, 1e12) ? " (extreme: tissues to steel are 1e2 to 2e11 Pa)" : ""),
+       band(mat.young, 1.0, 1e12)},
+      {"material.poisson = " + num(mat.poisson) +
+           (mat.poisson > 0.499 ? " (extreme: nearly incompressible, the volumetric stiffness dwarfs the rest)"
+                                : mat.poisson < -0.99 ? " (extreme: nearly -1, no shear stiffness left)" : ""),
+       mat.poisson > 0.499 || mat.poisson < -0.99},
+      {"material.density = " + num(mat.density) +
+           (band(mat.density, 1e-3, 1e5) ? " (extreme: materials are 1 to 2e4 kg/m^3)" : ""),
+       band(mat.density, 1e-3, 1e5)},
+      {"integrator.dt = " + num(m.dt) + (band(m.dt, 1e-7, 1.0) ? " (extreme: frames are 1e-4 to 0.1 s)" : ""),
+       band(m.dt, 1e-7, 1.0)},
+  };
+  std::string out;
+  for (bool extreme : {true, false})
+    for (const Value& x : v)
+      if (x.extreme == extreme) out += (out.empty() ? "" : ", ") + x.text;
+  return out;
+}
+
+std::string with_failure_context(const NumericalError& e, const Model& m) {
+  std::string s = e.what();
+  const std::string where = describe_dof(m, e.dof);
+  if (!where.empty()) s += "; at " + where;
+  return s + "; check " + likely_inputs(m);
+}
+
+}  // namespace incise
