@@ -6,6 +6,7 @@
 #include "tools/build_info.h"
 #include "tools/cli.h"
 #include "tools/commands.h"
+#include "tools/interrupt.h"
 
 namespace incise {
 
@@ -24,6 +25,7 @@ int cli_main(int argc, char** argv) {
   add_study_command(app);
   try {
     app.parse(argc, argv);
+    if (interrupt_signal()) return 128 + interrupt_signal();  // tools/interrupt.h: stopped early, outputs complete
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   } catch (const Error& e) {

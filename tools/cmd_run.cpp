@@ -26,6 +26,7 @@
 #include "haptics/tick_log.h"
 #include "tools/frame_outputs.h"
 #include "tools/haptics_report.h"
+#include "tools/interrupt.h"
 #include "tools/progress_bar.h"
 #include "tools/record_stage.h"
 
@@ -115,7 +116,13 @@ void run(const RunOptions& o) {
   timings.reserve(frames);
   Stopwatch wall;
   ProgressBar progress(frames, sim->model.dt);
+  catch_interrupts();
+  int done = frames;  // frames stepped: fewer when interrupted
   for (int k = 0; k < frames; ++k) {
+    if (interrupt_signal()) {
+      done = k;
+      break;
+    }
     if (pace > 0.0) std::this_thread::sleep_until(next);
     FrameTiming t;
     try {
@@ -154,18 +161,21 @@ void run(const RunOptions& o) {
     progress.update(k + 1);
   }
   progress.finish();
+  if (interrupt_signal())
+    std::printf("interrupted by %s: stopped after frame %d of %d; the outputs cover the frames done\n", interrupt_name(),
+                done, frames);
   const double run_ms = wall.ms();
   if (haptic) ticks->finish(*haptic, record.get(), s.frame);
   if (record) {
-    record->finish("");
+    record->finish(interrupt_signal() ? std::string("interrupted by ") + interrupt_name() : std::string());
     std::printf("wrote %s: %d frames, %.1f KB (%.2f KB per frame)\n", record->path().c_str(), record->frames(),
                 record->bytes() / 1024.0, record->bytes() / 1024.0 / std::max(1, record->frames()));
   }
   const TimingSummary summary = summarize(timings);
-  std::printf("%d frames in %.1f ms (%.2fx real time); %d numeric factorizations\n", frames, run_ms,
-              frames * sim->model.dt * 1000.0 / run_ms, sim->ws.refactorizations);
+  std::printf("%d frames in %.1f ms (%.2fx real time); %d numeric factorizations\n", done, run_ms,
+              done * sim->model.dt * 1000.0 / run_ms, sim->ws.refactorizations);
   std::printf("%s", format_summary(summary).c_str());
-  outputs.finish(frames, 1.0 / sim->model.dt);
+  outputs.finish(done, 1.0 / sim->model.dt);
   if (!out.empty()) {
     std::filesystem::create_directories(out);
     const std::string json = (std::filesystem::path(out) / "timing.json").string();

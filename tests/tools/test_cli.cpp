@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <map>
@@ -623,7 +624,9 @@ TEST_F(Cli, RunHapticsWritesTheForceLogAndTickStatistics) {
   EXPECT_EQ(header, "t,fx,fy,fz,tick_us,late_us");
   int rows = 0;
   while (std::getline(log, line)) ++rows;
-  EXPECT_GT(rows, 200) << "9 frames at 30 Hz are 0.3 s of 1 kHz ticks";
+  // 9 frames at 30 Hz are 0.3 s of 1 kHz ticks; on a loaded machine late
+  // ticks skip the deadlines they missed (overrun events), so not all 300
+  EXPECT_GT(rows, 30);
   std::ifstream js(path("h/haptics.json"));
   const auto j = nlohmann::json::parse(js);
   EXPECT_EQ(j["ticks"].get<int>(), rows);
@@ -633,6 +636,47 @@ TEST_F(Cli, RunHapticsWritesTheForceLogAndTickStatistics) {
   EXPECT_TRUE(fs::exists(path("h/haptics_device.csv")));
   EXPECT_TRUE(fs::exists(path("h/haptics_events.csv")));
   EXPECT_NE(r.out.find("contact_publish"), std::string::npos);
+}
+
+// SIGTERM (or Ctrl-C's SIGINT) during a long haptic run: it stops after the
+// frame in progress, finishes the series, the tick logs and timing.json for
+// the frames done, leaves no temporary file, and exits with 128 + 15. (A
+// background job of a non-interactive shell ignores SIGINT, so the test
+// sends SIGTERM.)
+TEST_F(Cli, InterruptedRunFinishesItsOutputsForTheFramesDone) {
+  write("press.csv", "t,x,y,z,qw,qx,qy,qz\n0, 3.5, 0.5, 1.3, 1, 0, 0, 0\n0.2, 3.5, 0.5, 1.1, 1, 0, 0, 0\n");
+  cantilever_scene(R"(, "instruments": [{"type": "probe", "name": "probe", "radius": 0.2, "trajectory": "press.csv"}],
+      "haptics": {"device": "scripted", "realtime": false, "guard": {"workspace_radius": 10}},
+      "output": {"vtu": true, "every": 1})");
+  // 1,000,000 frames paced at 30 Hz would take 9 hours: interrupted once
+  // the third frame's file is there.
+  const std::string cmd = "( " + std::string(INCISE_BINARY) + " run " + path("scene.json") +
+                          " --frames 1000000 --haptics --out " + path("o") + " > " + path("run.log") +
+                          " 2>&1 & pid=$!; for i in $(seq 600); do [ -f " + path("o/scene_000003.vtu") +
+                          " ] && break; sleep 0.1; done; kill -TERM $pid; wait $pid; echo $? > " + path("rc") + " )";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  std::ifstream rc(path("rc")), log(path("run.log"));
+  int code = -1;
+  rc >> code;
+  const std::string out((std::istreambuf_iterator<char>(log)), {});
+  EXPECT_EQ(code, 128 + 15) << out;
+  EXPECT_NE(out.find("interrupted by SIGTERM: stopped after frame "), std::string::npos) << out;
+  // every frame the .pvd lists is there, and timing.json covers the frames done
+  std::ifstream pvd(path("o/scene.pvd"));
+  const std::string series((std::istreambuf_iterator<char>(pvd)), {});
+  int listed = 0;
+  for (size_t at = series.find("file=\""); at != std::string::npos; at = series.find("file=\"", at + 1)) {
+    const size_t end = series.find('"', at + 6);
+    EXPECT_TRUE(fs::exists(path("o/" + series.substr(at + 6, end - at - 6)))) << series.substr(at, end - at);
+    ++listed;
+  }
+  EXPECT_GE(listed, 4);
+  EXPECT_TRUE(fs::exists(path("o/timing.json")));
+  std::ifstream js(path("o/haptics.json"));
+  const auto j = nlohmann::json::parse(js);
+  EXPECT_GT(j["ticks"].get<int>(), 0);
+  for (const auto& e : fs::recursive_directory_iterator(dir_))
+    EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos) << e.path();
 }
 
 TEST_F(Cli, RunHapticsWithoutADeviceStartsNoThread) {
