@@ -305,6 +305,29 @@ void integrate(const Model& m, State& s, Workspace& ws) {
   project_contact_kinematics(m, s, ws);
   s.time = t1;
   ++s.frame;
+  check_motion_bounded(m, s);
+}
+
+void check_motion_bounded(const Model& m, const State& s) {
+  double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+  for (int i = 0; i < m.nnode; ++i)
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], m.X[3 * i + k]);
+      hi[k] = std::max(hi[k], m.X[3 * i + k]);
+    }
+  const double length = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                   (hi[2] - lo[2]) * (hi[2] - lo[2]));
+  const double limit = kDivergedSpeed * length;
+  for (int d = 0; d < m.ndof(); ++d)
+    if (std::abs(s.v[d]) > limit) {
+      std::ostringstream os;
+      os << "step: the motion diverged at frame " << s.frame << " (t = " << s.time << "): DOF " << d << " moves at "
+         << std::abs(s.v[d]) << " units/s, more than " << kDivergedSpeed << " body lengths (" << length
+         << ") a second; the simulation was stopped. One known cause: a tiny cut piece under solver.policy lagged "
+            "with integrator.tangent consistent (docs/next-steps.md); solver.policy exact or integrator.tangent "
+            "frozen_rotation avoid it";
+      throw NumericalError(os.str(), static_cast<long>(d));
+    }
 }
 
 const double* internal_forces(const Model& m, State& s, Workspace& ws, const double* x, bool tangent, bool reuse_tangent) {

@@ -47,6 +47,12 @@ void assemble_system(const Model& model, State& state, Workspace& ws);
 void factorize_system(const Model& model, State& state, Workspace& ws);
 void solve_system(const Model& model, State& state, Workspace& ws);
 void integrate(const Model& model, State& state, Workspace& ws);
+// Motion that runs away without producing NaN is stopped as NaN is: no DOF
+// may move faster than kDivergedSpeed body lengths (the diagonal of the mesh
+// nodes' bounding box) a second. Throws NumericalError naming the DOF.
+// integrate() calls it; a real tissue at 1000 lengths a second is gone.
+inline constexpr double kDivergedSpeed = 1000.0;
+void check_motion_bounded(const Model& model, const State& state);
 // Whether the Newton loop goes on (ws.newton_done): the iteration count, and
 // the rotation check on Delta (the solve stage calls it; with contact rows
 // the contact stage does, on the corrected increment).

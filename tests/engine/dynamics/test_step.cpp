@@ -51,6 +51,29 @@ TEST(Newmark, UndampedLinearConservesEnergyOver1000Steps) {
   }
 }
 
+// A run-away motion that never becomes NaN (issue 24's soak: a tiny cut
+// piece reached 1e22 m/s with finite numbers) is stopped like NaN: at more
+// than 1000 body lengths a second, naming the DOF.
+TEST(Newmark, MotionFasterThanAThousandBodyLengthsASecondIsStopped) {
+  const Mesh mesh = make_beam(4.0, 0.5, 0.5, 8, 1, 1, 1);
+  const Model m = build_model(mesh, cantilever_scene(MaterialModel::Linear));
+  State st;
+  Workspace ws;
+  init_state(m, st, ws);
+  const double length = std::sqrt(4.0 * 4.0 + 0.5 * 0.5 + 0.5 * 0.5);
+  st.v[17] = -0.99 * kDivergedSpeed * length;
+  EXPECT_NO_THROW(check_motion_bounded(m, st));
+  st.v[17] = -1.01 * kDivergedSpeed * length;
+  try {
+    check_motion_bounded(m, st);
+    ADD_FAILURE() << "no error";
+  } catch (const NumericalError& e) {
+    EXPECT_EQ(e.dof, 17);
+    EXPECT_NE(std::string(e.what()).find("the motion diverged at frame 0 (t = 0): DOF 17 moves at"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Newmark, RayleighDampedEnergyDecaysMonotonically) {
   // Released from rest under gravity: E = T + U_el - f.u obeys dE/dt = -v'Dv <= 0
   // and settles at the static value -f.u_static / 2 (linear).
