@@ -19,7 +19,7 @@ size_t json_too_deep(const std::string& text, int max_depth) {
     } else if (c == '[' || c == '{') {
       if (++depth > max_depth) return line;
     } else if (c == ']' || c == '}') {
-      --depth;  // unbalanced text is the parser's to report
+      if (depth > 0) --depth;  // unbalanced text is the parser's to report; "]]][[[" must not hide depth
     }
   }
   return 0;
