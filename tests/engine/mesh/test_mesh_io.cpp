@@ -19,6 +19,7 @@
 #include "engine/util/error.h"
 #include "engine/mesh/mesh_io.h"
 #include "engine/mesh/mesh_tools.h"
+#include "tests/engine/error_of.h"
 
 namespace incise {
 namespace {
@@ -45,14 +46,7 @@ class MeshIo : public ::testing::Test {
   fs::path dir_;
 };
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using test::error_of;
 
 std::string slurp(const std::string& p) {
   std::ifstream in(p);

@@ -16,18 +16,12 @@
 #include "engine/mesh/mesh_tools.h"
 #include "engine/fem/element.h"
 #include "engine/mesh/mesh_io.h"
+#include "tests/engine/error_of.h"
 
 namespace incise {
 namespace {
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using test::error_of;
 
 TEST(MeshTools, BeamVolumeCountsAndEqualKuhnTets) {
   const double lx = 0.7, ly = 0.3, lz = 1.1;

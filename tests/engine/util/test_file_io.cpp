@@ -12,20 +12,14 @@
 
 #include "engine/util/error.h"
 #include "engine/util/file_io.h"
+#include "tests/engine/error_of.h"
 
 namespace incise {
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using test::error_of;
 
 struct FileIo : ::testing::Test {
   fs::path dir = fs::temp_directory_path() / ("incise_file_io_" + std::to_string(::getpid()));
