@@ -13,11 +13,9 @@ of the displacement (4-point rule; the engine's corotated energy differs by
 O(rotation^2), a proxy), gravity = sum m g u_z. Cached in DIR/energy.csv.
 
 Memory: resources.csv (the sampler, wall clock) mapped to frames through
-frame_times.csv (the .vtu files' modification times). The haptic thread's
-tick records (haptics/haptic_loop.h TickRecord, 136 bytes with this
-compiler's layout) are all kept in memory by `incise run --haptics` until the
-end, so RSS grows with wall time by design; "RSS less the tick log" subtracts
-ticks-so-far x 136 B (ticks counted in haptics_force.csv).
+frame_times.csv (the .vtu files' modification times). The haptic logs are
+streamed to disk each frame (haptics/tick_log.h); what still grows is the
+per-frame timing record (320 B a frame) that timing.json is written from.
 """
 import csv
 import json
@@ -29,7 +27,6 @@ import sys
 import numpy as np
 
 RHO, YOUNG, NU, GRAV = 1000.0, 3e4, 0.45, 9.81
-TICK_BYTES = 136
 HRZ = np.array([1 / 36] * 4 + [4 / 27] * 6)
 EDGES = [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)]  # VTK tet10 mid-edge order
 
@@ -152,8 +149,6 @@ def main():
         a = np.loadtxt(hf, delimiter=",", skiprows=1, usecols=(0, 1, 2, 3), ndmin=2)
         ticks_t, fmag = a[:, 0], np.linalg.norm(a[:, 1:4], axis=1)
     loop0 = ft_epoch[0]
-    ticks_so_far = np.searchsorted(ticks_t, r_ep - loop0)
-    rss_less_log = rss - ticks_so_far * TICK_BYTES / 2**20
     touching = np.nonzero(fmag > 1e-6)[0]
     probe_force_frame = int(np.interp(loop0 + ticks_t[touching[-1]], ft_epoch, ft_frame)) if len(touching) else 0
     # The probe's last stroke (wall clock) from its trajectory: below z = 0.06 it can touch.
@@ -191,7 +186,6 @@ def main():
     i_end = np.nonzero(inrun)[0][-1] if inrun.any() else len(rss) - 1
     slope = np.polyfit(r_frame[post], rss[post], 1)[0] * 1000 if post.sum() > 2 else float("nan")
     slope_t = np.polyfit(r_t[post], rss[post], 1)[0] * 60 if post.sum() > 2 else float("nan")
-    slope_less = np.polyfit(r_frame[post], rss_less_log[post], 1)[0] * 1000 if post.sum() > 2 else float("nan")
     wall = ft_epoch[-1] - ft_epoch[0]
     first10 = inrun & (r_frame <= warm)
     last10 = inrun & (r_frame >= 0.9 * nframes)
@@ -206,8 +200,6 @@ def main():
     print(f"RSS: {rss[i_warm]:.1f} MB at frame {r_frame[i_warm]:.0f} (10% warm-up), {rss[i_end]:.1f} MB at the end "
           f"({rss[i_end] - rss[i_warm]:+.1f} MB, {100 * (rss[i_end] / rss[i_warm] - 1):+.1f}%); peak (VmHWM) {hwm.max():.1f} MB")
     print(f"RSS slope after warm-up (linear fit): {slope:+.2f} MB per 1000 frames ({slope_t:+.2f} MB per minute of wall time)")
-    print(f"RSS less the haptic tick log ({len(ticks_t)} ticks x {TICK_BYTES} B = {len(ticks_t) * TICK_BYTES / 2**20:.1f} MB): "
-          f"{rss_less_log[i_warm]:.1f} -> {rss_less_log[i_end]:.1f} MB, slope {slope_less:+.2f} MB per 1000 frames")
     print(f"threads: max {thr[first10].max() if first10.any() else 0} in the first 10% of frames, "
           f"max {thr[last10].max() if last10.any() else 0} in the last 10%, overall {thr[inrun].min()}-{thr[inrun].max()}")
     print(f"fds: max {fds[first10].max() if first10.any() else 0} in the first 10% of frames, "
@@ -233,14 +225,12 @@ def main():
     plt.rcParams.update({"font.size": 7})
     fig, ax = plt.subplots(3, 1, figsize=(6.4, 5.2), dpi=80)
     ax[0].plot(r_t[inrun], rss[inrun], lw=0.8, label="RSS")
-    ax[0].plot(r_t[inrun], rss_less_log[inrun], lw=0.8, label="RSS less the haptic tick log")
     ax[0].set_xlabel("wall time since start (s)")
     ax[0].set_ylabel("MB")
     ax[0].legend(loc="lower right", frameon=False)
     ax[0].set_title(f"soak: {nframes} frames, organ 10k, realtime preset, scalpel, haptic probe (1 kHz)"
                     + (" + grasper" if grasper else ""))
     ax[1].plot(r_frame[inrun], rss[inrun], lw=0.8, label="RSS")
-    ax[1].plot(r_frame[inrun], rss_less_log[inrun], lw=0.8, label="RSS less the tick log")
     ax[1].axvline(warm, color="k", lw=0.5, ls=":")
     ax[1].axvline(input_end, color="r", lw=0.5, ls="--")
     ax[1].text(warm, ax[1].get_ylim()[0], " 10%", va="bottom", fontsize=6)
