@@ -18,18 +18,24 @@ double side_value(const std::vector<double>& phi, int c, const double* r) {
   return v;
 }
 
+// Corner values of ncut random planes, each with corners on both sides.
+std::vector<double> random_crossing_planes(std::mt19937& rng, int ncut) {
+  std::uniform_real_distribution<double> U(-1, 1);
+  std::vector<double> phi(4 * ncut);
+  for (int c = 0; c < ncut; ++c) {
+    do {
+      for (int k = 0; k < 4; ++k) phi[4 * c + k] = U(rng);
+    } while (*std::max_element(phi.begin() + 4 * c, phi.begin() + 4 * c + 4) <= 0 ||
+             *std::min_element(phi.begin() + 4 * c, phi.begin() + 4 * c + 4) >= 0);
+  }
+  return phi;
+}
+
 TEST(Subdivide, VolumesAddUpAndEverySubTetIsOnItsSide) {
   std::mt19937 rng(11);
-  std::uniform_real_distribution<double> U(-1, 1);
   for (int trial = 0; trial < 200; ++trial) {
     const int ncut = 1 + trial % 2;
-    std::vector<double> phi(4 * ncut);
-    for (int c = 0; c < ncut; ++c) {
-      do {
-        for (int k = 0; k < 4; ++k) phi[4 * c + k] = U(rng);
-      } while (*std::max_element(phi.begin() + 4 * c, phi.begin() + 4 * c + 4) <= 0 ||
-               *std::min_element(phi.begin() + 4 * c, phi.begin() + 4 * c + 4) >= 0);
-    }
+    const std::vector<double> phi = random_crossing_planes(rng, ncut);
     const SubTets st = subdivide_tet(phi, ncut);
     double vol = 0;
     for (int t = 0; t < st.size(); ++t) {
@@ -123,15 +129,8 @@ TEST(Subdivide, TwentyNearParallelCutsMakeSlabsNotAnExponentialTree) {
 TEST(Subdivide, TwentyCrossingCutsStayWithinTheArrangementBound) {
   // Random planes through the tet: every part is a cell of the arrangement.
   std::mt19937 rng(5);
-  std::uniform_real_distribution<double> U(-1, 1);
   const int ncut = 20;
-  std::vector<double> phi(4 * ncut);
-  for (int c = 0; c < ncut; ++c) {
-    do {
-      for (int k = 0; k < 4; ++k) phi[4 * c + k] = U(rng);
-    } while (*std::max_element(phi.begin() + 4 * c, phi.begin() + 4 * c + 4) <= 0 ||
-             *std::min_element(phi.begin() + 4 * c, phi.begin() + 4 * c + 4) >= 0);
-  }
+  const std::vector<double> phi = random_crossing_planes(rng, ncut);
   const SubTets st = subdivide_tet(phi, ncut);
   std::map<std::vector<signed char>, double> cells;
   double vol = 0;
