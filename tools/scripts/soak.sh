@@ -11,9 +11,10 @@
 #   - grasper (only with SOAK_GRASPER=1): every 8 s of scene time from 2 s
 #     until 60% of the run it takes the upper face at (-0.02, -0.015), lifts
 #     it 5 mm and pulls it 4 mm sideways, holds, lets go and withdraws; then
-#     it stays parked 5 cm above. Off by default: with it, sliver pieces of
-#     the incision's exit end blow up (1e22 m/s by frame 900, no NaN, exit 0;
-#     frames 0.5-2.5 s each; docs/benchmarks.md, Issue 24: soak);
+#     it stays parked 5 cm above. Off by default: with it, a tiny piece at
+#     the incision's exit end diverges under the realtime preset (it reached
+#     1e22 m/s by frame 900 silently; the step now stops the run at frame
+#     ~470 with an error naming it; docs/benchmarks.md, Issue 24: soak);
 #   - probe: held by the haptic thread (haptics.device "scripted", 1 kHz)
 #     whose clock is the wall clock, not the scene's: 3 mm presses and 1 cm
 #     slides every 10 s of WALL time for SOAK_PROBE_WALL_S seconds (default
