@@ -309,14 +309,7 @@ void integrate(const Model& m, State& s, Workspace& ws) {
 }
 
 void check_motion_bounded(const Model& m, const State& s) {
-  double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-  for (int i = 0; i < m.nnode; ++i)
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = std::min(lo[k], m.X[3 * i + k]);
-      hi[k] = std::max(hi[k], m.X[3 * i + k]);
-    }
-  const double length = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                                   (hi[2] - lo[2]) * (hi[2] - lo[2]));
+  const double length = m.body_length;
   const double limit = kDivergedSpeed * length;
   for (int d = 0; d < m.ndof(); ++d)
     if (std::abs(s.v[d]) > limit) {

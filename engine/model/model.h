@@ -41,6 +41,7 @@ struct Model {
   int ndofnode = 0;             // all DOF nodes (standard + enriched)
   int ndof() const { return 3 * ndofnode; }
   std::vector<double> X;        // (ndofnode, 3) reference positions; 0 for enriched DOF nodes
+  double body_length = 0.0;     // diagonal of the mesh nodes' bounding box (the run-away stop's scale, step.h)
 
   // Elements (assembly units)
   int nelem = 0;

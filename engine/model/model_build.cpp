@@ -977,6 +977,14 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.solver = scene.solver;
   m.nnode = m.ndofnode = m.mesh.nnode();
   m.X = m.mesh.X;
+  {
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (size_t i = 0; i < m.X.size(); ++i) {
+      lo[i % 3] = std::min(lo[i % 3], m.X[i]);
+      hi[i % 3] = std::max(hi[i % 3], m.X[i]);
+    }
+    m.body_length = m.X.empty() ? 0.0 : std::hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+  }
   if (cuts && cuts->npiece() > 0) {
     m.cuts = *cuts;
     m.ndofnode += cuts->n_enriched;
