@@ -316,9 +316,9 @@ void check_motion_bounded(const Model& m, const State& s) {
       std::ostringstream os;
       os << "step: the motion diverged at frame " << s.frame << " (t = " << s.time << "): DOF " << d << " moves at "
          << std::abs(s.v[d]) << " units/s, more than " << kDivergedSpeed << " body lengths (" << length
-         << ") a second; the simulation was stopped. One known cause: a tiny cut piece under solver.policy lagged "
-            "with integrator.tangent consistent (docs/next-steps.md); solver.policy exact or integrator.tangent "
-            "frozen_rotation avoid it";
+         << ") a second; the simulation was stopped. Under solver.policy lagged, a tiny cut piece whose DOFs CG "
+            "leaves far off can do this: raise solver.condense_below (condenses them out exactly), or use "
+            "solver.policy exact or integrator.tangent frozen_rotation";
       throw NumericalError(os.str(), static_cast<long>(d));
     }
 }

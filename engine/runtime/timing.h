@@ -61,6 +61,7 @@ struct FrameTiming {
   int factor_age = 0;         // lagged: frames since the matrix of the preconditioning factor (last Newton iteration)
   int late_factor_call = -1;  // late_factor "skip": the lagged refresh call (0, 1, ...) that took a finished background factor; -1 none (Workspace::imposed_late_factor_call)
   int patch_dofs = 0;         // lagged after cuts: DOFs of the exactly solved patch (0: none)
+  int condensed_dofs = 0;     // lagged after cuts: DOFs condensed out next to tiny pieces (solver.condense_below)
   int tangent_updates = 0;    // elements whose tangent blocks were (re)computed (all but the kept ones: integrator.tangent_reuse)
   int inverted_points = 0;    // cubature points the frame's last assembly found inverted or degenerate (SVD fallback of the rotation)
   double rotation_change = 0; // adaptive Newton: largest rotation change (rad) at the last check (integrator.rotation_tolerance)

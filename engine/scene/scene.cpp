@@ -440,7 +440,8 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
 const std::vector<std::string> kIterativeKeys{"tolerance", "max_iterations", "initial_guess", "frame_iterations"};
 const std::vector<std::string> kLaggedKeys{"refresh_every", "background",    "warp",        "single_precision",
                                            "factor_copy",   "factor_precision", "rescue_after", "late_factor",
-                                           "patch",         "cut_ordering",  "background_priority", "coarse"};
+                                           "patch",         "cut_ordering",  "background_priority", "coarse",
+                                           "condense_below"};
 
 bool listed(const std::vector<std::string>& keys, const std::string& k) {
   return std::find(keys.begin(), keys.end(), k) != keys.end();
@@ -452,7 +453,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   p.allowed_keys(v, at, {"preset", "policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
                          "factorization", "ordering", "factor_precision", "initial_guess", "affinity", "coarse",
-                         "frame_iterations"});
+                         "frame_iterations", "condense_below"});
   SolverSettings& o = s.solver;
   RuntimeSettings& rt = s.runtime;
   if (auto it = v.find("preset"); it != v.end()) s.preset = solver_preset_names()[p.choice(*it, at + ".preset", solver_preset_names())];
@@ -495,6 +496,10 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     o.max_iterations = p.at_least_one(*it, at + ".max_iterations");
   if (auto it = v.find("frame_iterations"); it != v.end())
     o.frame_iterations = p.nonnegative_int(*it, at + ".frame_iterations");
+  if (auto it = v.find("condense_below"); it != v.end()) {
+    o.condense_below = p.nonnegative(*it, at + ".condense_below");
+    if (!(o.condense_below < 1.0)) p.fail(at + ".condense_below", " must be in [0, 1), got " + show(*it));
+  }
   if (auto it = v.find("coarse"); it != v.end()) o.coarse = p.choice(*it, at + ".coarse", {"none", "corners"}) == 1;
   if (auto it = v.find("initial_guess"); it != v.end())
     o.previous_guess = p.choice(*it, at + ".initial_guess", {"zero", "previous"}) == 1;
@@ -992,6 +997,7 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
       {"initial_guess", quoted(o.previous_guess ? "previous" : "zero")},
       {"frame_iterations", std::to_string(o.frame_iterations)},
       {"coarse", quoted(o.coarse ? "corners" : "none")},
+      {"condense_below", number_text(o.condense_below)},
       {"threads", std::to_string(rt.threads)},
       {"substitution_threads", std::to_string(rt.substitution_threads)},
       {"affinity", quoted(rt.split_affinity ? "split" : "none")},

@@ -178,6 +178,10 @@ struct SolverSettings {
   // iterations (0 = no cap): once spent, the frame accepts the residual it
   // has (FrameTiming::budget_spent) instead of iterating or rescuing further.
   int frame_iterations = 0;
+  // lagged: the DOFs of a mesh node with a region of its support below this
+  // fraction of it (a tiny cut piece) are condensed out exactly every Newton
+  // iteration; CG solves the rest (0 = none; engine/solve/condensed_dofs.h).
+  double condense_below = 0.05;
   bool coarse = false;         // lagged: solver.coarse "corners" (two-level, engine/solve/coarse_space.h) or "none"
   FactorMethod factor = FactorMethod::Auto;
   OrderingMethod ordering = OrderingMethod::Auto;

@@ -728,6 +728,8 @@ void prepare_solver(const Model& m, Workspace& ws, int frame, const std::vector<
   prepare_cg(m, ws, dofnode_map);
   prepare_node_rotations(m, ws, carried ? dofnode_map : nullptr);
   auto& w = ws.work;
+  build_condensed_dofs(m, m.solver.policy == SolverPolicy::Lagged ? m.solver.condense_below : 0.0, w.condensed);
+  for (auto* v : {&w.rhs_cg, &w.x_s}) v->assign(w.condensed.empty() ? 0 : m.ndof(), 0.0);
   if (m.solver.policy == SolverPolicy::Lagged && m.solver.coarse) {
     build_coarse_space(m, w.coarse);  // kept over a cut: the standard DOFs' pattern stays
     for (auto* v : {&w.bnn_q, &w.bnn_t, &w.bnn_s}) v->assign(m.ndof(), 0.0);
@@ -818,12 +820,14 @@ void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
       if (rescue || ws.newton_iterations_done == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
       if (m.solver.warp) lagged_warp_rotations(m, ws);
       if (rescue || ws.newton_iterations_done == 0 || ws.work.patch_key < 0) lagged_patch(m, ws, ws.A.data());
+      if (!rescue) factor_condensed_dofs(ws.work.condensed, ws.A.data());  // this iteration's A (a rescue keeps it)
       // The coarse level: from this frame's first matrix (measured at 20k DOF
       // here: 5-6 ms to form A_c, 5.7 ms to factor it; later Newton
       // iterations of the frame keep it).
       if (m.solver.coarse && ws.newton_iterations_done == 0 && !rescue) factor_coarse_space(m, ws.A.data(), ws.work.coarse);
       ws.timing.factor_age = s.frame - ws.work.front_frame;
       ws.timing.patch_dofs = static_cast<int>(ws.work.patch_dof.size());
+      ws.timing.condensed_dofs = static_cast<int>(ws.work.condensed.dof.size());
       break;
     }
     case SolverPolicy::Warped:
@@ -841,24 +845,35 @@ void solve_for_policy(const Model& m, Workspace& ws) {
       substitute(ws, ws.solver, ws.rhs.data(), du);
       break;
     case SolverPolicy::Lagged: {
+      // DOFs next to tiny cut pieces (solver.condense_below) are condensed
+      // out: du = Q rhs + y, CG on A y = rhs - A Q rhs with the
+      // preconditioner and start projected by P^T (engine/solve/condensed_dofs.h).
+      CondensedDofs& cd = ws.work.condensed;
+      const double* rhs = ws.rhs.data();
+      if (!cd.empty()) {
+        condensed_split_rhs(cd, m.ndof(), ws.A.data(), ws.rhs.data(), ws.work.rhs_cg.data(), ws.work.x_s.data());
+        rhs = ws.work.rhs_cg.data();
+      }
       const auto precond = [&](const double* r, double* z) {
         if (m.solver.coarse) two_level_apply(m, ws, ws.A.data(), r, z);
         else lagged_apply(m, ws, ws.A.data(), r, z);
+        if (!cd.empty()) condensed_project(cd, ws.A.data(), z);
       };
       const int rescue = m.solver.rescue_after;
       const int left = budget_left(m, ws);
       auto& guess = ws.work.guess;
       if (ws.rescue_pending) {  // the rescue factor is in place: CG again from 0
         ws.rescue_pending = false;
-        pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, std::min(m.solver.max_iterations, left));
+        pcg(m, ws, ws.A.data(), rhs, du, precond, std::min(m.solver.max_iterations, left));
         budget_ran_out(m, ws, left, m.solver.max_iterations);
       } else {
         // The first Newton iteration's increment alternates in sign between
         // frames (the trapezoidal rule's undamped sawtooth about the
         // constant-velocity predictor): the last one, scaled, starts CG close.
         const bool use_guess = m.solver.previous_guess && iteration == 0 && guess.size() == static_cast<size_t>(m.ndof());
+        if (use_guess && !cd.empty()) condensed_project(cd, ws.A.data(), guess.data());
         const int cap = rescue > 0 ? std::min(rescue, m.solver.max_iterations) : m.solver.max_iterations;
-        pcg(m, ws, ws.A.data(), ws.rhs.data(), du, precond, std::min(cap, left), use_guess ? guess.data() : nullptr);
+        pcg(m, ws, ws.A.data(), rhs, du, precond, std::min(cap, left), use_guess ? guess.data() : nullptr);
         // With solver.frame_iterations spent the frame takes this increment
         // as it is (no rescue, no further Newton iteration: decide_newton).
         if (!budget_ran_out(m, ws, left, cap) && rescue > 0 && ws.timing.residual > m.solver.tolerance &&
@@ -872,6 +887,8 @@ void solve_for_policy(const Model& m, Workspace& ws) {
           return;
         }
       }
+      if (!cd.empty())
+        for (int d = 0; d < m.ndof(); ++d) du[d] += ws.work.x_s[d];
       if (iteration == 0 && m.solver.previous_guess) guess.assign(du, du + m.ndof());
       break;
     }
@@ -929,7 +946,21 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
     case SolverPolicy::Lagged:
       if (w.slot_map[w.front].empty()) {  // the front factor knows every DOF: no patch
         // warp: Q F^-1 Q^T (factor_apply), Q = the rotations since the factor's frame
-        rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, B, X);
+        if (!w.condensed.factored) {
+          rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, B, X);
+          return;
+        }
+        // Exact on the condensed DOFs, as apply_factor_inverse: X = Q B + P^T M^-1 (B - A Q B),
+        // with one substitution for all columns.
+        w.multi_y.resize(n * k);  // grows to the most columns asked, then stays
+        w.multi_x.resize(n * k);
+        for (int c = 0; c < k; ++c)
+          condensed_split_rhs(w.condensed, m.ndof(), ws.A.data(), B + c * n, &w.multi_y[c * n], &w.multi_x[c * n]);
+        rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, w.multi_y.data(), X);
+        for (int c = 0; c < k; ++c) {
+          condensed_project(w.condensed, ws.A.data(), X + c * n);
+          for (size_t d = 0; d < n; ++d) X[c * n + d] += w.multi_x[c * n + d];
+        }
         return;
       }
       break;
@@ -947,7 +978,16 @@ void apply_factor_inverse(const Model& m, Workspace& ws, const double* b, double
       substitute(ws, ws.solver, b, x);
       break;
     case SolverPolicy::Lagged:
-      lagged_apply(m, ws, ws.A.data(), b, x);
+      if (!ws.work.condensed.factored) {
+        lagged_apply(m, ws, ws.A.data(), b, x);
+      } else {
+        // Exact on the condensed DOFs: x = Q b + P^T M^-1 (b - A Q b).
+        auto& w = ws.work;
+        condensed_split_rhs(w.condensed, m.ndof(), ws.A.data(), b, w.rhs_cg.data(), w.x_s.data());
+        lagged_apply(m, ws, ws.A.data(), w.rhs_cg.data(), x);
+        condensed_project(w.condensed, ws.A.data(), x);
+        for (int d = 0; d < m.ndof(); ++d) x[d] += w.x_s[d];
+      }
       break;
     case SolverPolicy::Warped:
     case SolverPolicy::WarpedCG:

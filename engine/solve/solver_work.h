@@ -12,6 +12,7 @@
 #include "engine/fem/assemble_parallel.h"
 #include "engine/solve/cholmod_solver.h"
 #include "engine/solve/coarse_space.h"
+#include "engine/solve/condensed_dofs.h"
 #include "engine/runtime/helper_thread.h"
 #include "engine/runtime/thread_pool.h"
 
@@ -77,6 +78,12 @@ struct SolverWork {
   std::vector<int> patch_row_ptr;      // (np + 1)
   std::vector<int> patch_row_col, patch_row_k;
   std::vector<double> ms_r, ms_z;      // (ndof) multiplicative Schwarz work
+  // lagged, solver.condense_below: the DOFs condensed out next to tiny cut
+  // pieces (engine/solve/condensed_dofs.h); rhs_cg, x_s: (ndof) the
+  // right-hand side CG gets and the condensed part of the solution.
+  CondensedDofs condensed;
+  std::vector<double> rhs_cg, x_s;
+  std::vector<double> multi_y, multi_x;  // (ndof, k) the same for apply_factor_inverse_multi's k columns
 
   // warped: DOF node -> its elements; each element's volume-weighted sum of
   // its slots' R (the slot's share of the element's volume) is summed once

@@ -837,6 +837,14 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
                "solver.frame_iterations must be an integer >= 0, got -2");
   expect_error_contains(minimal(R"("solver": {"policy": "lagged", "coarse": "aggregates"})"),
                         "solver.coarse must be one of \"none\", \"corners\"");
+  // Issue 24: condensing the DOFs next to tiny cut pieces (lagged; a fraction in [0, 1)).
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.condense_below, 0.05);
+  s = parse_scene(minimal(R"("solver": {"policy": "lagged", "condense_below": 0})"), scene_path_);
+  EXPECT_EQ(s.solver.condense_below, 0.0);
+  expect_error(minimal(R"("solver": {"policy": "lagged", "condense_below": 1})"),
+               "solver.condense_below must be in [0, 1), got 1");
+  expect_error(minimal(R"("solver": {"condense_below": 0.1})"),
+               "solver.condense_below: only used by solver.policy \"lagged\"; solver.policy is \"exact\"");
   // The lagged policy's two-valued string keys: default (true), the other
   // value (false), a bad value, and the key under another policy.
   struct Choice {
