@@ -57,45 +57,9 @@ void build_condensed_dofs(const Model& m, double fraction, CondensedDofs& s) {
     }
   }
   const int ns = static_cast<int>(s.dof.size());
-  // A's rows at S: an entry (r, c), r <= c, with r or c in S lies in a column
-  // of an element with a node in S; scanning only those columns (a few
-  // hundred) instead of all of A kept ~2 ms off each cut frame at 10k DOF.
-  std::vector<char> col_in(m.ndof(), 0);
-  for (int e = 0; e < m.nelem; ++e) {
-    bool touch = false;
-    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = g2l[3 * m.elem_dof_node[k]] >= 0;
-    if (touch)
-      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
-        for (int c = 0; c < 3; ++c) col_in[3 * m.elem_dof_node[k] + c] = 1;
-  }
-  std::vector<int> cols;
-  for (int c = 0; c < m.ndof(); ++c)
-    if (col_in[c]) cols.push_back(c);
-  std::vector<int> Pp(1, 0), Pi, cnt(ns + 1, 0);
-  for (int c : cols)
-    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
-      const int r = m.Ai[k];
-      if (g2l[r] >= 0) ++cnt[g2l[r] + 1];
-      if (r != c && g2l[c] >= 0) ++cnt[g2l[c] + 1];
-    }
-  for (int i = 0; i < ns; ++i) cnt[i + 1] += cnt[i];
-  s.row_ptr = cnt;
-  s.row_col.assign(cnt.back(), 0);
-  s.row_k.assign(cnt.back(), 0);
-  for (int c : cols)
-    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
-      const int r = m.Ai[k];
-      if (g2l[r] >= 0) s.row_col[cnt[g2l[r]]] = c, s.row_k[cnt[g2l[r]]++] = k;
-      if (r != c && g2l[c] >= 0) s.row_col[cnt[g2l[c]]] = r, s.row_k[cnt[g2l[c]]++] = k;
-    }
-  for (int C : s.dof) {
-    for (int k = m.Ap[C]; k < m.Ap[C + 1]; ++k)
-      if (g2l[m.Ai[k]] >= 0) {
-        Pi.push_back(g2l[m.Ai[k]]);
-        s.src.push_back(k);
-      }
-    Pp.push_back(static_cast<int>(Pi.size()));
-  }
+  rows_at(m, g2l, ns, s.rows);
+  std::vector<int> Pp(1, 0), Pi;
+  submatrix_pattern(m, s.dof, g2l, Pp, Pi, s.src);
   // BLAS-free simplicial: S is small, and BLAS may not run beside the
   // background factorization (blas_concurrency_safe).
   s.factor.configure(FactorMethod::Simplicial, OrderingMethod::Amd);
@@ -127,7 +91,7 @@ void condensed_split_rhs(CondensedDofs& s, int n, const double* A, const double*
   std::copy(b, b + n, y);
   for (int i = 0; i < ns; ++i) {
     x[s.dof[i]] = s.v[i];
-    for (int t = s.row_ptr[i]; t < s.row_ptr[i + 1]; ++t) y[s.row_col[t]] -= A[s.row_k[t]] * s.v[i];
+    for (int t = s.rows.ptr[i]; t < s.rows.ptr[i + 1]; ++t) y[s.rows.col[t]] -= A[s.rows.k[t]] * s.v[i];
   }
 }
 
@@ -135,7 +99,7 @@ void condensed_project(CondensedDofs& s, const double* A, double* z) {
   const int ns = static_cast<int>(s.dof.size());
   for (int i = 0; i < ns; ++i) {
     double acc = 0.0;
-    for (int t = s.row_ptr[i]; t < s.row_ptr[i + 1]; ++t) acc += A[s.row_k[t]] * z[s.row_col[t]];
+    for (int t = s.rows.ptr[i]; t < s.rows.ptr[i + 1]; ++t) acc += A[s.rows.k[t]] * z[s.rows.col[t]];
     s.v[i] = acc;
   }
   s.factor.solve(s.v.data(), s.v.data());

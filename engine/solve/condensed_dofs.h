@@ -25,6 +25,7 @@
 
 #include "engine/model/model.h"
 #include "engine/solve/cholmod_solver.h"
+#include "engine/solve/sparse_rows.h"
 
 namespace incise {
 
@@ -32,8 +33,7 @@ struct CondensedDofs {
   int nodes = 0;                // mesh nodes whose DOF nodes are condensed
   std::vector<int> dof;         // (ns) the condensed DOFs, ascending
   std::vector<int> src;         // (nnz of A_SS) position in the model's A of each entry
-  // A's rows at S (every column): entry t of row i is A[row_k[t]] at column row_col[t].
-  std::vector<int> row_ptr, row_col, row_k;
+  SparseRows rows;              // A's rows at S (every column)
   std::vector<double> A, v;     // A_SS values; work (ns, k columns)
   CholmodSolver factor;
   bool factored = false;

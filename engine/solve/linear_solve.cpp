@@ -381,14 +381,14 @@ void lagged_apply(const Model& m, Workspace& ws, const double* A, const double* 
     std::copy(r, r + m.ndof(), r1);
     for (int i = 0; i < np; ++i) {
       const double zi = z1[w.patch_dof[i]];
-      for (int t = w.patch_row_ptr[i]; t < w.patch_row_ptr[i + 1]; ++t) r1[w.patch_row_col[t]] -= A[w.patch_row_k[t]] * zi;
+      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) r1[w.patch_rows.col[t]] -= A[w.patch_rows.k[t]] * zi;
     }
     factor_apply(m, ws, r1, z);
     for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
     // r2 = r - A z on the patch rows, then z += E A_p^-1 r2.
     for (int i = 0; i < np; ++i) {
       double acc = r[w.patch_dof[i]];
-      for (int t = w.patch_row_ptr[i]; t < w.patch_row_ptr[i + 1]; ++t) acc -= A[w.patch_row_k[t]] * z[w.patch_row_col[t]];
+      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) acc -= A[w.patch_rows.k[t]] * z[w.patch_rows.col[t]];
       r1[w.patch_dof[i]] = acc;
     }
     patch_apply(ws, r1, z, /*add=*/true);
@@ -455,58 +455,6 @@ void patch_dofs(const Model& m, const std::vector<char>& node_in, const std::vec
       }
 }
 
-// The patch matrix's pattern (Pp, Pi: A restricted to the patch) and patch_src.
-void patch_pattern(const Model& m, const std::vector<int>& g2l, SolverWork& w, std::vector<int>& Pp,
-                   std::vector<int>& Pi) {
-  w.patch_src.clear();
-  for (int C : w.patch_dof) {
-    for (int k = m.Ap[C]; k < m.Ap[C + 1]; ++k)
-      if (g2l[m.Ai[k]] >= 0) {
-        Pi.push_back(g2l[m.Ai[k]]);
-        w.patch_src.push_back(k);
-      }
-    Pp.push_back(static_cast<int>(Pi.size()));
-  }
-}
-
-// A's rows at the patch DOFs: entry (r, c), r <= c, is row r's at column c
-// and, off the diagonal, row c's at column r. Only columns of elements
-// with a patch node can hold such an entry: scanning those (in column
-// order, as a scan of every column would) instead of all of A took
-// about 1 ms of each cut frame at 10k DOF.
-void patch_rows(const Model& m, const std::vector<char>& node_in, const std::vector<char>& unknown,
-                const std::vector<int>& g2l, SolverWork& w) {
-  const int np = static_cast<int>(w.patch_dof.size());
-  std::vector<char> col_in(m.ndof(), 0);
-  for (int e = 0; e < m.nelem; ++e) {
-    bool touch = false;
-    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = node_in[m.elem_dof_node[k]] || unknown[m.elem_dof_node[k]];
-    if (touch)
-      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
-        for (int c = 0; c < 3; ++c) col_in[3 * m.elem_dof_node[k] + c] = 1;
-  }
-  std::vector<int> cols;
-  for (int c = 0; c < m.ndof(); ++c)
-    if (col_in[c]) cols.push_back(c);
-  std::vector<int> cnt(np + 1, 0);
-  for (int c : cols)
-    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
-      const int r = m.Ai[k];
-      if (g2l[r] >= 0) ++cnt[g2l[r] + 1];
-      if (r != c && g2l[c] >= 0) ++cnt[g2l[c] + 1];
-    }
-  for (int i = 0; i < np; ++i) cnt[i + 1] += cnt[i];
-  w.patch_row_ptr = cnt;
-  w.patch_row_col.assign(cnt.back(), 0);
-  w.patch_row_k.assign(cnt.back(), 0);
-  for (int c : cols)
-    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k) {
-      const int r = m.Ai[k];
-      if (g2l[r] >= 0) w.patch_row_col[cnt[g2l[r]]] = c, w.patch_row_k[cnt[g2l[r]]++] = k;
-      if (r != c && g2l[c] >= 0) w.patch_row_col[cnt[g2l[c]]] = r, w.patch_row_k[cnt[g2l[c]]++] = k;
-    }
-}
-
 // A new patch (the front slot or the pattern changed): its DOFs, pattern, rows and analysis.
 void build_patch(const Model& m, const std::vector<int>& map, SolverWork& w) {
   std::vector<char> node_in(m.ndofnode, 0), unknown(m.ndofnode, 0);
@@ -514,8 +462,9 @@ void build_patch(const Model& m, const std::vector<int>& map, SolverWork& w) {
   std::vector<int> g2l(m.ndof(), -1);
   patch_dofs(m, node_in, unknown, w, g2l);
   std::vector<int> Pp(1, 0), Pi;
-  patch_pattern(m, g2l, w, Pp, Pi);
-  patch_rows(m, node_in, unknown, g2l, w);
+  w.patch_src.clear();
+  submatrix_pattern(m, w.patch_dof, g2l, Pp, Pi, w.patch_src);
+  rows_at(m, g2l, static_cast<int>(w.patch_dof.size()), w.patch_rows);
   // Supernodal (BLAS) only where BLAS may run beside the background job
   // (blas_concurrency_safe); otherwise BLAS-free simplicial.
   const int np = static_cast<int>(w.patch_dof.size());

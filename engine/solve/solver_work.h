@@ -13,6 +13,7 @@
 #include "engine/solve/cholmod_solver.h"
 #include "engine/solve/coarse_space.h"
 #include "engine/solve/condensed_dofs.h"
+#include "engine/solve/sparse_rows.h"
 #include "engine/runtime/helper_thread.h"
 #include "engine/runtime/thread_pool.h"
 
@@ -73,10 +74,8 @@ struct SolverWork {
   std::vector<int> patch_src;          // (patch nnz) position in the global A of each patch entry
   std::vector<double> patch_A, patch_r;
   long long patch_key = -1;            // (pattern, front slot, front frame) it was built for
-  // Rows of A at the patch DOFs (every column), for the multiplicative
-  // combination: entry t is A[patch_row_k[t]] at (patch_dof[i], patch_row_col[t]).
-  std::vector<int> patch_row_ptr;      // (np + 1)
-  std::vector<int> patch_row_col, patch_row_k;
+  // Rows of A at the patch DOFs (every column), for the multiplicative combination.
+  SparseRows patch_rows;
   std::vector<double> ms_r, ms_z;      // (ndof) multiplicative Schwarz work
   // lagged, solver.condense_below: the DOFs condensed out next to tiny cut
   // pieces (engine/solve/condensed_dofs.h); rhs_cg, x_s: (ndof) the
