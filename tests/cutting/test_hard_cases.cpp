@@ -172,6 +172,38 @@ TEST(HardCases, FactorInverseIsExactOnTheCondensedRowsAndMultiColumnMatches) {
   }
 }
 
+// Cuts through and next to nodes under the lagged policy: a cut 1e-12 or
+// 1e-6 h beside the mid-plane nodes leaves them a sliver region and they
+// are condensed out (a cut exactly through them puts them on one side: no
+// sliver, nothing condensed); the condensed set stays positive definite and
+// the severed half moves as under `exact`, within the CG tolerance.
+TEST(HardCases, CutsThroughAndNextToNodesCondenseUnderTheLaggedPolicy) {
+  for (int order : {1, 2})
+    for (double rel : {0.0, 1e-12, 1e-6, 1e-3, 0.02}) {
+      Scene s = test::block_scene(order);
+      s.fixed.push_back(box({-1, -1, -1}, {0, 2, 2}));
+      s.cuts = {test::plane_cut({0.5 + rel * 0.5, 0, 0}, {1, 0.3 * rel, 0})};  // h = 0.5: through the mid-plane nodes at rel = 0
+      Scene lagged = s;
+      lagged.solver.policy = SolverPolicy::Lagged;
+      lagged.solver.refresh_every = 3;
+      lagged.solver.tolerance = 1e-10;
+      lagged.solver.max_iterations = 500;
+      const Mesh mesh = make_beam(1, 1, 0.5, 2, 2, 1, order);
+      auto ref = test::make_sim(mesh, s);
+      auto sim = test::make_sim(mesh, lagged);
+      update_cuts(*ref, 0, 0);
+      update_cuts(*sim, 0, 0);
+      for (int k = 0; k < 5; ++k) {
+        step(ref->model, ref->state, ref->ws);
+        ASSERT_NO_THROW(step(sim->model, sim->state, sim->ws)) << "order " << order << ", " << rel << " h";
+      }
+      if (rel > 0.0 && rel <= 1e-6) {
+        EXPECT_GT(sim->ws.timing.condensed_dofs, 0) << "order " << order << ", " << rel << " h";
+      }
+      EXPECT_LT(test::rel_diff(sim->state.u, ref->state.u), 1e-7) << "order " << order << ", " << rel << " h";
+    }
+}
+
 TEST(HardCases, TwentyRepeatedCutsThroughOneBoxMakeSlabsThatFallFreely) {
   // Issue 24: a surgeon cutting again and again in one place. 20 near-parallel
   // planes through a one-cell box (6 elements, each crossed by every plane):
