@@ -10,6 +10,7 @@
 
 #include "engine/util/error.h"
 #include "engine/runtime/trajectory.h"
+#include "engine/util/number_text.h"
 
 namespace incise {
 namespace {
@@ -23,27 +24,10 @@ const InstrumentPaths* paths_of(const Simulation& sim) {
   return static_cast<const InstrumentPaths*>(sim.module_data[kStageToolPoses].get());
 }
 
-std::string number_text(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
-
-double bounding_box_diagonal(const Mesh& mesh) {
-  if (mesh.nnode() == 0) return 0.0;
-  double lo[3], hi[3];
-  for (int d = 0; d < 3; ++d) lo[d] = hi[d] = mesh.X[d];
-  for (int n = 1; n < mesh.nnode(); ++n)
-    for (int d = 0; d < 3; ++d) {
-      lo[d] = std::min(lo[d], mesh.X[3 * n + d]);
-      hi[d] = std::max(hi[d], mesh.X[3 * n + d]);
-    }
-  return std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
-}
 
 // A size far from the tissue's scale is a unit mistake (mm for m), not an instrument.
 void check_sizes(const Simulation& sim) {
-  const double diag = bounding_box_diagonal(sim.mesh);
+  const double diag = sim.model.body_length;  // the mesh nodes' bounding-box diagonal
   const double lo = 1e-4 * diag, hi = 10.0 * diag;
   auto check = [&](const std::string& where, double value) {
     if (value >= lo && value <= hi) return;

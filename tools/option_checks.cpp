@@ -1,4 +1,5 @@
 #include "tools/option_checks.h"
+#include "engine/util/number_text.h"
 
 #include <cerrno>
 #include <cmath>
@@ -8,11 +9,7 @@
 namespace incise {
 
 namespace {
-std::string num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", x);
-  return buf;
-}
+std::string num(double x) { return number_text(x, 10); }
 std::string shown(const std::string& s) { return s.size() > 40 ? s.substr(0, 40) + "..." : s; }
 }  // namespace
 

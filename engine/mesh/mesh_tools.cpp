@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "engine/util/error.h"
+#include "engine/util/number_text.h"
 
 namespace incise {
 namespace {
@@ -140,11 +141,7 @@ const std::vector<DetJPoint>& tet10_check_points() {
   return pts;
 }
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", v);
-  return buf;
-}
+std::string num(double v) { return number_text(v, 3); }
 
 }  // namespace
 

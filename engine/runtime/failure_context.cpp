@@ -1,20 +1,11 @@
 #include "engine/runtime/failure_context.h"
+#include "engine/util/number_text.h"
 
 #include <cmath>
 #include <cstdio>
 #include <vector>
 
 namespace incise {
-
-namespace {
-
-std::string num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
-
-}  // namespace
 
 std::string describe_dof(const Model& m, long dof) {
   if (dof < 0 || dof >= static_cast<long>(m.ndof())) return "";
@@ -30,7 +21,7 @@ std::string describe_dof(const Model& m, long dof) {
   }
   std::string at;
   if (mesh_node >= 0 && 3 * mesh_node + 2 < static_cast<long>(m.X.size()))
-    at = " (x = " + num(m.X[3 * mesh_node]) + ", " + num(m.X[3 * mesh_node + 1]) + ", " + num(m.X[3 * mesh_node + 2]) + ")";
+    at = " (x = " + number_text(m.X[3 * mesh_node]) + ", " + number_text(m.X[3 * mesh_node + 1]) + ", " + number_text(m.X[3 * mesh_node + 2]) + ")";
   return who + " component " + comp + at;
 }
 
@@ -45,17 +36,17 @@ std::string likely_inputs(const Model& m) {
   const Material& mat = m.material;
   const auto band = [](double x, double lo, double hi) { return !(x >= lo && x <= hi); };
   std::vector<Value> v = {
-      {"material.young = " + num(mat.young) +
+      {"material.young = " + number_text(mat.young) +
            (band(mat.young, 1.0, 1e12) ? " (extreme: tissues to steel are 1e2 to 2e11 Pa)" : ""),
        band(mat.young, 1.0, 1e12)},
-      {"material.poisson = " + num(mat.poisson) +
+      {"material.poisson = " + number_text(mat.poisson) +
            (mat.poisson > 0.499 ? " (extreme: nearly incompressible, the volumetric stiffness dwarfs the rest)"
                                 : mat.poisson < -0.99 ? " (extreme: nearly -1, no shear stiffness left)" : ""),
        mat.poisson > 0.499 || mat.poisson < -0.99},
-      {"material.density = " + num(mat.density) +
+      {"material.density = " + number_text(mat.density) +
            (band(mat.density, 1e-3, 1e5) ? " (extreme: materials are 1 to 2e4 kg/m^3)" : ""),
        band(mat.density, 1e-3, 1e5)},
-      {"integrator.dt = " + num(m.dt) + (band(m.dt, 1e-7, 1.0) ? " (extreme: frames are 1e-4 to 0.1 s)" : ""),
+      {"integrator.dt = " + number_text(m.dt) + (band(m.dt, 1e-7, 1.0) ? " (extreme: frames are 1e-4 to 0.1 s)" : ""),
        band(m.dt, 1e-7, 1.0)},
   };
   std::string out;

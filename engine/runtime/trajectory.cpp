@@ -12,6 +12,7 @@
 
 #include "engine/util/error.h"
 #include "engine/util/file_io.h"
+#include "engine/util/number_text.h"
 
 namespace incise {
 namespace {
@@ -33,12 +34,6 @@ std::vector<std::string> split(const std::string& line) {
     if (comma == std::string::npos) return out;
     start = comma + 1;
   }
-}
-
-std::string number_text(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", x);
-  return buf;
 }
 
 }  // namespace
@@ -90,7 +85,7 @@ Trajectory Trajectory::parse(const std::string& text, const std::string& path) {
                               std::to_string(prev_line) + ")");
     const double n = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
     if (!(std::abs(n - 1.0) <= 1e-6))
-      throw fail(line_no, "the quaternion qw,qx,qy,qz must have unit norm (within 1e-6), got norm " + number_text(n));
+      throw fail(line_no, "the quaternion qw,qx,qy,qz must have unit norm (within 1e-6), got norm " + number_text(n, 10));
     if (ncol == 9 && !(v[8] >= 0.0 && v[8] <= 1.0))
       throw fail(line_no, "jaw must be in [0, 1] (0 open .. 1 closed), got " + f[8]);
     tr.t_.push_back(v[0]);

@@ -17,6 +17,7 @@
 #include "engine/util/error.h"
 #include "engine/util/file_io.h"
 #include "engine/util/json_depth.h"
+#include "engine/util/number_text.h"
 
 namespace incise {
 namespace {
@@ -966,11 +967,6 @@ Scene load_scene(const std::string& path, const std::vector<ScenePatch>& patches
 }
 
 namespace {
-std::string number_text(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
 std::string quoted(const char* x) { return std::string("\"") + x + "\""; }
 }  // namespace
 
