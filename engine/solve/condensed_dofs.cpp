@@ -39,14 +39,11 @@ std::vector<char> weak_nodes(const Model& m, double fraction) {
 }  // namespace
 
 void build_condensed_dofs(const Model& m, double fraction, CondensedDofs& s) {
-  s.nodes = 0;
   s.dof.clear();
   s.src.clear();
   s.factored = false;
   if (!(fraction > 0.0) || !m.has_cuts()) return;
   const std::vector<char> weak = weak_nodes(m, fraction);
-  for (char w : weak) s.nodes += w;
-  if (s.nodes == 0) return;
   std::vector<int> g2l(m.ndof(), -1);
   for (int n = 0; n < m.ndofnode; ++n) {
     const int a = n < m.nnode ? n : m.cuts.enr_node[n - m.nnode];
@@ -56,6 +53,7 @@ void build_condensed_dofs(const Model& m, double fraction, CondensedDofs& s) {
       s.dof.push_back(3 * n + c);
     }
   }
+  if (s.dof.empty()) return;
   const int ns = static_cast<int>(s.dof.size());
   rows_at(m, g2l, ns, s.rows);
   std::vector<int> Pp(1, 0), Pi;

@@ -30,7 +30,6 @@
 namespace incise {
 
 struct CondensedDofs {
-  int nodes = 0;                // mesh nodes whose DOF nodes are condensed
   std::vector<int> dof;         // (ns) the condensed DOFs, ascending
   std::vector<int> src;         // (nnz of A_SS) position in the model's A of each entry
   SparseRows rows;              // A's rows at S (every column)

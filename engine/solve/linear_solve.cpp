@@ -883,6 +883,25 @@ void rotated_multi(const Model& m, Workspace& ws, CholmodSolver& f, const std::v
   if (Rn) rotate(X, false);
 }
 
+// X = Q B + P^T M^-1 (B - A Q B) for k columns (ndof apart; X may alias B):
+// the lagged preconditioner made exact on the condensed DOFs
+// (engine/solve/condensed_dofs.h); apply_m(Y, Z) applies M^-1 to all k
+// columns of Y at once.
+template <class ApplyM>
+void condensed_inverse(const Model& m, Workspace& ws, int k, const double* B, double* X, const ApplyM& apply_m) {
+  auto& w = ws.work;
+  const size_t n = static_cast<size_t>(m.ndof());
+  w.multi_y.resize(n * k);  // grows to the most columns asked, then stays
+  w.multi_x.resize(n * k);
+  for (int c = 0; c < k; ++c)
+    condensed_split_rhs(w.condensed, m.ndof(), ws.A.data(), B + c * n, &w.multi_y[c * n], &w.multi_x[c * n]);
+  apply_m(w.multi_y.data(), X);
+  for (int c = 0; c < k; ++c) {
+    condensed_project(w.condensed, ws.A.data(), X + c * n);
+    for (size_t d = 0; d < n; ++d) X[c * n + d] += w.multi_x[c * n + d];
+  }
+}
+
 }  // namespace
 
 void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const double* B, double* X) {
@@ -899,17 +918,9 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
           rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, B, X);
           return;
         }
-        // Exact on the condensed DOFs, as apply_factor_inverse: X = Q B + P^T M^-1 (B - A Q B),
-        // with one substitution for all columns.
-        w.multi_y.resize(n * k);  // grows to the most columns asked, then stays
-        w.multi_x.resize(n * k);
-        for (int c = 0; c < k; ++c)
-          condensed_split_rhs(w.condensed, m.ndof(), ws.A.data(), B + c * n, &w.multi_y[c * n], &w.multi_x[c * n]);
-        rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, w.multi_y.data(), X);
-        for (int c = 0; c < k; ++c) {
-          condensed_project(w.condensed, ws.A.data(), X + c * n);
-          for (size_t d = 0; d < n; ++d) X[c * n + d] += w.multi_x[c * n + d];
-        }
+        condensed_inverse(m, ws, k, B, X, [&](const double* Y, double* Z) {  // one substitution for all columns
+          rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, Y, Z);
+        });
         return;
       }
       break;
@@ -927,16 +938,8 @@ void apply_factor_inverse(const Model& m, Workspace& ws, const double* b, double
       substitute(ws, ws.solver, b, x);
       break;
     case SolverPolicy::Lagged:
-      if (!ws.work.condensed.factored) {
-        lagged_apply(m, ws, ws.A.data(), b, x);
-      } else {
-        // Exact on the condensed DOFs: x = Q b + P^T M^-1 (b - A Q b).
-        auto& w = ws.work;
-        condensed_split_rhs(w.condensed, m.ndof(), ws.A.data(), b, w.rhs_cg.data(), w.x_s.data());
-        lagged_apply(m, ws, ws.A.data(), w.rhs_cg.data(), x);
-        condensed_project(w.condensed, ws.A.data(), x);
-        for (int d = 0; d < m.ndof(); ++d) x[d] += w.x_s[d];
-      }
+      if (!ws.work.condensed.factored) lagged_apply(m, ws, ws.A.data(), b, x);
+      else condensed_inverse(m, ws, 1, b, x, [&](const double* y, double* z) { lagged_apply(m, ws, ws.A.data(), y, z); });
       break;
     case SolverPolicy::Warped:
     case SolverPolicy::WarpedCG:

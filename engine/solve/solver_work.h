@@ -82,7 +82,7 @@ struct SolverWork {
   // right-hand side CG gets and the condensed part of the solution.
   CondensedDofs condensed;
   std::vector<double> rhs_cg, x_s;
-  std::vector<double> multi_y, multi_x;  // (ndof, k) the same for apply_factor_inverse_multi's k columns
+  std::vector<double> multi_y, multi_x;  // (ndof, k) the same for apply_factor_inverse's k columns
 
   // warped: DOF node -> its elements; each element's volume-weighted sum of
   // its slots' R (the slot's share of the element's volume) is summed once
