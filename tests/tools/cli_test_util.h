@@ -29,4 +29,13 @@ inline Result incise(const std::string& args) {
   return {WEXITSTATUS(status), ss.str()};
 }
 
+// scene.json of a cantilever (L = 4, 1 x 1) on the beam.vtu `mesh beam`
+// wrote beside it: fixed at x = 0, gravity -z; `material`: the keys inside
+// "material"; `extra`: more top-level keys, each after a comma.
+inline std::string beam_scene_json(int order, const std::string& material, const std::string& extra = "") {
+  return R"({"mesh": {"file": "beam.vtu", "order": )" + std::to_string(order) + R"(},
+    "material": {)" + material + R"(},
+    "gravity": [0, 0, -1], "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}])" + extra + "}";
+}
+
 }  // namespace incise::test

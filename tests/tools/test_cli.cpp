@@ -36,10 +36,8 @@ class Cli : public incise::test::TempDirTest {
   // A linear cantilever (L = 4, 1 x 1) fixed at x = 0, under gravity.
   void cantilever_scene(const std::string& extra = "") const {
     ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 8 2 2 --out " + path("beam.vtu")).code, 0);
-    write("scene.json", R"({"mesh": {"file": "beam.vtu", "order": 2},
-      "material": {"model": "linear", "young": 1e5, "poisson": 0.3, "density": 1},
-      "mass": "consistent", "gravity": [0, 0, -1],
-      "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}])" + extra + "}");
+    write("scene.json", incise::test::beam_scene_json(2, R"("model": "linear", "young": 1e5, "poisson": 0.3, "density": 1)",
+                                                      R"(, "mass": "consistent")" + extra));
   }
 };
 

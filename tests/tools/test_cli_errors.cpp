@@ -27,9 +27,7 @@ class CliErrors : public incise::test::TempDirTest {
   void beam_scene(const std::string& material = R"("young": 1e5, "poisson": 0.3, "density": 1)",
                   const std::string& extra = "") const {
     ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 4 2 2 --out " + path("beam.vtu")).code, 0);
-    write("scene.json", R"({"mesh": {"file": "beam.vtu", "order": 1},
-      "material": {"model": "corotated", )" + material + R"(},
-      "gravity": [0, 0, -1], "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}])" + extra + "}");
+    write("scene.json", incise::test::beam_scene_json(1, R"("model": "corotated", )" + material, extra));
   }
   // Every file below the test's folder whose name contains `part`.
   std::vector<std::string> files_with(const std::string& part) const {
