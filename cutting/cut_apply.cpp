@@ -21,14 +21,15 @@ namespace {
 // Whether element e of m lists enriched DOF nodes besides its mesh nodes.
 bool enriched(const Model& m, int e) { return m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e] > m.mesh.npe(); }
 
-// Old model's effective value (u, v or a) of node a of element e, in its
-// piece P (piece_containing of a point of the new piece; -1: e was whole).
-void old_piece_values(const Model& m, const State& s, int e, int P, int a, double out[9]) {
+// Old model's effective values (u, v, a and, nf = 4, du) of node a of
+// element e, in its piece P (piece_containing of a point of the new piece;
+// -1: e was whole).
+void old_piece_values(const Model& m, const State& s, int e, int P, int a, int nf, double out[12]) {
   const int npe = m.mesh.npe();
   const int i = m.mesh.tet[static_cast<size_t>(e) * npe + a];
   const int q = P >= 0 ? m.cuts.piece_enr[static_cast<size_t>(P) * npe + a] : -1;
-  const std::vector<double>* f[3] = {&s.u, &s.v, &s.a};
-  for (int k = 0; k < 3; ++k)
+  const std::vector<double>* f[4] = {&s.u, &s.v, &s.a, &s.du};
+  for (int k = 0; k < nf; ++k)
     for (int c = 0; c < 3; ++c) out[3 * k + c] = (*f[k])[3 * i + c] + (q >= 0 ? (*f[k])[3 * q + c] : 0.0);
 }
 
@@ -136,6 +137,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   st.u.swap(k.u);
   st.v.swap(k.v);
   st.a.swap(k.a);
+  st.du.swap(k.du);
   st.R.swap(R);
   up.part_ms[kCutTransfer] = part.lap();
   carry_workspace_over_cut(*old_model, sim.model, p.map, p.changed, &p.plan, st.frame, sim.ws);
@@ -257,7 +259,10 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
   ns.u.assign(os.u.begin(), os.u.begin() + nstd);
   ns.v.assign(os.v.begin(), os.v.begin() + nstd);
   ns.a.assign(os.a.begin(), os.a.begin() + nstd);
+  const int nf = os.du.size() == static_cast<size_t>(from.ndof()) ? 4 : 3;  // du too, when the old state has it
+  if (nf == 4) ns.du.assign(os.du.begin(), os.du.begin() + nstd);
   for (auto* f : {&ns.u, &ns.v, &ns.a}) f->resize(n, 0.0);
+  if (nf == 4) ns.du.resize(n, 0.0);
   if (!to.has_cuts()) return ns;
   const CutLayout& L = to.cuts;
   std::vector<int> old_piece(L.elem_piece_ptr.back(), -2);  // (pieces of `to`) -2: not looked up yet
@@ -280,11 +285,11 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
         for (int a = 0; a < npe; ++a) {
           const int q = L.piece_enr[static_cast<size_t>(P) * npe + a];
           if ((pass == 0) != (q < 0)) continue;
-          double val[9];
-          old_piece_values(from, os, e, Q, a, val);
+          double val[12];
+          old_piece_values(from, os, e, Q, a, nf, val);
           const int i = to.mesh.tet[static_cast<size_t>(e) * npe + a];
-          std::vector<double>* f[3] = {&ns.u, &ns.v, &ns.a};
-          for (int k = 0; k < 3; ++k)
+          std::vector<double>* f[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
+          for (int k = 0; k < nf; ++k)
             for (int c = 0; c < 3; ++c) {
               if (q < 0) (*f[k])[3 * i + c] = val[3 * k + c];
               else (*f[k])[3 * q + c] = val[3 * k + c] - (*f[k])[3 * i + c];

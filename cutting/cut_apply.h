@@ -50,10 +50,11 @@ void warn_cuts_that_cut_nothing(const Simulation& sim);
 
 struct Kinematics {
   std::vector<double> u, v, a;  // (to.ndof) the transferred fields
+  std::vector<double> du;       // (to.ndof) State::du likewise; empty when the old state had none
 };
 
 // Moves kinematics to a model with more cuts (same mesh): every piece of the
-// new model keeps the displacement, velocity and acceleration of the old piece
+// new model keeps the displacement, velocity, acceleration (and last increment) of the old piece
 // it lies in, so the field is unchanged by the cut itself: a piece's nodal
 // value is d_a = u_a + q_a ([preprint] eq. (66)), so u_a takes the home
 // piece's value and q_a = d_a(old piece) - u_a. Returns (to.ndof) arrays.

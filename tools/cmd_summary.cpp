@@ -31,6 +31,12 @@ void print_model_summary(const Simulation& sim) {
       m.newton_iterations == 1 && m.material.poisson > 0.49)
     std::printf("  warning: undamped corotated tissue with nu > 0.49 and one linearised solve per step can gain\n"
                 "  energy at large dt; set material.rayleigh.stiffness (1e-4 s is enough) or more Newton iterations\n");
+  if (m.material.model == MaterialModel::Corotated && m.increment_predictor && !m.consistent_tangent &&
+      !(m.rotation_tolerance > 0 && m.max_newton_iterations > m.newton_iterations))
+    std::printf("  warning: integrator.predictor \"increment\" with the frozen-rotation tangent and a fixed number of\n"
+                "  Newton iterations linearises half a step behind; a swinging body can gain energy (the default beam\n"
+                "  scene diverged at frame 61 with one iteration): set integrator.tangent \"consistent\",\n"
+                "  rotation_tolerance > 0, or predictor \"velocity\"\n");
   std::printf("  CHOLMOD %s, ordering %s: nnz(A) %d, nnz(L) %.0f, %.3g Mflop per factorization; setup %.1f ms\n",
               f.supernodal ? "supernodal" : "simplicial", f.ordering.c_str(), m.nnz(), f.nnz_L, f.flops * 1e-6,
               sim.setup_ms);

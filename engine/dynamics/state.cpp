@@ -37,8 +37,9 @@ std::uint64_t fnv(const std::vector<double>& x, std::uint64_t h = kFnvOffset) {
   return fnv1a(lane, sizeof lane, fnv1a(&n, sizeof n, h));
 }
 
-// Format version 3 (2: the byte-wise field hash; 1: no swept cuts).
-constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '3'};
+// Format version 4 (3: no du, read as empty; 2: the byte-wise field hash; 1:
+// no swept cuts).
+constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '4'};
 
 template <class T>
 void put(std::ostream& os, const T& v) {
@@ -60,7 +61,7 @@ std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& s) {
   std::array<std::uint64_t, kNumStateFields> h{};
   h[kFieldClock] = fnv1a(&s.frame, sizeof s.frame, fnv1a(&s.time, sizeof s.time));
   h[kFieldU] = fnv(s.u);
-  h[kFieldV] = fnv(s.v);
+  h[kFieldV] = fnv(s.du, fnv(s.v));
   h[kFieldA] = fnv(s.a);
   h[kFieldR] = fnv(s.R);
   h[kFieldTopology] = fnv(s.swept_frame, fnv(s.swept_tool, fnv(s.swept, fnv(s.cut_progress))));
@@ -76,7 +77,8 @@ void write_state(std::ostream& os, const State& s) {
   os.write(kMagic, sizeof kMagic);
   put(os, s.time);
   put<std::int64_t>(os, s.frame);
-  for (const std::vector<double>* f : {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool, &s.swept_frame}) {
+  for (const std::vector<double>* f :
+       {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool, &s.swept_frame, &s.du}) {
     put<std::uint64_t>(os, f->size());
     os.write(reinterpret_cast<const char*>(f->data()), static_cast<std::streamsize>(f->size() * sizeof(double)));
   }
@@ -85,8 +87,12 @@ void write_state(std::ostream& os, const State& s) {
 
 State read_state(std::istream& is, const std::string& what) {
   char magic[sizeof kMagic];
-  if (!is.read(magic, sizeof magic) || std::memcmp(magic, kMagic, sizeof kMagic) != 0)
-    throw Error(what + ": not an incise state file of version 3 (header 'INCSTAT3' expected)");
+  // Version 3 files (no du) are read too: the next step then starts from the
+  // velocity predictor.
+  const bool read = static_cast<bool>(is.read(magic, sizeof magic));
+  const bool v3 = read && std::memcmp(magic, "INCSTAT3", 8) == 0;
+  if (!read || (!v3 && std::memcmp(magic, kMagic, sizeof kMagic) != 0))
+    throw Error(what + ": not an incise state file of version 3 or 4 (header 'INCSTAT4' expected)");
   // Bytes left, so a corrupted length is refused before anything is allocated.
   const auto here = is.tellg();
   is.seekg(0, std::ios::end);
@@ -99,9 +105,10 @@ State read_state(std::istream& is, const std::string& what) {
     throw Error(what + ": state time or frame out of range (time " + std::to_string(s.time) + ", frame " +
                 std::to_string(frame) + ")");
   s.frame = static_cast<int>(frame);
-  const char* names[] = {"u", "v", "a", "R", "cut_progress", "swept", "swept_tool", "swept_frame"};
-  std::vector<double>* fields[] = {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool, &s.swept_frame};
-  for (int k = 0; k < 8; ++k) {
+  const char* names[] = {"u", "v", "a", "R", "cut_progress", "swept", "swept_tool", "swept_frame", "du"};
+  std::vector<double>* fields[] = {&s.u,  &s.v,     &s.a,          &s.R,          &s.cut_progress,
+                                   &s.swept, &s.swept_tool, &s.swept_frame, &s.du};
+  for (int k = 0; k < (v3 ? 8 : 9); ++k) {
     const std::uint64_t n = get<std::uint64_t>(is, what, names[k]);
     if (n > static_cast<std::uint64_t>(left) / sizeof(double))
       throw Error(what + ": state field " + names[k] + " claims " + std::to_string(n) + " values, more than the file holds");
@@ -122,6 +129,7 @@ void size_state(const Model& m, State& s) {
   s.u.assign(n, 0.0);
   s.v.assign(n, 0.0);
   s.a.assign(n, 0.0);
+  s.du.clear();
   s.R = identity_rotations(m.nrot);
 }
 

@@ -19,6 +19,9 @@ struct State {
   int frame = 0;
   std::vector<double> u, v, a;        // (ndof) displacement, velocity, acceleration
   std::vector<double> R;              // (nrot, 9) rotation of each slot, column-major
+  // (ndof) the last step's increment u(t) - u(t - dt): the next step's
+  // Newton predictor (integrator.predictor); empty before the first step.
+  std::vector<double> du;
   std::vector<double> cut_progress;   // (scene.cuts) share of each cut applied: -1 none, 1 whole
   // Cuts made by instruments (cutting/blade_sweep.h): the triangles a
   // scalpel's edge swept inside the tissue, in reference coordinates.
@@ -27,7 +30,7 @@ struct State {
   std::vector<double> swept_frame;    // (ntri) the frame that swept it
 
   bool operator==(const State& o) const {
-    return time == o.time && frame == o.frame && u == o.u && v == o.v && a == o.a && R == o.R &&
+    return time == o.time && frame == o.frame && u == o.u && v == o.v && a == o.a && R == o.R && du == o.du &&
            cut_progress == o.cut_progress && swept == o.swept && swept_tool == o.swept_tool &&
            swept_frame == o.swept_frame;
   }
@@ -37,7 +40,9 @@ struct State {
 // Hashes of the State's fields (64-bit FNV-1a over their bytes): equal
 // states hash equal bit for bit; a replay names the first field that differs.
 enum StateField { kFieldClock, kFieldU, kFieldV, kFieldA, kFieldR, kFieldTopology, kNumStateFields };
-inline constexpr std::array<const char*, kNumStateFields> kStateFieldNames = {"time/frame", "u", "v", "a", "R",
+// (the velocity's hash covers du too, the increment that v came from: a
+// replay file keeps one hash per field, and its format did not change)
+inline constexpr std::array<const char*, kNumStateFields> kStateFieldNames = {"time/frame", "u", "v/du", "a", "R",
                                                                              "topology"};
 std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& state);
 std::uint64_t state_hash(const State& state);  // of the field hashes
@@ -48,8 +53,8 @@ std::uint64_t state_hash(const State& state);  // of the field hashes
 void write_state(std::ostream& os, const State& state);
 State read_state(std::istream& is, const std::string& what);
 
-// Sizes u, v, a (zero) and R (identities) for the model; time, frame and
-// cut progress are left as they are.
+// Sizes u, v, a (zero) and R (identities) for the model and empties du;
+// time, frame and cut progress are left as they are.
 void size_state(const Model& model, State& state);
 
 }  // namespace incise

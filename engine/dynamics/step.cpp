@@ -192,7 +192,20 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
     // default beam scene diverges by frame 60 that way; with the predictor one
     // iteration stays within a few percent of a 10-iteration solution). A
     // linear model is unaffected: its single solve is exact from any start.
-    for (int d = 0; d < n; ++d) ws.delta[d] = m.dt * s.v[d];
+    //
+    // integrator.predictor "increment" (the realtime preset's) takes the
+    // last step's increment instead, du = dt (v(t - dt) + v(t)) / 2 under the
+    // trapezoidal rule: a smooth motion half a step behind, but without the
+    // velocity's alternating part. The rule integrates a stiff, overdamped
+    // mode as v1 = 2/dt Delta - v, so a sudden push (a contact, a grasp)
+    // leaves v flipping sign every frame around the slow motion, and dt v
+    // then starts Newton that far off (docs/numerics.md, "The Newton
+    // predictor": under a probe the first residual was 2.5-4.7 N from dt v,
+    // 0.6-0.8 N from du). The converged step is the same. Not the default:
+    // one frozen-rotation solve per step from half a step behind let the
+    // default beam scene gain energy and diverge (cmd_summary warns).
+    const bool increment = m.increment_predictor && s.du.size() == static_cast<size_t>(n);
+    for (int d = 0; d < n; ++d) ws.delta[d] = increment ? s.du[d] : m.dt * s.v[d];
     for (int d : m.fixed_dofs) ws.delta[d] = -s.u[d];
     for (const auto& p : m.prescribed) ws.delta[p.dof] = m.prescribed_value(p, t1) - s.u[p.dof];
   }
@@ -293,6 +306,7 @@ void integrate(const Model& m, State& s, Workspace& ws) {
     s.a[d] = a1;
     s.u[d] += ws.delta[d];
   }
+  s.du.assign(ws.delta.begin(), ws.delta.begin() + n);  // the next step's predictor
   // Constrained DOFs move as prescribed, not as Newmark would integrate them:
   // from the increment alone, v1 = 2/dt Delta - v flips sign every frame once a
   // ramp stops (Delta = 0) and alternates 0, 2V while it runs, and that

@@ -33,6 +33,7 @@ struct Model {
   double rotation_tolerance = 0.1;  // radians; 0 = fixed iteration count
   double newmark_gamma = 0.5, newmark_beta = 0.25;  // 1/2, 1/4: trapezoidal rule
   bool consistent_tangent = false;  // integrator.tangent: add the rotation term (engine/fem/rotation_stiffness.h)
+  bool increment_predictor = false;  // integrator.predictor "increment": Newton starts from State::du, not dt v
   double tangent_reuse = 0.0;       // integrator.tangent_reuse: F change below which element tangents are kept
   SolverSettings solver;        // solver.* of the scene: policy, CG tolerance, threads
 

@@ -970,6 +970,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.newmark_gamma = scene.newmark_gamma;
   m.newmark_beta = scene.newmark_beta;
   m.consistent_tangent = scene.consistent_tangent;
+  m.increment_predictor = scene.increment_predictor;
   m.tangent_reuse = scene.tangent_reuse;
   if (!(m.newmark_gamma >= 0.5 && m.newmark_beta >= 0.5 * m.newmark_gamma))
     throw Error(scene.path + ": integrator: newmark_gamma must be >= 0.5 and newmark_beta >= newmark_gamma / 2 (got " +

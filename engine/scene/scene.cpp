@@ -401,7 +401,7 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
   const std::string at = "integrator";
   p.object(v, at);
   p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance", "newmark_gamma",
-                          "newmark_beta", "tangent", "tangent_reuse"});
+                          "newmark_beta", "tangent", "tangent_reuse", "predictor"});
   if (auto it = v.find("dt"); it != v.end()) {
     double dt = p.number(*it, at + ".dt");
     if (!(dt > 0.0 && dt <= 1.0))
@@ -416,6 +416,8 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
     s.rotation_tolerance = p.nonnegative(*it, at + ".rotation_tolerance");
   if (auto it = v.find("tangent"); it != v.end())
     s.consistent_tangent = p.choice(*it, at + ".tangent", {"frozen_rotation", "consistent"}) == 1;
+  if (auto it = v.find("predictor"); it != v.end())
+    s.increment_predictor = p.choice(*it, at + ".predictor", {"velocity", "increment"}) == 1;
   if (auto it = v.find("tangent_reuse"); it != v.end()) {
     s.tangent_reuse = p.nonnegative(*it, at + ".tangent_reuse");
     if (!(s.tangent_reuse < 0.5))
@@ -1007,6 +1009,7 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
   kv.push_back({"integrator.rotation_tolerance", number_text(s.rotation_tolerance)});
   kv.push_back({"integrator.tangent", quoted(s.consistent_tangent ? "consistent" : "frozen_rotation")});
   kv.push_back({"integrator.tangent_reuse", number_text(s.tangent_reuse)});
+  kv.push_back({"integrator.predictor", quoted(s.increment_predictor ? "increment" : "velocity")});
   kv.push_back({"integrator.newmark_gamma", number_text(s.newmark_gamma)});
   kv.push_back({"integrator.newmark_beta", number_text(s.newmark_beta)});
   std::vector<ResolvedSetting> out;
@@ -1022,8 +1025,10 @@ std::vector<ScenePatch> exact_reference_patches(const Scene& run) {
   const std::string why = "compare reference: ";
   const std::string solver = "{\"preset\": \"reference\", \"threads\": " + std::to_string(run.runtime.threads) + "}";
   const std::string tangent = run.consistent_tangent ? "consistent" : "frozen_rotation";
+  const std::string predictor = run.increment_predictor ? "increment" : "velocity";
   return {{"solver", solver, why + "solver=" + solver},
           {"integrator.tangent", tangent, why + "integrator.tangent=" + tangent},
+          {"integrator.predictor", predictor, why + "integrator.predictor=" + predictor},
           {"integrator.tangent_reuse", "0", why + "integrator.tangent_reuse=0"}};
 }
 

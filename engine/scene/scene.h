@@ -251,6 +251,7 @@ struct Scene {
   // integrator.tangent: "frozen_rotation" (R K0 R^T) or "consistent" (plus the
   // dR/dF term of engine/fem/rotation_stiffness.h).
   bool consistent_tangent = false;
+  bool increment_predictor = false;  // integrator.predictor: "velocity" (false, the default) or "increment"
   // integrator.tangent_reuse (>= 0, 0 = off): an element keeps the tangent
   // blocks it assembled while every deformation gradient of its rotation
   // slots stays within this (largest entry of F - F_then) of the one they
@@ -302,7 +303,7 @@ bool solver_key_used_by(const std::string& key, SolverPolicy policy);
 // `patches`) into `incise compare`'s exact reference: appended to the run's
 // patches they replace the whole solver object by solver.preset "reference"
 // (policy exact, nothing lagged or iterative) keeping run.solver.threads,
-// keep the run's integrator.tangent (the same equations) and set
+// keep the run's integrator.tangent and predictor (the same equations and starts) and set
 // integrator.tangent_reuse 0 (every element assembled). No preset or
 // solver patch of the run reaches the reference.
 std::vector<ScenePatch> exact_reference_patches(const Scene& run);

@@ -134,7 +134,10 @@ const json* solver_preset(const std::string& name) {
         {"background", true},
         {"refresh_every", 2},
         {"warp", true},
-        {"tolerance", 1e-3},
+        // 1e-2 with the increment predictor: CG's test is relative to the
+        // first residual, which dt v inflated; the same error against exact
+        // as 1e-3 from dt v (docs/numerics.md, "The Newton predictor").
+        {"tolerance", 1e-2},
         {"max_iterations", 100},
         {"threads", 1},
         {"rescue_after", 20},
@@ -144,7 +147,7 @@ const json* solver_preset(const std::string& name) {
         {"substitution_threads", 2},
         {"affinity", "split"},
         {"background_priority", "idle"}}},
-      {"integrator", {{"tangent", "consistent"}, {"tangent_reuse", 0.01}}}};
+      {"integrator", {{"tangent", "consistent"}, {"tangent_reuse", 0.01}, {"predictor", "increment"}}}};
   // reference: the exact solve and every element assembled each Newton
   // iteration; the tangent stays the scene's.
   static const json reference = {{"solver", {{"policy", "exact"}}}, {"integrator", {{"tangent_reuse", 0}}}};

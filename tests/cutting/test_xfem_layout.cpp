@@ -580,7 +580,10 @@ TEST(Xfem, CutFrameAccelerationIsRecomputedNearTheChangedElementsOnly) {
   moved_state.u = moved.u;
   moved_state.v = moved.v;
   moved_state.a = moved.a;
+  moved_state.du = moved.u;  // the last increment is carried by the same map as u
   const Kinematics carried = transfer_kinematics(before, moved_state, m);
+  EXPECT_TRUE(carried.du == carried.u);
+  EXPECT_EQ(sim->state.du.size(), static_cast<size_t>(m.ndof())) << "the cut kept the state's last increment";
   consistent_acceleration(m, sim->state, sim->ws);
   const std::vector<double> global = sim->state.a;
   double amax = 0;

@@ -525,12 +525,30 @@ TEST_F(Cli, BenchAndRunPrintTheResolvedSettings) {
   EXPECT_NE(r.out.find("settings (solver.preset \"realtime\")"), std::string::npos) << r.out;
   const std::string block = settings_block(r.out, false);
   for (const char* part : {"preset \"realtime\" [scene]", "policy \"lagged\" [preset]", "refresh_every 3 [--set]",
-                           "tolerance 0.001 [preset]", "dt 0.02 [scene]", "tangent \"consistent\" [preset]",
-                           "tangent_reuse 0.01 [preset]", "initial_guess \"previous\","})
+                           "tolerance 0.01 [preset]", "dt 0.02 [scene]", "tangent \"consistent\" [preset]",
+                           "tangent_reuse 0.01 [preset]", "predictor \"increment\" [preset]", "initial_guess \"previous\","})
     EXPECT_NE(block.find(part), std::string::npos) << part << "\n" << block;
   const Result run = incise("run " + path("scene.json") + " --frames 1 --set solver.preset=reference");
   ASSERT_EQ(run.code, 0) << run.out;
   EXPECT_NE(settings_block(run.out, false).find("policy \"exact\" [preset]"), std::string::npos) << run.out;
+}
+
+// integrator.predictor "increment" one frozen-rotation solve a step (no
+// adaptive Newton) is warned about; the realtime preset (consistent tangent)
+// and the adaptive default are not.
+TEST_F(Cli, TheIncrementPredictorWithOneFrozenSolveIsWarnedAbout) {
+  ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 4 1 1 --out " + path("beam.vtu")).code, 0);
+  write("scene.json", incise::test::beam_scene_json(2, R"("model": "corotated", "young": 1e5, "poisson": 0.3, "density": 1)",
+                                                    R"(, "integrator": {"predictor": "increment", "rotation_tolerance": 0})"));
+  const std::string warning = "warning: integrator.predictor \"increment\" with the frozen-rotation tangent";
+  const Result r = incise("run " + path("scene.json") + " --frames 1");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find(warning), std::string::npos) << r.out;
+  for (const char* set : {"integrator.rotation_tolerance=0.1", "integrator.tangent=consistent", "integrator.predictor=velocity"}) {
+    const Result ok = incise("run " + path("scene.json") + " --frames 1 --set " + set);
+    ASSERT_EQ(ok.code, 0) << ok.out;
+    EXPECT_EQ(ok.out.find(warning), std::string::npos) << set << "\n" << ok.out;
+  }
 }
 
 TEST_F(Cli, SetErrorsNameThePatch) {

@@ -62,13 +62,16 @@ TEST(State, HashSeesEveryFieldAndOneBit) {
   s.cut_progress = {-1.0};
   const auto h0 = state_field_hashes(s);
   const std::uint64_t all = state_hash(s);
-  for (int field : {kFieldU, kFieldV, kFieldA, kFieldR, kFieldTopology}) {
+  ASSERT_EQ(s.du.size(), s.u.size()) << "a stepped state keeps its last increment";
+  // (field, which vector): du is hashed with v (kStateFieldNames: "v/du")
+  for (int field_du : {kFieldU, kFieldV, kFieldA, kFieldR, kFieldTopology, kNumStateFields}) {
+    const int field = field_du == kNumStateFields ? kFieldV : field_du;
     State t = s;
-    std::vector<double>* f[] = {nullptr, &t.u, &t.v, &t.a, &t.R, &t.cut_progress};
+    std::vector<double>* f[] = {nullptr, &t.u, &t.v, &t.a, &t.R, &t.cut_progress, &t.du};
     std::uint64_t bits;
-    std::memcpy(&bits, f[field]->data(), sizeof bits);
+    std::memcpy(&bits, f[field_du]->data(), sizeof bits);
     bits ^= 1;  // the last bit of the mantissa of the first value
-    std::memcpy(f[field]->data(), &bits, sizeof bits);
+    std::memcpy(f[field_du]->data(), &bits, sizeof bits);
     const auto h = state_field_hashes(t);
     for (int k = 0; k < kNumStateFields; ++k)
       EXPECT_EQ(h[k] != h0[k], k == field) << kStateFieldNames[k] << " when " << kStateFieldNames[field] << " changed";
@@ -127,7 +130,16 @@ TEST(State, DamagedFilesAreRefusedWithTheField) {
   s.swept_frame = {3};
   const std::string good = saved(s);
   EXPECT_EQ(read_error(good), "");
-  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 3"), std::string::npos);
+  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 3 or 4"), std::string::npos);
+  {
+    // A version 3 file (no du: the 8 bytes of its empty length before the
+    // hash dropped) is read with du empty; its hash is the same.
+    const std::string v3 = "INCSTAT3" + good.substr(8, good.size() - 24) + good.substr(good.size() - 8);
+    std::stringstream is(v3);
+    const State r = read_state(is, "old.state");
+    EXPECT_TRUE(r == s);
+    EXPECT_TRUE(r.du.empty());
+  }
   // Cut inside u's values (u's length at byte 24, its values from byte 32).
   EXPECT_NE(read_error(good.substr(0, 40)).find("run.state: state truncated in u"), std::string::npos) << read_error(good.substr(0, 40));
   EXPECT_NE(read_error(good.substr(0, 28)).find("run.state: state truncated in u (at byte 24)"), std::string::npos)
