@@ -533,9 +533,9 @@ TEST_F(Cli, BenchAndRunPrintTheResolvedSettings) {
   EXPECT_NE(settings_block(run.out, false).find("policy \"exact\" [preset]"), std::string::npos) << run.out;
 }
 
-// integrator.predictor "increment" one frozen-rotation solve a step (no
-// adaptive Newton) is warned about; the realtime preset (consistent tangent)
-// and the adaptive default are not.
+// integrator.predictor "increment" with frozen-rotation solves a fixed number
+// of times a step (no adaptive Newton) is warned about; with the adaptive
+// check, the consistent tangent or the velocity predictor it is not.
 TEST_F(Cli, TheIncrementPredictorWithOneFrozenSolveIsWarnedAbout) {
   ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 4 1 1 --out " + path("beam.vtu")).code, 0);
   write("scene.json", incise::test::beam_scene_json(2, R"("model": "corotated", "young": 1e5, "poisson": 0.3, "density": 1)",
