@@ -21,9 +21,7 @@ void print_model_summary(const Simulation& sim) {
                 3 * (m.ndofnode - m.nnode), 3 * m.nnode);
   std::printf("  constraints: %zu fixed DOF, %zu prescribed DOF; dt %.6g s, %d Newton iteration(s) per step%s\n",
               m.fixed_dofs.size(), m.prescribed.size(), m.dt, m.newton_iterations,
-              m.material.model == MaterialModel::Corotated && m.rotation_tolerance > 0 &&
-                      m.max_newton_iterations > m.newton_iterations
-                  ? " (more, up to integrator.max_newton_iterations, while rotations move > rotation_tolerance)"
+              m.adaptive_newton() ? " (more, up to integrator.max_newton_iterations, while rotations move > rotation_tolerance)"
                   : "");
   if (sim.scene.initial_static)
     std::printf("  initial: static equilibrium at t = 0 (solved at set-up, static.tolerance %g)\n", sim.scene.static_tolerance);
@@ -32,7 +30,7 @@ void print_model_summary(const Simulation& sim) {
     std::printf("  warning: undamped corotated tissue with nu > 0.49 and one linearised solve per step can gain\n"
                 "  energy at large dt; set material.rayleigh.stiffness (1e-4 s is enough) or more Newton iterations\n");
   if (m.material.model == MaterialModel::Corotated && m.increment_predictor && !m.consistent_tangent &&
-      !(m.rotation_tolerance > 0 && m.max_newton_iterations > m.newton_iterations))
+      !m.adaptive_newton())
     std::printf("  warning: integrator.predictor \"increment\" with the frozen-rotation tangent and a fixed number of\n"
                 "  Newton iterations linearises half a step behind; a swinging body can gain energy (the default beam\n"
                 "  scene diverged at frame 61 with one iteration): set integrator.tangent \"consistent\",\n"

@@ -271,8 +271,7 @@ void solve_system(const Model& m, State& s, Workspace& ws) {
 void decide_newton(const Model& m, State& s, Workspace& ws) {
   const int n = m.ndof();
   const int it = ws.newton_iterations_done - 1;
-  const bool linear = m.material.model == MaterialModel::Linear;
-  const bool adaptive = !linear && m.rotation_tolerance > 0 && m.max_newton_iterations > m.newton_iterations;
+  const bool adaptive = m.adaptive_newton();
   ws.newton_done = false;
   const int budget = m.solver.frame_iterations;
   if (it + 1 >= m.max_newton_iterations || ws.timing.budget_spent || (budget > 0 && ws.timing.iterations >= budget)) {

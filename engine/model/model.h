@@ -40,6 +40,11 @@ struct Model {
   // DOF nodes
   int nnode = 0;                // standard DOF nodes (= mesh nodes)
   int ndofnode = 0;             // all DOF nodes (standard + enriched)
+  // Newton iterates past newton_iterations while rotations move more than
+  // rotation_tolerance (decide_newton, engine/dynamics/step.cpp).
+  bool adaptive_newton() const {
+    return material.model == MaterialModel::Corotated && rotation_tolerance > 0 && max_newton_iterations > newton_iterations;
+  }
   int ndof() const { return 3 * ndofnode; }
   std::vector<double> X;        // (ndofnode, 3) reference positions; 0 for enriched DOF nodes
   double body_length = 0.0;     // diagonal of the mesh nodes' bounding box (the run-away stop's scale, step.h)
