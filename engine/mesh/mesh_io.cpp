@@ -44,6 +44,10 @@ void check_shapes(const Mesh& m, const std::string& path) {
     if (m.tet[i] < 0 || m.tet[i] >= m.nnode())
       throw Error(path + ": element " + std::to_string(i / m.npe()) + " references node " + std::to_string(m.tet[i]) +
                   ", but only " + std::to_string(m.nnode()) + " nodes are defined");
+  // Each reader checks as it parses; this catches a path that forgets (the fuzzer found one).
+  for (size_t i = 0; i < m.X.size(); ++i)
+    if (!std::isfinite(m.X[i]))
+      throw Error(path + ": node " + std::to_string(i / 3) + " has a non-finite coordinate; coordinates must be finite");
 }
 
 void points_text(std::string& out, const std::vector<double>& X, const char* sep_line) {
@@ -143,12 +147,15 @@ void fields_text(std::string& s, const std::vector<VtuField>& fields, const char
 
 Mesh read_mesh(const std::string& path) {
   const std::string ext = extension(path);
-  if (ext == ".msh") return meshio::read_gmsh(path);
-  if (ext == ".vtk") return meshio::read_vtk_legacy(path);
-  if (ext == ".vtu") return meshio::read_vtu(path);
-  if (ext == ".node" || ext == ".ele") return meshio::read_tetgen(path);
-  if (ext == ".inp") return meshio::read_abaqus(path);
-  throw Error(path + ": unknown mesh file extension '" + ext + "'; allowed: " + kReadable);
+  Mesh m;
+  if (ext == ".msh") m = meshio::read_gmsh(path);
+  else if (ext == ".vtk") m = meshio::read_vtk_legacy(path);
+  else if (ext == ".vtu") m = meshio::read_vtu(path);
+  else if (ext == ".node" || ext == ".ele") m = meshio::read_tetgen(path);
+  else if (ext == ".inp") m = meshio::read_abaqus(path);
+  else throw Error(path + ": unknown mesh file extension '" + ext + "'; allowed: " + kReadable);
+  check_shapes(m, path);
+  return m;
 }
 
 void write_mesh(const Mesh& mesh, const std::string& path) {

@@ -7,6 +7,7 @@
 // nodes 8 and 9 swap; the others match (edge direction does not matter).
 // Node tags may be sparse; they are mapped to 0-based rows in file order.
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -260,7 +261,14 @@ struct Reader {
     expect_end_of("$EndElements", H + " (numEntityBlocks)", hline, nblocks, "entity blocks");
   }
 
-  void node_bin(long long tag, const double* x) { raw.add_node(f, tag, x); }
+  // Binary coordinates skip get_coord, so the finiteness check is here.
+  void node_bin(long long tag, const double* x) {
+    for (int c = 0; c < 3; ++c)
+      if (!std::isfinite(x[c]))
+        f.fail("binary node " + std::to_string(tag) + " has a non-finite coordinate (" + std::to_string(x[c]) +
+               "); coordinates must be finite");
+    raw.add_node(f, tag, x);
+  }
   void tet_bin(long long id, long long type, const long long* g) {
     const int n = tet_nodes(type);
     long long ours[10];

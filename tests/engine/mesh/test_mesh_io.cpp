@@ -223,6 +223,22 @@ TEST_F(MeshIo, BinaryGmshErrorsNameWhatDoesNotFit) {
   EXPECT_NE(e2.find("cut.msh:5: numNodesInBlock is 2, more than the"), std::string::npos) << e2;
 }
 
+// Binary Gmsh coordinates are raw doubles: a NaN or an infinity there is
+// refused by name, as the ASCII readers refuse "nan" (the fuzzer found the gap).
+TEST_F(MeshIo, BinaryGmshNonFiniteCoordinatesAreRefused) {
+  for (const double bad : {std::nan(""), HUGE_VAL}) {
+    std::string t = std::string("$MeshFormat\n2.2 1 8\n") + std::string("\x01\0\0\0", 4) + "\n$EndMeshFormat\n$Nodes\n2\n";
+    for (int32_t tag = 1; tag <= 2; ++tag) {
+      const double x[3] = {0.0, tag == 2 ? bad : 1.0, 0.0};
+      t.append(reinterpret_cast<const char*>(&tag), 4);
+      t.append(reinterpret_cast<const char*>(x), sizeof x);
+    }
+    t += "\n$EndNodes\n";
+    const std::string e = error_of([&] { read_mesh(write("nan.msh", t)); });
+    EXPECT_NE(e.find("nan.msh:6: binary node 2 has a non-finite coordinate"), std::string::npos) << e;
+  }
+}
+
 // A binary legacy .vtk whose POINTS claim more than the file holds.
 TEST_F(MeshIo, BinaryLegacyVtkCountsAreCheckedAgainstTheFile) {
   std::string t = "# vtk DataFile Version 4.2\nx\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 1000 double\n";
