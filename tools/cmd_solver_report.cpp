@@ -13,18 +13,21 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
   const Workspace& st = sim.ws;
   r.policy = policy_name(m.solver.policy);
   r.threads = sim.ws.runtime.threads;
-  // the slot preconditioning at the end (lagged may have moved to `back`)
-  const FactorStats& f = (st.work.front == 0 ? st.solver : st.work.back).stats();
-  const FactorStats& f0 = st.solver.stats();
+  // the slot preconditioning at the end (lagged may have moved to another)
+  const FactorStats& f = st.slot(st.work.front).stats();
   r.nnz_L = f.nnz_L;
   r.flops = f.flops;
-  r.factorizations = f0.factorizations + st.work.back.stats().factorizations;
-  const double total_ms = f0.factor_ms_total + st.work.back.stats().factor_ms_total;
+  double total_ms = 0;
+  for (int k = 0; k < SolverWork::kSlots; ++k) {
+    const FactorStats& fk = st.slot(k).stats();
+    r.factorizations += fk.factorizations;
+    total_ms += fk.factor_ms_total;
+    r.single_factorizations += fk.single_factorizations;
+    r.single_fallbacks += fk.single_fallbacks;
+  }
   if (r.factorizations > 0) r.factor_ms_mean = total_ms / r.factorizations;
   if (r.factor_ms_mean > 0) r.gflops = r.flops / (r.factor_ms_mean * 1e-3) * 1e-9;
   r.single_precision = f.single_precision;
-  r.single_factorizations = f0.single_factorizations + st.work.back.stats().single_factorizations;
-  r.single_fallbacks = f0.single_fallbacks + st.work.back.stats().single_fallbacks;
   std::vector<double> subs, its;
   double sub_ms = 0;
   long long nsub = 0;

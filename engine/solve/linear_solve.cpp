@@ -144,13 +144,11 @@ void pcg(const Model& m, Workspace& ws, const double* A, const double* b, double
   ws.timing.converged = ws.timing.converged && rel <= tol;
 }
 
-CholmodSolver& slot_factor(Workspace& ws, int k) { return k == 0 ? ws.solver : ws.work.back; }
-
 // Synchronous factorization of the current A into slot k (analysis first when
 // the slot holds another pattern).
 void factor_now(const Model& m, Workspace& ws, int k) {
   auto& w = ws.work;
-  CholmodSolver& f = slot_factor(ws, k);
+  CholmodSolver& f = ws.slot(k);
   if (w.slot_pattern[k] != w.pattern) {
     f.analyze(m.ndof(), m.Ap, m.Ai);
     w.slot_carried[k] = false;
@@ -172,17 +170,20 @@ void take_job(Workspace& ws) {
     w.job_error = nullptr;
     std::rethrow_exception(e);
   }
-  w.front = w.job_slot;
-  w.front_frame = w.job_frame;
-  w.job_slot = -1;
   ++ws.refactorizations;
+  // A rescue since the launch factored a newer matrix into another slot: this one is older, dropped.
+  if (w.job_frame >= w.front_frame) {
+    w.front = w.job_slot;
+    w.front_frame = w.job_frame;
+  }
+  w.job_slot = -1;
 }
 
 // Starts the background factorization of the current A (and the analysis of
 // its pattern when the chosen slot has not seen it) in a slot other than the front.
 void launch_job(const Model& m, Workspace& ws, int frame) {
   auto& w = ws.work;
-  const int k = w.front == 0 ? 1 : 0;  // any slot but the front (none is running)
+  const int k = w.front == 0 ? 1 : 0;  // slot 0 or 1 but the front (none is running); 2 is the rescue's
   assign_range_with_headroom(w.A_back, ws.A.begin(), ws.A.end());
   // While an incision goes on (a new pattern this frame or the last), a slot
   // analyzing the new pattern carries the front factor's ordering over
@@ -197,7 +198,7 @@ void launch_job(const Model& m, Workspace& ws, int frame) {
     w.job_Ai = m.Ai;
     w.slot_pattern[k] = w.pattern;
     w.slot_n[k] = m.ndof();
-    const CholmodSolver& front = slot_factor(ws, w.front);
+    const CholmodSolver& front = ws.slot(w.front);
     // Inputs checked here, so a mismatch falls back to a search instead of
     // failing the job.
     w.slot_carried[k] = m.solver.carry_ordering && cutting && m.has_cuts() && !w.slot_map[w.front].empty() &&
@@ -212,7 +213,7 @@ void launch_job(const Model& m, Workspace& ws, int frame) {
   }
   w.slot_map[k].clear();
   if (m.solver.warp) w.slot_Rn[k] = w.Rn;
-  CholmodSolver* f = &slot_factor(ws, k);
+  CholmodSolver* f = &ws.slot(k);
   SolverWork* wp = &w;
   const int n = m.ndof();
   w.job_done = false;
@@ -256,6 +257,22 @@ void lagged_refresh(const Model& m, Workspace& ws, int frame) {
   const int f = frame, k = m.solver.refresh_every;
   const int call = ws.refresh_frame == f ? ++ws.refresh_calls : (ws.refresh_calls = 0);
   ws.refresh_frame = f;
+  if (ws.rescue_pending && ws.factor_current) {
+    // A rescue (CG stalled on the lagged factor): A now, synchronously. With
+    // a job running, into the slot neither holds and without waiting for it
+    // (take_job drops it when it ends); otherwise into the front slot. Before,
+    // a rescue waited for the job and then factored: up to two factorizations.
+    int slot = w.front;
+    if (w.job_running) {
+      slot = 0;
+      while (slot == w.front || slot == w.job_slot) ++slot;
+    }
+    factor_now(m, ws, slot);
+    w.front = slot;
+    w.front_frame = f;
+    if (!w.job_running) w.last_launch = f;
+    return;
+  }
   if (!ws.factor_current) {  // first frame, or the factor was invalidated
     w.wait_job();
     w.job_running = false;
@@ -317,7 +334,7 @@ void lagged_warp_rotations(const Model& m, Workspace& ws) {
 // (lumped, isotropic mass) and this is exact.
 void factor_apply(const Model& m, Workspace& ws, const double* r, double* z) {
   auto& w = ws.work;
-  CholmodSolver& f = slot_factor(ws, w.front);
+  CholmodSolver& f = ws.slot(w.front);
   const std::vector<int>& map = w.slot_map[w.front];
   const bool warp = m.solver.warp;
   const double* rin = r;
@@ -532,12 +549,11 @@ void prepare_workers(const Model& m, Workspace& ws, AssemblyPlan* plan) {
   if (rt.substitution_threads > 1 && !w.substitution_worker)
     w.substitution_worker = std::make_unique<SubstitutionWorker>();
   if (rt.substitution_threads <= 1 && w.substitution_worker) {
-    ws.solver.set_substitution_worker(nullptr);  // before the worker goes (a bin given up on may still run)
-    w.back.set_substitution_worker(nullptr);
+    for (int k = 0; k < SolverWork::kSlots; ++k)  // before the worker goes (a bin given up on may still run)
+      ws.slot(k).set_substitution_worker(nullptr);
     w.substitution_worker.reset();
   }
-  ws.solver.set_substitution_worker(w.substitution_worker.get());
-  w.back.set_substitution_worker(w.substitution_worker.get());
+  for (int k = 0; k < SolverWork::kSlots; ++k) ws.slot(k).set_substitution_worker(w.substitution_worker.get());
   // After the workers above exist (they keep the whole CPU set; ones started
   // later unpin themselves: unpin_if_split).
   if (rt.split_affinity) set_thread_role(ThreadRole::Stepping);
@@ -551,7 +567,7 @@ void prepare_workers(const Model& m, Workspace& ws, AssemblyPlan* plan) {
 void map_factors_over_cut(const Model& m, Workspace& ws, int frame, const std::vector<int>& dofnode_map) {
   auto& w = ws.work;
   const int n = m.ndof();
-  for (int k = 0; k < 2; ++k) {
+  for (int k = 0; k < SolverWork::kSlots; ++k) {
     if (k != w.front && k != w.job_slot) {
       w.slot_map[k].clear();
       w.slot_pattern[k] = -1;  // free: holds nothing usable
@@ -586,19 +602,19 @@ void reset_factors(const Model& m, Workspace& ws) {
   w.job_running = false;
   w.job_error = nullptr;
   w.job_slot = -1;
-  ws.solver.configure(m.solver.factor, m.solver.ordering);
-  w.back.configure(m.solver.factor, m.solver.ordering);
   const bool lagged = m.solver.policy == SolverPolicy::Lagged;
   const FactorCopy copy = lagged ? m.solver.factor_copy : FactorCopy::None;
-  for (CholmodSolver* f : {&ws.solver, &w.back}) {  // single needs the float copy: off first, on last
-    f->set_single_factorization(false);
-    f->set_factor_copy(copy);
-    f->set_single_factorization(lagged && m.solver.single_factorization);
+  for (int k = 0; k < SolverWork::kSlots; ++k) {
+    CholmodSolver& f = ws.slot(k);
+    f.configure(m.solver.factor, m.solver.ordering);
+    f.set_single_factorization(false);  // single needs the float copy: off first, on last
+    f.set_factor_copy(copy);
+    f.set_single_factorization(lagged && m.solver.single_factorization);
   }
   ++w.pattern;
   ws.solver.analyze(n, m.Ap, m.Ai);
   w.pattern_frame = -1000000;
-  for (int k = 0; k < 2; ++k) {
+  for (int k = 0; k < SolverWork::kSlots; ++k) {
     w.slot_carried[k] = false;
     w.slot_pattern[k] = k == 0 ? w.pattern : -1;
     w.slot_n[k] = k == 0 ? n : 0;
@@ -764,7 +780,7 @@ void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
       break;
     case SolverPolicy::Lagged: {
       // A rescue (solve_for_policy gave up on CG) factors A now,
-      // synchronously (waiting for a running background job).
+      // synchronously, beside a running background job (lagged_refresh).
       const bool rescue = ws.rescue_pending;
       if (rescue || ws.newton_iterations_done == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
       if (m.solver.warp) lagged_warp_rotations(m, ws);
@@ -831,7 +847,6 @@ void solve_for_policy(const Model& m, Workspace& ws) {
           // factorization stage factors A now and CG runs again with it,
           // instead of hundreds of CG iterations.
           ws.rescue_pending = true;
-          ws.factor_current = false;
           ++ws.timing.rescues;
           return;
         }
@@ -915,11 +930,11 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
       if (w.slot_map[w.front].empty()) {  // the front factor knows every DOF: no patch
         // warp: Q F^-1 Q^T (factor_apply), Q = the rotations since the factor's frame
         if (!w.condensed.factored) {
-          rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, B, X);
+          rotated_multi(m, ws, ws.slot(w.front), m.solver.warp ? &w.Q : nullptr, k, B, X);
           return;
         }
         condensed_inverse(m, ws, k, B, X, [&](const double* Y, double* Z) {  // one substitution for all columns
-          rotated_multi(m, ws, slot_factor(ws, w.front), m.solver.warp ? &w.Q : nullptr, k, Y, Z);
+          rotated_multi(m, ws, ws.slot(w.front), m.solver.warp ? &w.Q : nullptr, k, Y, Z);
         });
         return;
       }

@@ -23,26 +23,30 @@ struct SolverWork {
   std::unique_ptr<ThreadPool> pool;
   AssemblyPlan plan;
   // solver.substitution_threads 2: the second thread of every substitution
-  // (set on both factor slots; engine/solve/split_substitution.h). Null with 1.
+  // (set on every factor slot; engine/solve/split_substitution.h). Null with 1.
   // Declared before `back` so that it outlives it; the Workspace destructor takes
   // it from Workspace::solver (CholmodSolver::set_substitution_worker).
   std::unique_ptr<SubstitutionWorker> substitution_worker;
 
-  // lagged: two factor slots (0 = Workspace::solver, 1 = `back`). The
-  // front slot preconditions CG; the background job factorizes a copy of an
-  // earlier frame's matrix into another slot, which becomes the front when
-  // taken. A cut does not discard them: each slot keeps a map from the
-  // current DOFs to its own (slot_map, empty = identity), DOFs it does not
-  // know are solved by the patch below, and the next job analyzes the new
-  // pattern off the main thread (engine/solve/linear_solve.h).
-  CholmodSolver back;
+  // lagged: three factor slots (0 = Workspace::solver, 1 = `back`, 2 =
+  // `spare`). The front slot preconditions CG; the background job factorizes
+  // a copy of an earlier frame's matrix into another slot, which becomes the
+  // front when taken. A rescue while a job runs factors the current matrix
+  // into the slot neither holds, without waiting for the job (which is then
+  // dropped when it ends: its matrix is older); `spare` holds nothing until
+  // the first such rescue. A cut does not discard them: each slot keeps a map
+  // from the current DOFs to its own (slot_map, empty = identity), DOFs it
+  // does not know are solved by the patch below, and the next job analyzes
+  // the new pattern off the main thread (engine/solve/linear_solve.h).
+  static constexpr int kSlots = 3;
+  CholmodSolver back, spare;
   int front = 0;              // slot preconditioning now
   int front_frame = -1;       // frame whose matrix the front slot holds
   int last_launch = -1;       // frame the last job started (or the last synchronous refresh)
   int pattern = 0;            // epoch of the model's sparsity pattern (a carried-over cut bumps it)
-  int slot_pattern[2] = {-1, -1};      // epoch each slot was analyzed for
-  int slot_n[2] = {0, 0};              // size of that pattern (read here, never from a slot a job may be analyzing)
-  std::vector<int> slot_map[2];        // (ndof) slot DOF of each current DOF, -1 none; empty = identity
+  int slot_pattern[kSlots] = {-1, -1, -1};  // epoch each slot was analyzed for
+  int slot_n[kSlots] = {0, 0, 0};           // size of that pattern (read here, never from a slot a job may be analyzing)
+  std::vector<int> slot_map[kSlots];        // (ndof) slot DOF of each current DOF, -1 none; empty = identity
   std::vector<double> A_back;          // (nnz of the job's pattern) the job's matrix
   std::vector<int> job_Ap, job_Ai;     // the job's pattern when it must analyze it
   // solver.cut_ordering "carried": the job derives its ordering from the front
@@ -51,7 +55,7 @@ struct SolverWork {
   std::vector<int> job_map, job_old_perm, job_enr_node;
   int job_nnode = 0;
   int pattern_frame = -1000000;        // frame a cut last changed the pattern (cutting goes on while it is this or the last frame)
-  bool slot_carried[2] = {false, false};  // that slot's analysis used a carried ordering: searched again once cutting pauses
+  bool slot_carried[kSlots] = {false, false, false};  // that slot's analysis used a carried ordering: searched again once cutting pauses
   bool job_analyze = false;
   int job_slot = -1;
   std::unique_ptr<HelperThread> job_thread;  // runs the jobs (created at the first, again if its settings change)
@@ -61,7 +65,7 @@ struct SolverWork {
   int job_frame = -1;
   std::exception_ptr job_error;
   std::vector<double> t_slot;          // gather buffer of a mapped slot
-  std::vector<double> slot_Rn[2];      // (slot's DOF nodes, 9) node rotations when its matrix was taken (warp)
+  std::vector<double> slot_Rn[kSlots];  // (slot's DOF nodes, 9) node rotations when its matrix was taken (warp)
   std::vector<double> Q;               // (ndofnode, 9) warp: Rn * slot_Rn^T of the front slot, this solve
   // lagged after a cut, until a factor of the new pattern is taken: the DOFs
   // the front factor does not know, with every DOF node of the elements that

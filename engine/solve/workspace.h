@@ -61,6 +61,10 @@ struct Workspace {
   int rotation_fallbacks = 0;   // SVD fallbacks in the last frame (inverted points)
   double last_residual = 0.0;      // relative residual of the last Newton iteration
 
+  // Factor slot k of the lagged policy, 0 <= k < SolverWork::kSlots (0 is `solver`).
+  CholmodSolver& slot(int k) { return k == 0 ? solver : k == 1 ? work.back : work.spare; }
+  const CholmodSolver& slot(int k) const { return k == 0 ? solver : k == 1 ? work.back : work.spare; }
+
   Workspace() = default;
   Workspace(const Workspace&) = delete;
   Workspace& operator=(const Workspace&) = delete;

@@ -62,7 +62,7 @@ IncisionRun incision(const SolverSettings& solver, double tangent_reuse = 0.0, d
     }
   }
   r.u = sim->state.u;
-  r.single_factorizations = sim->ws.solver.stats().single_factorizations + sim->ws.work.back.stats().single_factorizations;
+  for (int k = 0; k < SolverWork::kSlots; ++k) r.single_factorizations += sim->ws.slot(k).stats().single_factorizations;
   return r;
 }
 
@@ -195,7 +195,7 @@ TEST(CutPolicies, CarriedOrderingWhileCuttingIsSearchedAgainAfterwards) {
     const FrameTiming t = advance_frame(*sim);
     if (t.cut_frame) last_cut = k;
     SolverWork& w = sim->ws.work;
-    CholmodSolver& front = w.front == 0 ? sim->ws.solver : w.back;
+    CholmodSolver& front = sim->ws.slot(w.front);
     if (front.stats().ordering != "given") continue;
     ++given_fronts;
     EXPECT_GT(k, 0);
@@ -210,8 +210,8 @@ TEST(CutPolicies, CarriedOrderingWhileCuttingIsSearchedAgainAfterwards) {
   ASSERT_GE(last_cut, 5);
   EXPECT_GE(given_fronts, 3) << "jobs during the cut carried the ordering";
   sim->ws.work.wait_job();  // no job writes a slot while its stats are read
-  for (CholmodSolver* f : {&sim->ws.solver, &sim->ws.work.back})
-    EXPECT_NE(f->stats().ordering, "given") << "analyzed again after the cut";
+  for (int k = 0; k < SolverWork::kSlots; ++k)
+    EXPECT_NE(sim->ws.slot(k).stats().ordering, "given") << "slot " << k << " analyzed again after the cut";
 }
 
 // advance_frame prepares each frame's cut (layout and next Model) on a helper

@@ -7,7 +7,8 @@
 # 1060, Rayleigh 0.5 / 0.01, hung by its top 2 cm and released from rest
 # under gravity), drag-20k (the same organ taken at its lower face by a
 # grasper, dragged 5 cm at 0.2 m/s and let go:
-# assets/trajectories/organ_grasp_drag.csv) and haptics-20k
+# assets/trajectories/organ_grasp_drag.csv; drag15mm-20k: 1.5 cm, a
+# surgeon's amplitude, organ_grasp_drag_15mm.csv) and haptics-20k
 # (assets/scenes/organ_haptics.json: the probe on the scripted haptic device
 # while the scalpel incises; its bench runs the 1 kHz haptic thread), and the
 # second organ, from a real segmentation (assets/meshes/liver_19k.msh, 18,957
@@ -90,6 +91,7 @@ cases=(
   "incision-10k organ_incision 2"
   "hang-20k organ_20k 3"
   "drag-20k organ_20k 3"
+  "drag15mm-20k organ_20k 3"
   "haptics-20k organ_haptics 3"
   "hang-liver19k liver_19k 3"
   "demo-liver19k liver_demo 3"
@@ -113,11 +115,13 @@ for c in "${cases[@]}"; do
  "fixed": [{"box": [[-0.2, 0.035, -0.2], [0.2, 0.2, 0.2]]}]}
 JSON
       ;;
-    hang-*|drag-*)
+    hang-*|drag*-*)
       grasper=""
-      if [ "${name%%-*}" = drag ]; then
+      if [ "${name%%-*}" != hang ]; then
+        traj=assets/trajectories/organ_grasp_drag.csv
+        [ "${name%%-*}" = drag15mm ] && traj=assets/trajectories/organ_grasp_drag_15mm.csv
         grasper=', "instruments": [{"type": "grasper", "name": "grasper", "jaw_size": [0.01, 0.002, 0.01], "opening": 0.012,
-                  "trajectory": "'"$(realpath --relative-to="$out" assets/trajectories/organ_grasp_drag.csv)"'"}]'
+                  "trajectory": "'"$(realpath --relative-to="$out" "$traj")"'"}]'
       fi
       cat >"$scene" <<JSON
 {"mesh": {"file": "$(realpath --relative-to="$out" "assets/meshes/$mesh.msh")", "order": 2},

@@ -374,6 +374,46 @@ TEST(SolverPolicies, LaggedRescueRefactorsWhenCgStallsAndStaysExact) {
   EXPECT_LT(test::rel_diff(lagged, exact), 1e-8);
 }
 
+// A rescue while a background job runs factors the current matrix into the
+// third slot at once instead of waiting for the job (whose matrix is older)
+// and then factoring; the job, when it ends, is dropped: the factor in use
+// never goes back to an older frame. Deterministic ("wait"), so the
+// trajectory is exact's to the CG tolerance.
+TEST(SolverPolicies, LaggedRescueBesideARunningJobDoesNotWaitAndDropsTheOlderJob) {
+  const int frames = 20;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  // Without rescues CG takes 17-31 iterations a frame while the first
+  // factor ages (frames 1-5) and 40-69 once older: a rescue after 35 comes
+  // while the job launched at frame 4 runs (measured).
+  SolverSettings s = stale_lagged(1e-10);
+  s.refresh_every = 4;
+  s.background = true;
+  s.rescue_after = 35;
+  const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
+  const Model m = build_model(mesh, swing_scene(s));
+  State st; Workspace ws;
+  init_state(m, st, ws);
+  int rescues = 0, beside_job = 0, last_front_frame = -1;
+  for (int k = 0; k < frames; ++k) {
+    step(m, st, ws);
+    const SolverWork& w = ws.work;
+    rescues += ws.timing.rescues;
+    // The rescue's factor is this frame's; the job launched earlier still runs.
+    if (ws.timing.rescues > 0 && w.job_running && w.job_frame < w.front_frame) {
+      EXPECT_EQ(w.front_frame, st.frame - 1) << "frame " << k;  // (step advanced st.frame)
+      EXPECT_NE(w.front, w.job_slot);
+      ++beside_job;
+    }
+    EXPECT_GE(w.front_frame, last_front_frame) << "frame " << k << ": an older job was taken after a rescue";
+    last_front_frame = w.front_frame;
+    EXPECT_TRUE(ws.timing.converged) << "frame " << k;
+  }
+  EXPECT_GT(rescues, 0);
+  EXPECT_GT(beside_job, 0) << "no rescue happened while a job ran: the case is not tested";
+  EXPECT_GT(ws.slot(2).stats().factorizations, 0) << "the third slot was never used";
+  EXPECT_LT(test::rel_diff(st.u, exact), 1e-8);
+}
+
 // A factor refreshed every 50 frames is far from the swinging beam's matrix;
 // the fresh coarse level (solver.coarse "corners") takes the smooth part of
 // the error, so CG needs fewer iterations for the same trajectory.
