@@ -262,10 +262,18 @@ void lagged_refresh(const Model& m, Workspace& ws, int frame) {
     // a job running, into the slot neither holds and without waiting for it
     // (take_job drops it when it ends); otherwise into the front slot. Before,
     // a rescue waited for the job and then factored: up to two factorizations.
+    // Two factorizations at once need a BLAS that allows it
+    // (blas_concurrency_safe); with a serial one the job is waited for and
+    // dropped, as before.
     int slot = w.front;
-    if (w.job_running) {
+    if (w.job_running && blas_concurrency_safe()) {
       slot = 0;
       while (slot == w.front || slot == w.job_slot) ++slot;
+    } else if (w.job_running) {
+      w.wait_job();
+      w.job_running = false;
+      w.job_error = nullptr;
+      w.job_slot = -1;
     }
     factor_now(m, ws, slot);
     w.front = slot;
