@@ -91,6 +91,7 @@ void collision_stage(Simulation& sim) {
   rows.clear();
   rows.friction = sim.scene.contact.friction;
   rows.max_sweeps = sim.scene.contact.pgs_iterations;
+  rows.refine_rounds = sim.scene.contact.refine_rounds;
   // Grasps first: they are what the user asked for, and not subject to max_rows.
   auto& candidates = cd.candidates;
   candidates.clear();

@@ -32,6 +32,7 @@ struct ContactRows {
                                  // row's point ends the frame moving with the tool (inelastic contact)
   double friction = 0.0;         // Coulomb coefficient of the friction rows
   int max_sweeps = 200;          // projected Gauss-Seidel sweeps at most (scene contact.pgs_iterations)
+  int refine_rounds = 0;         // correction rounds refined by CG (scene contact.refine_rounds; contact_solve.h)
   std::vector<double> lambda;    // (nrow) result: force along dir on the tissue (N)
   // (ntool, or empty) per instrument: 0 for a tool that is where its pose
   // says, c > 0 for one held through a spring of stiffness 1/c (a haptic

@@ -701,11 +701,15 @@ void parse_instruments(const Parser& p, const json& v, Scene& s) {
 void parse_contact(const Parser& p, const json& v, Scene& s) {
   const std::string at = "contact";
   p.object(v, at);
-  p.allowed_keys(v, at, {"max_rows", "friction", "pgs_iterations"});
+  p.allowed_keys(v, at, {"max_rows", "friction", "pgs_iterations", "refine_rounds"});
   if (auto it = v.find("max_rows"); it != v.end()) s.contact.max_rows = p.at_least_one(*it, at + ".max_rows");
   if (auto it = v.find("friction"); it != v.end()) s.contact.friction = p.nonnegative(*it, at + ".friction");
   if (auto it = v.find("pgs_iterations"); it != v.end())
     s.contact.pgs_iterations = p.at_least_one(*it, at + ".pgs_iterations");
+  if (auto it = v.find("refine_rounds"); it != v.end()) {
+    s.contact.refine_rounds = p.nonnegative_int(*it, at + ".refine_rounds");
+    if (s.contact.refine_rounds > 20) p.fail(at + ".refine_rounds", " must be an integer in [0, 20], got " + show(*it));
+  }
 }
 
 void parse_haptics(const Parser& p, const json& v, Scene& s) {

@@ -107,6 +107,7 @@ struct ContactSettings {
   int max_rows = 48;            // contact constraints kept per frame (deepest first), >= 1
   double friction = 0.0;        // Coulomb coefficient, >= 0 (0: frictionless)
   int pgs_iterations = 200;     // projected Gauss-Seidel sweeps, >= 1
+  int refine_rounds = 0;        // lagged / warped_cg: correction rounds refined by CG (0: Y dlambda alone)
 };
 
 // A haptic device driving one instrument from a 1 kHz thread (scene key

@@ -955,6 +955,27 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
   for (int c = 0; c < k; ++c) apply_factor_inverse(m, ws, B + c * n, X + c * n);
 }
 
+bool refine_inverse(const Model& m, Workspace& ws, const double* g, const double* x0, double* x) {
+  const size_t n = static_cast<size_t>(m.ndof());
+  const bool iterative = m.solver.policy == SolverPolicy::Lagged || m.solver.policy == SolverPolicy::WarpedCG;
+  const int left = std::min(m.solver.max_iterations, budget_left(m, ws));
+  const bool spent = m.solver.frame_iterations > 0 && ws.timing.iterations >= m.solver.frame_iterations;
+  if (!iterative || spent || left <= 0) {
+    if (x != x0) std::copy(x0, x0 + n, x);
+    return false;
+  }
+  std::vector<double>& start = ws.work.refine_x0;
+  start.assign(x0, x0 + n);  // pcg writes x before it reads its start
+  const double residual = ws.timing.residual, start_residual = ws.timing.start_residual;
+  const bool converged = ws.timing.converged;
+  pcg(m, ws, ws.A.data(), g, x, [&](const double* r, double* z) { apply_factor_inverse(m, ws, r, z); }, left,
+      start.data());
+  ws.timing.residual = residual;
+  ws.timing.start_residual = start_residual;
+  ws.timing.converged = converged;
+  return true;
+}
+
 void apply_factor_inverse(const Model& m, Workspace& ws, const double* b, double* x) {
   switch (m.solver.policy) {
     case SolverPolicy::Exact:

@@ -80,6 +80,17 @@ void apply_factor_inverse(const Model& model, Workspace& ws, const double* b, do
 // warped, lagged before a cut maps it), column by column otherwise.
 void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const double* B, double* X);
 
+// x = A^-1 g to the CG tolerance, from the start x0 (both ndof; x0 may be x),
+// for the iterative policies (lagged, warped_cg): CG on this iteration's A
+// preconditioned by apply_factor_inverse, at most solver.max_iterations (and
+// what is left of solver.frame_iterations). The contact stage's correction
+// with it puts the contact force into equilibrium to the solver's tolerance,
+// where Y = (the preconditioner) H^T alone leaves the preconditioner's error.
+// Its iterations count in ws.timing.iterations; the solve's residual and
+// convergence in ws.timing are kept. False (x = x0) for the direct policies
+// or with no iteration left.
+bool refine_inverse(const Model& model, Workspace& ws, const double* g, const double* x0, double* x);
+
 // Node rotations of the warped policies from the slot rotations R (nrot, 9):
 // the polar rotation of the volume-weighted sum of the incident slots' R;
 // identity on nodes with some but not all components constrained.

@@ -656,16 +656,21 @@ TEST_F(SceneTest, InstrumentPosesAndTrajectoriesChecked) {
 }
 
 TEST_F(SceneTest, ContactSettingsParsedAndChecked) {
-  const Scene s = parse_scene(minimal(R"("contact": {"max_rows": 10, "friction": 0.3, "pgs_iterations": 50})"), scene_path_);
+  const Scene s = parse_scene(
+      minimal(R"("contact": {"max_rows": 10, "friction": 0.3, "pgs_iterations": 50, "refine_rounds": 3})"), scene_path_);
   EXPECT_EQ(s.contact.max_rows, 10);
   EXPECT_EQ(s.contact.friction, 0.3);
   EXPECT_EQ(s.contact.pgs_iterations, 50);
+  EXPECT_EQ(s.contact.refine_rounds, 3);
+  EXPECT_EQ(parse_scene(minimal(R"("contact": {})"), scene_path_).contact.refine_rounds, 0);
+  expect_error(minimal(R"("contact": {"refine_rounds": 21})"), "contact.refine_rounds must be an integer in [0, 20], got 21");
+  expect_error(minimal(R"("contact": {"refine_rounds": -1})"), "contact.refine_rounds must be an integer >= 0, got -1");
   expect_error(minimal(R"("contact": {"max_rows": 0})"), "contact.max_rows must be an integer >= 1, got 0");
   expect_error(minimal(R"("contact": {"max_rows": 2.5})"), "contact.max_rows must be an integer, got 2.5");
   expect_error(minimal(R"("contact": {"friction": -0.1})"), "contact.friction must be >= 0, got -0.1");
   expect_error(minimal(R"("contact": {"pgs_iterations": 0})"), "contact.pgs_iterations must be an integer >= 1, got 0");
   expect_error(minimal(R"("contact": {"stiffness": 1})"),
-               "contact.stiffness: unknown key; allowed: max_rows, friction, pgs_iterations");
+               "contact.stiffness: unknown key; allowed: max_rows, friction, pgs_iterations, refine_rounds");
   expect_error(minimal(R"("contact": [])"), "contact must be an object, got array []");
 }
 
