@@ -220,12 +220,20 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   // default: at the realtime preset refining doubled the probe scene's frame
   // without moving its error, docs/benchmarks.md); the last small correction
   // then takes Y.
-  const bool iterative = m.solver.policy == SolverPolicy::Lagged || m.solver.policy == SolverPolicy::WarpedCG;
-  const int refine_rounds = iterative ? c.refine_rounds : 0;  // exact's Y is A^-1; warped has no A to refine on
+  const int refine_rounds = iterative_policy(m) ? c.refine_rounds : 0;  // exact's Y is A^-1; warped has no A to refine on
   std::vector<double>& g = ws.contact_h;
   std::vector<double>& x = ws.contact_z;
   g.resize(n);
   x.resize(n);
+  // out += Y (lambda - c.lambda), row by row.
+  const auto add_correction = [&](double* out) {
+    for (int i = 0; i < r; ++i) {
+      const double dl = lambda[i] - c.lambda[i];
+      if (dl == 0.0) continue;
+      const double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
+      for (int d = 0; d < n; ++d) out[d] += dl * y[d];
+    }
+  };
   int sweeps = 0;
   double bmax0 = 0.0;
   for (int round = 0;; ++round) {
@@ -241,35 +249,28 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
     lambda = c.lambda;
     sweeps += projected_gauss_seidel(c, *Wsolve, b, lambda, c.max_sweeps, 1e-12 * bmax0);
     polish_active_set(c, *Wsolve, b, lambda);
-    // How far this round moves the rows: W dlambda.
-    double move = 0.0;
-    for (int i = 0; i < r; ++i) {
-      double wd = 0.0;
-      for (int j = 0; j < r; ++j) wd += W[static_cast<size_t>(i) * r + j] * (lambda[j] - c.lambda[j]);
-      move = std::max(move, std::abs(wd));
-    }
-    const bool last = round >= refine_rounds || (round > 0 && move <= m.solver.tolerance * bmax0);
-    if (last) {  // Delta += Y dlambda (rows in turn: the sums of the unrefined stage, bit for bit)
+    bool last = round >= refine_rounds;
+    if (!last && round > 0) {  // how far this round moves the rows: W dlambda
+      double move = 0.0;
       for (int i = 0; i < r; ++i) {
-        const double dl = lambda[i] - c.lambda[i];
-        if (dl == 0.0) continue;
-        const double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
-        for (int d = 0; d < n; ++d) ws.delta[d] += dl * y[d];
+        double wd = 0.0;
+        for (int j = 0; j < r; ++j) wd += W[static_cast<size_t>(i) * r + j] * (lambda[j] - c.lambda[j]);
+        move = std::max(move, std::abs(wd));
       }
+      last = move <= m.solver.tolerance * bmax0;
+    }
+    if (last) {  // Delta += Y dlambda straight (the unrefined stage's sums, bit for bit)
+      add_correction(ws.delta.data());
       c.lambda = lambda;
       break;
     }
     // x0 = Y dlambda, g = H^T dlambda (constrained DOFs: no force, no motion).
     std::fill(x.begin(), x.end(), 0.0);
     std::fill(g.begin(), g.end(), 0.0);
-    for (int i = 0; i < r; ++i) {
-      const double dl = lambda[i] - c.lambda[i];
-      if (dl == 0.0) continue;
-      const double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
-      for (int d = 0; d < n; ++d) x[d] += dl * y[d];
+    add_correction(x.data());
+    for (int i = 0; i < r; ++i)
       for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
-        if (!m.constrained[c.dof[k]]) g[c.dof[k]] += c.coef[k] * dl;
-    }
+        if (!m.constrained[c.dof[k]]) g[c.dof[k]] += c.coef[k] * (lambda[i] - c.lambda[i]);
     const bool refined = refine_inverse(m, ws, g.data(), x.data(), x.data());
     if (refined) {
       for (int d : m.fixed_dofs) x[d] = 0.0;

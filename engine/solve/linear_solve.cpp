@@ -955,12 +955,15 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
   for (int c = 0; c < k; ++c) apply_factor_inverse(m, ws, B + c * n, X + c * n);
 }
 
+bool iterative_policy(const Model& m) {
+  return m.solver.policy == SolverPolicy::Lagged || m.solver.policy == SolverPolicy::WarpedCG;
+}
+
 bool refine_inverse(const Model& m, Workspace& ws, const double* g, const double* x0, double* x) {
   const size_t n = static_cast<size_t>(m.ndof());
-  const bool iterative = m.solver.policy == SolverPolicy::Lagged || m.solver.policy == SolverPolicy::WarpedCG;
   const int left = std::min(m.solver.max_iterations, budget_left(m, ws));
   const bool spent = m.solver.frame_iterations > 0 && ws.timing.iterations >= m.solver.frame_iterations;
-  if (!iterative || spent || left <= 0) {
+  if (!iterative_policy(m) || spent) {
     if (x != x0) std::copy(x0, x0 + n, x);
     return false;
   }

@@ -91,6 +91,9 @@ void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const 
 // or with no iteration left.
 bool refine_inverse(const Model& model, Workspace& ws, const double* g, const double* x0, double* x);
 
+// Whether the policy solves by CG on the current A (lagged, warped_cg).
+bool iterative_policy(const Model& model);
+
 // Node rotations of the warped policies from the slot rotations R (nrot, 9):
 // the polar rotation of the volume-weighted sum of the incident slots' R;
 // identity on nodes with some but not all components constrained.
