@@ -6,9 +6,14 @@
 // of relative L2 errors at probe points and observed orders.
 //
 // Usage: incise-study-slit [--quick]   (quick: two coarse levels, coarse reference)
+//        incise-study-slit --fronts [--quick]   (the slit's front inside elements:
+//                                                study_slit_fronts.cpp)
+#include "tools/study_slit.h"
+
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -20,17 +25,9 @@
 #include "engine/dynamics/step.h"
 #include "engine/runtime/timing.h"
 
-using namespace incise;
+namespace incise {
 
-namespace {
-
-struct Case {
-  const char* name;
-  MaterialModel model;
-  bool gravity;  // else a prescribed end displacement
-};
-
-Scene scene_for(const Case& c, int order) {
+Scene slit_scene(const SlitCase& c, int order) {
   Scene s;
   s.path = "study";
   s.order = order;
@@ -63,16 +60,8 @@ Scene scene_for(const Case& c, int order) {
   return s;
 }
 
-std::vector<std::array<double, 3>> probes() {
-  std::vector<std::array<double, 3>> p;
-  for (double x = 0.25; x < 4.0; x += 0.25)
-    if (std::abs(x - 2.0) > 0.3)
-      for (double y : {0.25, 0.75})
-        for (double z : {0.2, 0.8}) p.push_back({x, y, z});
-  return p;
-}
-
-std::vector<double> solve(const Mesh& mesh, Scene s, bool xfem, int* dof) {
+std::vector<double> slit_solve(const Mesh& mesh, Scene s, bool xfem, const std::vector<std::array<double, 3>>& probes,
+                               int* dof) {
   Simulation sim;
   sim.scene = s;
   sim.mesh = mesh;
@@ -92,18 +81,53 @@ std::vector<double> solve(const Mesh& mesh, Scene s, bool xfem, int* dof) {
                r.converged ? "converged" : "NOT converged", r.iterations, r.residual);
   *dof = sim.model.ndof();
   std::vector<double> out;
-  for (const auto& p : probes()) {
-    const auto u = interpolate_displacement(sim.model, sim.state.u.data(), locate_point(sim.model, p.data()));
+  for (const auto& p : probes) {
+    const ProbeHit hit = locate_point(sim.model, p.data());
+    if (hit.elem < 0) throw std::runtime_error("study-slit: a probe lies outside the mesh");
+    const auto u = interpolate_displacement(sim.model, sim.state.u.data(), hit);
     out.insert(out.end(), u.begin(), u.end());
   }
   return out;
 }
 
+double relative_l2(const std::vector<double>& u, const std::vector<double>& ref) {
+  double e = 0, n = 0;
+  for (size_t k = 0; k < u.size(); ++k) {
+    e += (u[k] - ref[k]) * (u[k] - ref[k]);
+    n += ref[k] * ref[k];
+  }
+  return std::sqrt(e / n);
+}
+
+}  // namespace incise
+
+using namespace incise;
+
+namespace {
+
+std::vector<std::array<double, 3>> probes() {
+  std::vector<std::array<double, 3>> p;
+  for (double x = 0.25; x < 4.0; x += 0.25)
+    if (std::abs(x - 2.0) > 0.3)
+      for (double y : {0.25, 0.75})
+        for (double z : {0.2, 0.8}) p.push_back({x, y, z});
+  return p;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  const bool quick = argc > 1 && std::strcmp(argv[1], "--quick") == 0;
-  const Case cases[] = {{"gravity, linear", MaterialModel::Linear, true},
+  bool quick = false, fronts = false;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--quick") == 0) quick = true;
+    else if (std::strcmp(argv[i], "--fronts") == 0) fronts = true;
+    else {
+      std::fprintf(stderr, "incise-study-slit: unknown option '%s' (allowed: --quick, --fronts)\n", argv[i]);
+      return 2;
+    }
+  }
+  if (fronts) return run_front_study(quick);
+  const SlitCase cases[] = {{"gravity, linear", MaterialModel::Linear, true},
                         {"gravity, corotated", MaterialModel::Corotated, true},
                         {"end displacement, linear", MaterialModel::Linear, false},
                         {"end displacement, corotated", MaterialModel::Corotated, false}};
@@ -113,22 +137,18 @@ int main(int argc, char** argv) {
   const std::array<int, 2> ref = quick ? std::array<int, 2>{24, 6} : std::array<int, 2>{40, 10};
   std::printf("| load, material | element | cells (nx x n x n) | DOF | rel. L2 error at probes | order |\n");
   std::printf("|---|---|---|---|---|---|\n");
-  for (const Case& c : cases) {
+  for (const SlitCase& c : cases) {
     Stopwatch clock;
     int dof = 0;
     const Mesh ref_mesh = duplicate_nodes_along_slit(raise_to_tet10(make_beam(4, 1, 1, ref[0], ref[1], ref[1], 1)), 2.0, 0.5);
-    const std::vector<double> uref = solve(ref_mesh, scene_for(c, 2), false, &dof);
-    double nref = 0;
-    for (double v : uref) nref += v * v;
+    const std::vector<double> uref = slit_solve(ref_mesh, slit_scene(c, 2), false, probes(), &dof);
     std::fprintf(stderr, "%s: reference %d DOF in %.1f s\n", c.name, dof, clock.lap() / 1000);
     for (int order : {1, 2}) {
       double prev = 0, prev_h = 0;
       for (const auto& lv : levels) {
         const Mesh mesh = make_beam(4, 1, 1, lv[0], lv[1], lv[1], 1);
-        const std::vector<double> u = solve(mesh, scene_for(c, order), true, &dof);
-        double e = 0;
-        for (size_t k = 0; k < u.size(); ++k) e += (u[k] - uref[k]) * (u[k] - uref[k]);
-        e = std::sqrt(e / nref);
+        const std::vector<double> u = slit_solve(mesh, slit_scene(c, order), true, probes(), &dof);
+        const double e = relative_l2(u, uref);
         const double h = 1.0 / lv[1];
         char ord[32] = "";
         if (prev > 0) std::snprintf(ord, sizeof ord, "%.2f", std::log(prev / e) / std::log(prev_h / h));

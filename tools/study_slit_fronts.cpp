@@ -1,0 +1,129 @@
+// The extended slit study (issue 21): where the slit's front lies in the
+// mesh. The slit x = 2, z >= 0.5 of study_slit.cpp, solved on grids whose z
+// node planes are moved so that the front z = 0.5 lies on element faces
+// (f = 0) or inside elements at f = 0.1, 0.5, 0.9 of a cell; the X-FEM on
+// grids where x = 2 lies mid-cell, the conforming mesh (nodes duplicated along
+// the slit, cutting/conforming_slit.cpp) on grids with node planes at x = 2
+// and z = 0.5 and about the same DOF; both against a fine conforming mesh.
+// Errors: relative L2 of the displacement at probes away from the slit
+// ("far") and on both slit faces, at the front and just ahead of it ("near").
+#include <cmath>
+#include <cstddef>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "cutting/conforming_slit.h"
+#include "engine/mesh/mesh_tools.h"
+#include "engine/runtime/timing.h"
+#include "tools/study_slit.h"
+
+namespace incise {
+namespace {
+
+// make_beam(4, 1, 1, nx, n, n) with its z node planes mapped piecewise
+// linearly so that z = 0.5 lies at fraction f of the cell holding it.
+Mesh front_beam(int nx, int n, double f) {
+  Mesh m = make_beam(4, 1, 1, nx, n, n, 1);
+  const int k = static_cast<int>(std::lround(0.5 * n - f));
+  const double s = (k + f) / n;  // uniform coordinate that maps to 0.5
+  for (int i = 0; i < m.nnode(); ++i) {
+    double& z = m.X[3 * i + 2];
+    z = z <= s ? z * 0.5 / s : 0.5 + (z - s) * 0.5 / (1 - s);
+  }
+  return m;
+}
+
+Mesh conforming_beam(int n) {
+  return duplicate_nodes_along_slit(raise_to_tet10(front_beam(4 * n, n, 0.0)), 2.0, 0.5);
+}
+
+std::vector<std::array<double, 3>> far_probes() {
+  std::vector<std::array<double, 3>> p;
+  for (double x = 0.25; x < 4.0; x += 0.25)
+    if (std::abs(x - 2.0) > 0.3)
+      for (double y : {0.25, 0.75})
+        for (double z : {0.2, 0.8}) p.push_back({x, y, z});
+  return p;
+}
+
+// Both slit faces (1e-6 from the plane), the front line and just behind it,
+// and the uncut material ahead of the front.
+std::vector<std::array<double, 3>> near_probes() {
+  std::vector<std::array<double, 3>> p;
+  for (double y : {0.25, 0.5, 0.75}) {
+    for (double x : {2.0 - 1e-6, 2.0 + 1e-6})
+      for (double z : {0.5, 0.52, 0.6, 0.75, 0.9, 1.0}) p.push_back({x, y, z});
+    for (double z : {0.25, 0.45}) p.push_back({2.0, y, z});
+  }
+  return p;
+}
+
+std::vector<std::array<double, 3>> all_probes() {
+  std::vector<std::array<double, 3>> p = far_probes();
+  for (const auto& q : near_probes()) p.push_back(q);
+  return p;
+}
+
+struct Errors {
+  int dof = 0;
+  double far = 0, near = 0;
+};
+
+// Errors of the displacement u at all_probes() against ref (the same probes).
+Errors compare(const std::vector<double>& u, const std::vector<double>& ref, int dof) {
+  const auto split = static_cast<std::ptrdiff_t>(3 * far_probes().size());
+  Errors e;
+  e.dof = dof;
+  e.far = relative_l2({u.begin(), u.begin() + split}, {ref.begin(), ref.begin() + split});
+  e.near = relative_l2({u.begin() + split, u.end()}, {ref.begin() + split, ref.end()});
+  return e;
+}
+
+}  // namespace
+
+int run_front_study(bool quick) {
+  const SlitCase cases[] = {{"gravity", MaterialModel::Linear, true},
+                            {"end displacement", MaterialModel::Linear, false}};
+  const std::vector<int> levels = quick ? std::vector<int>{2, 3} : std::vector<int>{3, 4, 6, 8};
+  const int nref = quick ? 6 : 16;
+  std::printf("| load | method | front at | cells (nx x n x n) | DOF | far error | order | near error | order |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|\n");
+  for (const SlitCase& c : cases) {
+    Stopwatch clock;
+    const Scene s = slit_scene(c, 2);
+    int dof = 0;
+    const Mesh ref_mesh = conforming_beam(nref);
+    const std::vector<double> ref = slit_solve(ref_mesh, s, false, all_probes(), &dof);
+    std::fprintf(stderr, "%s: reference %d x %d x %d, %d DOF, %.1f s\n", c.name, 4 * nref, nref, nref, dof,
+                 clock.lap() / 1000);
+    // method -1: conforming; else the X-FEM with the front at fraction f.
+    for (double f : {-1.0, 0.0, 0.1, 0.5, 0.9}) {
+      Errors prev;
+      int prev_n = 0;
+      for (int n : levels) {
+        const bool xfem = f >= 0;
+        const int nx = xfem ? 4 * n - 1 : 4 * n;
+        const std::vector<double> u =
+            slit_solve(xfem ? front_beam(nx, n, f) : conforming_beam(n), s, xfem, all_probes(), &dof);
+        const Errors e = compare(u, ref, dof);
+        char of[16] = "", on[16] = "", at[32] = "node plane";
+        if (prev_n > 0) {
+          const double r = std::log(static_cast<double>(n) / prev_n);
+          std::snprintf(of, sizeof of, "%.2f", std::log(prev.far / e.far) / r);
+          std::snprintf(on, sizeof on, "%.2f", std::log(prev.near / e.near) / r);
+        }
+        if (xfem) std::snprintf(at, sizeof at, f == 0 ? "element faces" : "%.1f h inside", f);
+        std::printf("| %s | %s | %s | %d x %d x %d | %d | %.3e | %s | %.3e | %s |\n", c.name,
+                    xfem ? "X-FEM" : "conforming", at, nx, n, n, e.dof, e.far, of, e.near, on);
+        std::fflush(stdout);
+        prev = e;
+        prev_n = n;
+      }
+    }
+    std::fprintf(stderr, "%s: done in %.1f s\n", c.name, clock.lap() / 1000);
+  }
+  return 0;
+}
+
+}  // namespace incise
