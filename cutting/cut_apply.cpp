@@ -53,7 +53,8 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
 bool same_layout(const Model& m, const CutLayout& L) {
   const CutLayout& O = m.cuts;
   return m.has_cuts() && O.n_enriched == L.n_enriched && O.elem_piece_ptr == L.elem_piece_ptr &&
-         O.piece_enr == L.piece_enr && O.subtet_rst == L.subtet_rst && O.elem_face_cut == L.elem_face_cut;
+         O.piece_enr == L.piece_enr && O.subtet_rst == L.subtet_rst && O.elem_face_cut == L.elem_face_cut &&
+         O.node_branch == L.node_branch && O.front_phi == L.front_phi && O.front_psi == L.front_psi;
 }
 
 // The part of a cut update that reads only the model, mesh and scene (so it
@@ -100,7 +101,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   }
   if (surfaces.empty()) return p;
   Stopwatch part;
-  CutLayout layout = compute_cut_layout(sim.model, surfaces, &p.report);
+  CutLayout layout = compute_cut_layout(sim.model, surfaces, &p.report, sim.scene.front_enrichment);
   p.layout_ms = part.lap();
   if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && p.report.cut_elements == 0))
     return p;

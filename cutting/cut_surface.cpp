@@ -157,6 +157,46 @@ CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(st
   facets_.erase(std::remove_if(facets_.begin(), facets_.end(),
                                [](const Facet& f) { return !(vec(f.n).norm() > 0.5); }),
                 facets_.end());
+  std::vector<std::pair<std::array<Vec3, 2>, int>> edges;  // (sorted end points, facet)
+  for (size_t k = 0; k < facets_.size(); ++k)
+    for (int j = 0; j < 3 && !facets_[k].unbounded; ++j) {
+      std::array<Vec3, 2> e = {facets_[k].v[j], facets_[k].v[(j + 1) % 3]};
+      if (e[1] < e[0]) std::swap(e[0], e[1]);
+      edges.push_back({e, static_cast<int>(k)});
+    }
+  std::sort(edges.begin(), edges.end());
+  for (size_t i = 0; i < edges.size();) {
+    size_t j = i;
+    while (j < edges.size() && edges[j].first == edges[i].first) ++j;
+    if (j == i + 1) {
+      const Facet& f = facets_[edges[i].second];
+      const V a = vec(edges[i].first[0]), b = vec(edges[i].first[1]);
+      V m = (b - a).cross(vec(f.n));
+      V c = vec(f.v[0]) + vec(f.v[1]) + vec(f.v[2]);
+      c /= 3.0;
+      if (m.norm() > 0) {
+        m.normalize();
+        if (m.dot(c - a) > 0) m = -m;
+        boundary_.push_back({arr(a), arr(b), arr(m)});
+      }
+    }
+    i = j;
+  }
+}
+
+double CutSurface::front_distance(const double x[3]) const {
+  const V xv(x[0], x[1], x[2]);
+  double best = 1e300, psi = 1e300;
+  for (const Edge& e : boundary_) {
+    const V a = vec(e.a), ab = vec(e.b) - a;
+    const double t = std::clamp((xv - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    const double d = (xv - (a + t * ab)).norm();
+    if (d < best) {
+      best = d;
+      psi = (xv - a).dot(vec(e.m));
+    }
+  }
+  return psi;
 }
 
 int CutSurface::nearest_facet(const double x[3]) const {

@@ -43,9 +43,20 @@ class CutSurface {
   // from its facets by a fraction of an element (make_swept_surface).
   void set_cover_slack(double multiple) { slack_ = multiple; }
   const std::vector<Facet>& facets() const { return facets_; }
+  // Signed distance from x, in the plane of the surface's boundary edge
+  // nearest to x, to that edge's line: > 0 outside the surface (ahead of its
+  // front), < 0 inside. The second level set of a cut front (psi, beside phi
+  // = value(); [preprint] sec. 4 uses one per crack front). 1e300 for a
+  // surface without boundary (the infinite plane). A boundary edge is an
+  // edge of one facet only (vertices matched exactly).
+  double front_distance(const double x[3]) const;
 
  private:
+  struct Edge {
+    Vec3 a{}, b{}, m{};  // end points; in-plane unit normal pointing away from its facet
+  };
   std::vector<Facet> facets_;
+  std::vector<Edge> boundary_;
   std::string name_;
   double slack_ = 0.0;
   int nearest_facet(const double x[3]) const;

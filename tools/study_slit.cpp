@@ -117,16 +117,17 @@ std::vector<std::array<double, 3>> probes() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, fronts = false;
+  bool quick = false, fronts = false, only_enriched = false;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--quick") == 0) quick = true;
     else if (std::strcmp(argv[i], "--fronts") == 0) fronts = true;
+    else if (std::strcmp(argv[i], "--enriched-only") == 0) only_enriched = true;
     else {
-      std::fprintf(stderr, "incise-study-slit: unknown option '%s' (allowed: --quick, --fronts)\n", argv[i]);
+      std::fprintf(stderr, "incise-study-slit: unknown option '%s' (allowed: --quick, --fronts, --enriched-only)\n", argv[i]);
       return 2;
     }
   }
-  if (fronts) return run_front_study(quick);
+  if (fronts) return run_front_study(quick, only_enriched);
   const SlitCase cases[] = {{"gravity, linear", MaterialModel::Linear, true},
                         {"gravity, corotated", MaterialModel::Corotated, true},
                         {"end displacement, linear", MaterialModel::Linear, false},

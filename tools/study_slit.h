@@ -29,7 +29,9 @@ double relative_l2(const std::vector<double>& u, const std::vector<double>& ref)
 
 // The extended study (issue 21): the slit's front on element faces and inside
 // elements at 0.1, 0.5 and 0.9 of h, X-FEM against conforming meshes of the
-// same slit, both against a fine conforming reference. Prints a markdown table.
-int run_front_study(bool quick);
+// same slit, both against a fine conforming reference, without and with the
+// front enrichment (CutLayout::node_branch). Prints a markdown table.
+// only_enriched: skip the X-FEM runs without front enrichment.
+int run_front_study(bool quick, bool only_enriched);
 
 }  // namespace incise

@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cutting/conforming_slit.h"
@@ -82,7 +83,7 @@ Errors compare(const std::vector<double>& u, const std::vector<double>& ref, int
 
 }  // namespace
 
-int run_front_study(bool quick) {
+int run_front_study(bool quick, bool only_enriched) {
   const SlitCase cases[] = {{"gravity", MaterialModel::Linear, true},
                             {"end displacement", MaterialModel::Linear, false}};
   const std::vector<int> levels = quick ? std::vector<int>{2, 3} : std::vector<int>{3, 4, 6, 8};
@@ -97,15 +98,27 @@ int run_front_study(bool quick) {
     const std::vector<double> ref = slit_solve(ref_mesh, s, false, all_probes(), &dof);
     std::fprintf(stderr, "%s: reference %d x %d x %d, %d DOF, %.1f s\n", c.name, 4 * nref, nref, nref, dof,
                  clock.lap() / 1000);
-    // method -1: conforming; else the X-FEM with the front at fraction f.
-    for (double f : {-1.0, 0.0, 0.1, 0.5, 0.9}) {
+    // method -1: conforming; else the X-FEM with the front at fraction f,
+    // without and with the front enrichment.
+    for (const auto& [f, enriched] : std::vector<std::pair<double, bool>>{{-1.0, false},
+                                                                          {0.0, false},
+                                                                          {0.1, false},
+                                                                          {0.5, false},
+                                                                          {0.9, false},
+                                                                          {0.0, true},
+                                                                          {0.1, true},
+                                                                          {0.5, true},
+                                                                          {0.9, true}}) {
+      if (only_enriched && !enriched && f >= 0) continue;
       Errors prev;
       int prev_n = 0;
+      Scene se = s;
+      se.front_enrichment = enriched;
       for (int n : levels) {
         const bool xfem = f >= 0;
         const int nx = xfem ? 4 * n - 1 : 4 * n;
         const std::vector<double> u =
-            slit_solve(xfem ? front_beam(nx, n, f) : conforming_beam(n), s, xfem, all_probes(), &dof);
+            slit_solve(xfem ? front_beam(nx, n, f) : conforming_beam(n), se, xfem, all_probes(), &dof);
         const Errors e = compare(u, ref, dof);
         char of[16] = "", on[16] = "", at[32] = "node plane";
         if (prev_n > 0) {
@@ -115,7 +128,7 @@ int run_front_study(bool quick) {
         }
         if (xfem) std::snprintf(at, sizeof at, f == 0 ? "element faces" : "%.1f h inside", f);
         std::printf("| %s | %s | %s | %d x %d x %d | %d | %.3e | %s | %.3e | %s |\n", c.name,
-                    xfem ? "X-FEM" : "conforming", at, nx, n, n, e.dof, e.far, of, e.near, on);
+                    xfem ? (enriched ? "X-FEM, front enriched" : "X-FEM") : "conforming", at, nx, n, n, e.dof, e.far, of, e.near, on);
         std::fflush(stdout);
         prev = e;
         prev_n = n;

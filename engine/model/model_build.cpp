@@ -13,6 +13,7 @@
 #include "engine/util/error.h"
 #include "engine/mesh/mesh_tools.h"
 #include "engine/model/model.h"
+#include "engine/model/front_enrichment.h"
 
 namespace incise {
 
@@ -71,7 +72,7 @@ bool same_pieces(const Model& m, const Model& base, int e) {
   const CutLayout& B = base.cuts;
   const int p0 = m.has_cuts() ? L.elem_piece_ptr[e] : 0, np = m.has_cuts() ? L.elem_piece_ptr[e + 1] - p0 : 1;
   const int b0 = base.has_cuts() ? B.elem_piece_ptr[e] : 0, nb = base.has_cuts() ? B.elem_piece_ptr[e + 1] - b0 : 1;
-  if (np != nb) return false;
+  if (np != nb || element_has_branch(m, e) || element_has_branch(base, e)) return false;
   const bool split = m.has_cuts() && L.elem_split[e], bsplit = base.has_cuts() && B.elem_split[e];
   if (split != bsplit) return false;
   // Enriched DOF nodes may be renumbered between layouts: the element's
@@ -121,6 +122,11 @@ struct ElementWork {
   std::vector<double> grad;   // (npe, 3) shape function gradients at a point
   std::vector<double> gmask;  // (n, 3) gradients spread over the element's n DOF nodes
   std::vector<int> local;     // (n) DOF nodes of the element
+  // Front enrichment of the element being integrated (empty: none): local
+  // index j of each branch DOF node, its element node a, and F at that node.
+  std::vector<int> branch_j, branch_a;
+  std::vector<double> branch_F0;
+  double node_phi[10] = {0}, node_psi[10] = {0}, N[10] = {0};
 };
 
 // Reserves m's per-element arrays for about base's sizes: no regrowth copies
@@ -147,6 +153,9 @@ void add_element_dof_nodes(Model& m, const int* nodes, const std::vector<PieceVi
     for (int a = 0; P.enr && a < npe; ++a)
       if (P.enr[a] >= 0 && std::find(local.begin() + npe, local.end(), P.enr[a]) == local.end())
         local.push_back(P.enr[a]);
+  if (m.cuts.has_branch())  // then the branch DOF nodes of its nodes (front enrichment)
+    for (int a = 0; a < npe; ++a)
+      if (m.cuts.node_branch[nodes[a]] >= 0) local.push_back(m.cuts.node_branch[nodes[a]]);
   m.elem_dof_node.insert(m.elem_dof_node.end(), local.begin(), local.end());
   m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
 }
@@ -187,6 +196,50 @@ void spread_gradients(int npe, const std::vector<int>& local, const PieceView& P
     }
 }
 
+// Element e's branch DOF nodes into w (branch_j, branch_a, branch_F0) and
+// the level sets at its nodes; none without front enrichment.
+void prepare_branch(const Model& m, int e, ElementWork& w) {
+  w.branch_j.clear();
+  w.branch_a.clear();
+  w.branch_F0.clear();
+  if (!element_has_branch(m, e)) return;
+  const int npe = m.mesh.npe();
+  front_node_values(m, e, w.node_phi, w.node_psi);
+  for (int j = npe; j < static_cast<int>(w.local.size()); ++j) {
+    const int b = w.local[j];
+    for (int a = 0; a < npe; ++a)
+      if (m.cuts.node_branch[w.local[a]] == b) {
+        w.branch_j.push_back(j);
+        w.branch_a.push_back(a);
+        w.branch_F0.push_back(branch_function(w.node_phi[a], w.node_psi[a]).F);
+      }
+  }
+}
+
+// The branch DOF nodes' gradients at local point r (w.grad: the element's
+// shape gradients there) into w.gmask: grad(N_a (F - F_a)) = grad N_a (F -
+// F_a) + N_a (F_phi grad phi + F_psi grad psi) (front_enrichment.h).
+void add_branch_gradients(int npe, const double* r, ElementWork& w) {
+  if (w.branch_j.empty()) return;
+  shape_values(npe, r, w.N);
+  double phi = 0, psi = 0, gphi[3] = {0, 0, 0}, gpsi[3] = {0, 0, 0};
+  for (int a = 0; a < npe; ++a) {
+    phi += w.N[a] * w.node_phi[a];
+    psi += w.N[a] * w.node_psi[a];
+    for (int d = 0; d < 3; ++d) {
+      gphi[d] += w.grad[3 * a + d] * w.node_phi[a];
+      gpsi[d] += w.grad[3 * a + d] * w.node_psi[a];
+    }
+  }
+  const BranchValue F = branch_function(phi, psi);
+  for (size_t k = 0; k < w.branch_j.size(); ++k) {
+    const int j = w.branch_j[k], a = w.branch_a[k];
+    for (int d = 0; d < 3; ++d)
+      w.gmask[3 * j + d] =
+          w.grad[3 * a + d] * (F.F - w.branch_F0[k]) + w.N[a] * (F.dphi * gphi[d] + F.dpsi * gpsi[d]);
+  }
+}
+
 // Piece P's cubature points over its sub-tetrahedra (sub-element integration,
 // [preprint] eq. (52)): weights, gradients, the element's volume, and the
 // rotation slot of each point: its own (point_rot) or `slot`.
@@ -207,6 +260,7 @@ void add_piece_points(Model& m, const Cubature& cub, int e, const PieceView& P, 
         throw Error(os.str());
       }
       spread_gradients(npe, w.local, P, w.grad.data(), w.gmask);
+      add_branch_gradients(npe, r, w);
       m.qp_weight.push_back(cub.weight[q] * jac * detJ);
       m.elem_volume[e] += cub.weight[q] * jac * detJ;
       m.qp_grad.insert(m.qp_grad.end(), w.gmask.begin(), w.gmask.end());
@@ -258,6 +312,7 @@ void integrate_element(Model& m, const Cubature& cub, bool per_point, int e, con
     for (int d = 0; d < 3; ++d) w.Xe[3 * a + d] = m.mesh.X[3 * nodes[a] + d];
   const bool split = m.has_cuts() && m.cuts.elem_split[e];
   const bool point_rot = per_point && !split;
+  prepare_branch(m, e, w);
   double gc[30] = {0};  // corner-linear gradients
   if (!per_point && !split) {
     double Xc[12];
@@ -328,7 +383,8 @@ void build_slot_stiffness(Model& m, const Model* base, const std::vector<int>& s
   std::vector<int> first_q(m.nrot, -1), last_q(m.nrot, -1), partner(m.nrot * static_cast<size_t>(npe), -1);
   const std::vector<int> slot_ptr = element_slot_ptr(m);
   for (int e = 0; e < m.nelem; ++e) {
-    if (!m.cuts.elem_split[e]) continue;
+    // A piece's K0 lives on d_a = u_a + q_a; branch DOFs have no place there.
+    if (!m.cuts.elem_split[e] || element_has_branch(m, e)) continue;
     for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
       const int r = m.qp_rot[q];
       if (first_q[r] < 0) first_q[r] = q;
@@ -753,6 +809,59 @@ void add_piece_mass(Model& m, int e, const PieceView& P, bool lumped, bool spars
   }
 }
 
+// The consistent mass entries of element e's branch DOF nodes (front
+// enrichment): rho int v_i v_j over its pieces, v the DOF node's function in
+// the piece (N_a; N_a for the piece's enriched DOF node at a; N_a (F - F_a)
+// for a branch DOF node), for every pair with a branch DOF node; the others
+// are add_piece_mass's. mass_lumped gets the branch diagonal (reported).
+void add_branch_mass(Model& m, int e, MassWork& w) {
+  const int npe = w.mesh.npe();
+  const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
+  const int* local = &m.elem_dof_node[b0];
+  const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
+  double node_phi[10], node_psi[10];
+  front_node_values(m, e, node_phi, node_psi);
+  std::vector<int> owner(n, -1);  // element node of each branch DOF node
+  std::vector<double> F0(n, 0.0), v(n), M(static_cast<size_t>(n) * n, 0.0);
+  for (int j = npe; j < n; ++j)
+    for (int a = 0; a < npe; ++a)
+      if (m.cuts.node_branch[local[a]] == local[j]) {
+        owner[j] = a;
+        F0[j] = branch_function(node_phi[a], node_psi[a]).F;
+      }
+  for (const PieceView& P : pieces_of(m, e))
+    for (int k = 0; k < P.nsub; ++k) {
+      const double* sub = P.rst ? P.rst + 12 * k : kRefTet;
+      const double jac = 6.0 * subtet_ref_volume(sub);
+      for (int q = 0; q < w.cub.npoint(); ++q) {
+        double r[3];
+        map_to_element(sub, &w.cub.rst[3 * q], r);
+        const double wq = w.cub.weight[q] * jac * shape_global_gradients(npe, w.Xe.data(), r, w.grad.data());
+        shape_values(npe, r, w.N.data());
+        double phi = 0, psi = 0;
+        for (int a = 0; a < npe; ++a) phi += w.N[a] * node_phi[a], psi += w.N[a] * node_psi[a];
+        const double F = branch_function(phi, psi).F;
+        std::fill(v.begin(), v.end(), 0.0);
+        for (int a = 0; a < npe; ++a) {
+          v[a] = w.N[a];
+          for (int j = npe; P.enr && P.enr[a] >= 0 && j < n; ++j)
+            if (local[j] == P.enr[a]) v[j] = w.N[a];
+        }
+        for (int j = npe; j < n; ++j)
+          if (owner[j] >= 0) v[j] = w.N[owner[j]] * (F - F0[j]);
+        for (int i = 0; i < n; ++i)
+          for (int j = i; j < n; ++j)
+            if (owner[i] >= 0 || owner[j] >= 0) M[static_cast<size_t>(i) * n + j] += w.rho * wq * v[i] * v[j];
+      }
+    }
+  for (int i = 0; i < n; ++i)
+    for (int j = i; j < n; ++j)
+      if (owner[i] >= 0 || owner[j] >= 0) add_mass_entry(m, sc, n, i, j, M[static_cast<size_t>(i) * n + j]);
+  for (int j = npe; j < n; ++j)
+    if (owner[j] >= 0)
+      for (int d = 0; d < 3; ++d) m.mass_lumped[3 * local[j] + d] += M[static_cast<size_t>(j) * n + j];
+}
+
 // Lumped with enrichment: the standard block is diagonal (add_mass_entry(a,
 // a) never happens), so the off-diagonal nonzeros are the u-q couplings in
 // the enriched columns, and the diagonal is mass_lumped (the same sums in the
@@ -808,6 +917,9 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
   if (reuse) m.elem_mass = base->elem_mass;
   else m.elem_mass.assign(static_cast<size_t>(m.nelem) * npe * npe, 0.0);
   const bool lumped = m.mass_kind == MassKind::Lumped;
+  if (lumped && m.cuts.has_branch())
+    throw Error(scene.path + ": the cut front enrichment needs \"mass\": \"consistent\" (a lumping of its branch "
+                "DOFs is not built yet)");
   // Lumped: a mesh node's own DOFs get the element's whole HRZ mass (the
   // pieces' shares sum to it), so they are the uncut mesh's, whatever the
   // cuts: a rebuild copies them from base and visits only the elements that
@@ -831,6 +943,7 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
       }
     }
     for (const PieceView& P : pieces_of(m, e)) add_piece_mass(m, e, P, lumped, sparse, w);
+    if (element_has_branch(m, e)) add_branch_mass(m, e, w);
   }
   if (incremental && sparse)
     for (int d = 0; d < nstd; ++d) m.mass_csc[m.diag[d]] = m.mass_lumped[d];

@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 
 #include "engine/fem/element.h"
+#include "engine/model/front_enrichment.h"
 
 namespace incise {
 
@@ -90,6 +91,19 @@ std::array<double, 3> interpolate_displacement(const Model& m, const double* u, 
   for (int a = 0; a < npe; ++a)
     for (int d = 0; d < 3; ++d)
       out[d] += N[a] * (u[3 * nodes[a] + d] + (enr && enr[a] >= 0 ? u[3 * enr[a] + d] : 0.0));
+  if (element_has_branch(m, hit.elem)) {  // front enrichment: + sum_a N_a (F - F_a) b_a
+    double phi[10], psi[10], ph = 0, ps = 0;
+    front_node_values(m, hit.elem, phi, psi);
+    for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
+    // A point exactly on the cut's plane behind the front is taken on its + side.
+    const double F = branch_function(ph, ps).F;
+    for (int a = 0; a < npe; ++a) {
+      const int b = m.cuts.node_branch[nodes[a]];
+      if (b < 0) continue;
+      const double Fa = branch_function(phi[a], psi[a]).F;
+      for (int d = 0; d < 3; ++d) out[d] += N[a] * (F - Fa) * u[3 * b + d];
+    }
+  }
   return out;
 }
 

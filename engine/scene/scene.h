@@ -273,6 +273,11 @@ struct Scene {
   int frames = 60;                      // run.frames default for `incise run`
   OutputSettings output;
   std::vector<CutSpec> cuts;
+  // Cut fronts inside elements open up to the front line (the front
+  // enrichment of engine/model/cut_layout.h) instead of closing at the last
+  // fully crossed face. Not a scene key yet: only static solves handle it
+  // (tools/study_slit_fronts.cpp sets it; docs/cutting.md).
+  bool front_enrichment = false;
   std::vector<InstrumentSpec> instruments;
   ContactSettings contact;
   HapticsSpec haptics;
