@@ -2,10 +2,14 @@
 
 #include "cutting/blade_sweep.h"
 #include "cutting/cut_apply.h"
+#include "engine/util/error.h"
 
 namespace incise {
 
 void cutting_stage(Simulation& sim) {
+  if (sim.scene.front_enrichment)
+    throw Error(sim.scene.path + ": cut_front \"enriched\" is built for static solves only (incise static); the "
+                "frames of run, bench, replay and render need \"faces\" (docs/cutting.md)");
   const double t = sim.state.time, dt = sim.model.dt;
   const int swept = sweep_blades(sim);  // the scalpels' bands of this frame
   const CutUpdate cut = update_cuts(sim, t, t + dt, swept > 0);

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "cutting/subdivide.h"
+#include "engine/model/front_enrichment.h"
 #include "engine/util/error.h"
 
 namespace incise {
@@ -202,12 +203,12 @@ void place_partial_cuts(const LevelSets& ls, int e, const std::vector<std::pair<
           break;
         }
     }
-    if (!placed) {
+    // The front passes through e where the surface covers some of its
+    // crossings (not all: then it would be cut); with none covered e only
+    // straddles the plane of a bounded surface, away from it.
+    if (!placed && std::any_of(xs.begin(), xs.end(), [](const Crossing& x) { return x.covered; })) {
       ++rep.front_elements;
-      // The front passes through e where the surface covers some of its
-      // crossings (not all: then it would be cut); with none covered e only
-      // straddles the plane of a bounded surface, away from it.
-      if (std::any_of(xs.begin(), xs.end(), [](const Crossing& x) { return x.covered; })) fronts.push_back({e, c});
+      fronts.push_back({e, c});
     }
   }
 }
@@ -532,12 +533,12 @@ std::vector<int> front_elements(const Model& base, const LevelSets& ls, const st
   return tip;
 }
 
-// Each node of a front element gets a branch DOF node, after the enriched ones.
+// Each node of a front element gets kBranchFunctions branch DOF nodes, after the enriched ones.
 void add_branch_nodes(const LevelSets& ls, CutLayout& L, std::vector<int>& enr_node) {
   for (int i = 0; i < ls.nn; ++i)
     if (L.node_branch[i] == 1) {
       L.node_branch[i] = ls.nn + static_cast<int>(enr_node.size());
-      enr_node.push_back(i);
+      enr_node.insert(enr_node.end(), kBranchFunctions, i);
     }
 }
 

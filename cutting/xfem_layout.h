@@ -33,7 +33,7 @@ namespace incise {
 
 struct CutReport {
   int cut_elements = 0;    // elements split into pieces
-  int front_elements = 0;  // crossed but not fully (cut front)
+  int front_elements = 0;  // the surface's boundary passes through (crossed, not fully: the cut front)
   int separated_faces = 0; // element faces lying on a cut
   int pieces = 0;          // pieces in split elements
   int enriched_nodes = 0;  // enriched DOF nodes

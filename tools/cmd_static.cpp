@@ -37,9 +37,10 @@ void run_static(const StaticOptions& o) {
                  sim->scene.instruments.size());
   if (!sim->scene.cuts.empty()) {
     const CutUpdate cut = apply_all_cuts(*sim);  // static: every cut at once
-    std::printf("cuts: %d elements split into %d pieces, %d separated faces, %d enriched DOF nodes, %d bodies (%.1f ms)\n",
+    std::printf("cuts: %d elements split into %d pieces, %d separated faces, %d enriched DOF nodes, %d bodies, "
+                "%d front elements%s (%.1f ms)\n",
                 cut.report.cut_elements, cut.report.pieces, cut.report.separated_faces, cut.report.enriched_nodes,
-                cut.report.bodies, cut.ms);
+                cut.report.bodies, cut.report.front_elements, sim->scene.front_enrichment ? " enriched" : "", cut.ms);
   }
   print_model_summary(*sim);
   // Probe points are located before the solve so a bad point fails fast.

@@ -28,15 +28,14 @@ struct CutLayout {
   std::vector<unsigned char> elem_split;     // (nelem) 1 when the element is cut into pieces
 
   // Front enrichment (compute_cut_layout with branch_front; empty without):
-  // every node of an element a cut's front passes through gets a branch DOF
-  // node b (among the enriched DOF nodes above, enr_node = its mesh node)
-  // carrying N_a(x) (F(x) - F(x_a)), F = sqrt(r) sin(theta / 2) with r,
-  // theta the polar coordinates of (psi, phi) about the front line
-  // ([preprint] sec. 4; Moes et al. 1999: the discontinuous one of the four
-  // crack-tip functions): its jump across the cut is 2 sqrt(r), zero at the
-  // front, and it is continuous ahead of it. phi, psi are interpolated
-  // linearly from their values at the corner nodes (front_level_set).
-  std::vector<int> node_branch;       // (nnode) branch DOF node of a mesh node, -1 none; empty: no front enrichment
+  // every node a of an element a cut's front passes through gets
+  // kBranchFunctions consecutive branch DOF nodes b_k (among the enriched
+  // DOF nodes above, enr_node = a) carrying N_a(x) (F_k(x) - F_k(x_a)), F_k
+  // the crack-tip functions of engine/model/front_enrichment.h: the first
+  // jumps by 2 sqrt(r) across the cut, is zero at the front and continuous
+  // ahead of it, so the opening ends at the front line inside the element.
+  // phi, psi are interpolated linearly from their values at the corner nodes.
+  std::vector<int> node_branch;       // (nnode) first branch DOF node of a mesh node, -1 none; empty: no front enrichment
   std::vector<double> front_phi;      // (nnode) distance to the cut's plane at the corners of the branch nodes' elements
   std::vector<double> front_psi;      // (nnode) in-plane distance to the front there, > 0 ahead of it
   bool has_branch() const { return !node_branch.empty(); }

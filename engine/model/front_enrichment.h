@@ -1,15 +1,13 @@
 #pragma once
-// The cut-front enrichment function (engine/model/cut_layout.h, node_branch):
-// F = sqrt(r) sin(theta / 2), (r, theta) the polar coordinates of
-// (psi, phi) about the front line, phi the distance to the cut's plane, psi
-// the in-plane distance to the front (> 0 ahead). The discontinuous one of
-// the four crack-tip functions of Moes, Dolbow & Belytschko (1999), eq. (13);
-// [preprint] sec. 4 enriches with Heaviside functions only. Without
-// trigonometry: sin(theta / 2) = sign(phi) sqrt((1 - psi / r) / 2), so
-//   F = sign(phi) sqrt((r - psi) / 2),
-//   dF/dphi = sqrt((r + psi) / 2) / (2 r),   dF/dpsi = -F / (2 r).
-// Behind the front (psi < 0) F jumps by 2 sqrt(r) across phi = 0; ahead
-// (psi > 0) it is continuous; at the front it is 0.
+// The cut-front enrichment functions (engine/model/cut_layout.h,
+// node_branch): the four crack-tip functions of Moes, Dolbow & Belytschko
+// (1999), eq. (13), sqrt(r) {sin, cos}(theta/2) {1, sin theta}, (r, theta)
+// the polar coordinates of (psi, phi) about the front line, phi the distance
+// to the cut's plane, psi the in-plane distance to the front (> 0 ahead).
+// [preprint] sec. 4 enriches with Heaviside functions only. The first jumps
+// by 2 sqrt(r) across phi = 0 behind the front (psi < 0) and is continuous
+// ahead (psi > 0); all are 0 at the front; the others are continuous and
+// span the rest of the near-front field.
 #include <algorithm>
 #include <cmath>
 
@@ -19,19 +17,46 @@
 
 namespace incise {
 
+// The crack-tip functions, with their derivatives by phi and psi. With
+// s = sign(phi), sin(theta/2) = s sqrt((r - psi) / (2 r)), cos(theta/2) =
+// sqrt((r + psi) / (2 r)), sin(theta) = phi / r:
+//   F0 = sqrt(r) sin(theta/2) = s sqrt((r - psi) / 2)   (discontinuous)
+//   F1 = sqrt(r) cos(theta/2) = sqrt((r + psi) / 2)
+//   F2 = F0 sin(theta),  F3 = F1 sin(theta)
+// dF0 = (F1, -F0) / 2r, dF1 = (F0, F1) / 2r (by phi, psi; phi = 2 F0 F1).
+// kBranchFunctions of them are enriched (one DOF node each): F0 only. With
+// all four the slit study (tools/study_slit_fronts.cpp) stopped converging
+// (errors of 1-4% at every level; F0 and F1: erratic); with F0 it converges
+// at order 1.8-2, below the conforming mesh's error (docs/benchmarks.md,
+// "Issue 21: the slit's front"). Likely cause, not verified: where F1..F3
+// are smooth over a node's support, N_a (F_k - F_k(x_a)) summed over the
+// nodes is F_k minus its interpolant, almost zero: a near-null direction
+// of the stiffness (F0 jumps across the cut, so it has none there).
+inline constexpr int kTipFunctions = 4;
+inline constexpr int kBranchFunctions = 1;
 struct BranchValue {
-  double F = 0, dphi = 0, dpsi = 0;
+  double F[kTipFunctions] = {0}, dphi[kTipFunctions] = {0}, dpsi[kTipFunctions] = {0};
 };
 
 // side: the sign taken for phi == 0 (a point exactly on the cut's plane).
 inline BranchValue branch_function(double phi, double psi, int side = 1) {
-  const double r = std::sqrt(phi * phi + psi * psi);
-  if (!(r > 0)) return {};
-  const double s = phi > 0 ? 1.0 : phi < 0 ? -1.0 : side;
   BranchValue v;
-  v.F = s * std::sqrt(std::max(0.0, 0.5 * (r - psi)));
-  v.dphi = std::sqrt(std::max(0.0, 0.5 * (r + psi))) / (2 * r);
-  v.dpsi = -v.F / (2 * r);
+  const double r = std::sqrt(phi * phi + psi * psi);
+  if (!(r > 0)) return v;
+  const double s = phi > 0 ? 1.0 : phi < 0 ? -1.0 : side;
+  const double f0 = s * std::sqrt(std::max(0.0, 0.5 * (r - psi))), f1 = std::sqrt(std::max(0.0, 0.5 * (r + psi)));
+  const double sn = phi / r, dsn_phi = psi * psi / (r * r * r), dsn_psi = -phi * psi / (r * r * r);
+  v.F[0] = f0;
+  v.dphi[0] = f1 / (2 * r);
+  v.dpsi[0] = -f0 / (2 * r);
+  v.F[1] = f1;
+  v.dphi[1] = f0 / (2 * r);
+  v.dpsi[1] = f1 / (2 * r);
+  for (int k = 0; k < 2; ++k) {
+    v.F[2 + k] = v.F[k] * sn;
+    v.dphi[2 + k] = v.dphi[k] * sn + v.F[k] * dsn_phi;
+    v.dpsi[2 + k] = v.dpsi[k] * sn + v.F[k] * dsn_psi;
+  }
   return v;
 }
 

@@ -123,8 +123,9 @@ struct ElementWork {
   std::vector<double> gmask;  // (n, 3) gradients spread over the element's n DOF nodes
   std::vector<int> local;     // (n) DOF nodes of the element
   // Front enrichment of the element being integrated (empty: none): local
-  // index j of each branch DOF node, its element node a, and F at that node.
-  std::vector<int> branch_j, branch_a;
+  // index j of each branch DOF node, its element node a, function k, and
+  // F_k at that node.
+  std::vector<int> branch_j, branch_a, branch_k;
   std::vector<double> branch_F0;
   double node_phi[10] = {0}, node_psi[10] = {0}, N[10] = {0};
 };
@@ -155,7 +156,8 @@ void add_element_dof_nodes(Model& m, const int* nodes, const std::vector<PieceVi
         local.push_back(P.enr[a]);
   if (m.cuts.has_branch())  // then the branch DOF nodes of its nodes (front enrichment)
     for (int a = 0; a < npe; ++a)
-      if (m.cuts.node_branch[nodes[a]] >= 0) local.push_back(m.cuts.node_branch[nodes[a]]);
+      for (int k = 0; m.cuts.node_branch[nodes[a]] >= 0 && k < kBranchFunctions; ++k)
+        local.push_back(m.cuts.node_branch[nodes[a]] + k);
   m.elem_dof_node.insert(m.elem_dof_node.end(), local.begin(), local.end());
   m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
 }
@@ -196,29 +198,30 @@ void spread_gradients(int npe, const std::vector<int>& local, const PieceView& P
     }
 }
 
-// Element e's branch DOF nodes into w (branch_j, branch_a, branch_F0) and
-// the level sets at its nodes; none without front enrichment.
+// Element e's branch DOF nodes into w (branch_j, branch_a, branch_k,
+// branch_F0) and the level sets at its nodes; none without front enrichment.
 void prepare_branch(const Model& m, int e, ElementWork& w) {
   w.branch_j.clear();
   w.branch_a.clear();
+  w.branch_k.clear();
   w.branch_F0.clear();
   if (!element_has_branch(m, e)) return;
   const int npe = m.mesh.npe();
   front_node_values(m, e, w.node_phi, w.node_psi);
-  for (int j = npe; j < static_cast<int>(w.local.size()); ++j) {
-    const int b = w.local[j];
-    for (int a = 0; a < npe; ++a)
-      if (m.cuts.node_branch[w.local[a]] == b) {
-        w.branch_j.push_back(j);
-        w.branch_a.push_back(a);
-        w.branch_F0.push_back(branch_function(w.node_phi[a], w.node_psi[a]).F);
-      }
-  }
+  for (int j = npe; j < static_cast<int>(w.local.size()); ++j)
+    for (int a = 0; a < npe; ++a) {
+      const int k = w.local[j] - m.cuts.node_branch[w.local[a]];
+      if (m.cuts.node_branch[w.local[a]] < 0 || k < 0 || k >= kBranchFunctions) continue;
+      w.branch_j.push_back(j);
+      w.branch_a.push_back(a);
+      w.branch_k.push_back(k);
+      w.branch_F0.push_back(branch_function(w.node_phi[a], w.node_psi[a]).F[k]);
+    }
 }
 
 // The branch DOF nodes' gradients at local point r (w.grad: the element's
-// shape gradients there) into w.gmask: grad(N_a (F - F_a)) = grad N_a (F -
-// F_a) + N_a (F_phi grad phi + F_psi grad psi) (front_enrichment.h).
+// shape gradients there) into w.gmask: grad(N_a (F_k - F_k(x_a))) = grad N_a
+// (F_k - F_k(x_a)) + N_a (dF_k/dphi grad phi + dF_k/dpsi grad psi).
 void add_branch_gradients(int npe, const double* r, ElementWork& w) {
   if (w.branch_j.empty()) return;
   shape_values(npe, r, w.N);
@@ -232,11 +235,11 @@ void add_branch_gradients(int npe, const double* r, ElementWork& w) {
     }
   }
   const BranchValue F = branch_function(phi, psi);
-  for (size_t k = 0; k < w.branch_j.size(); ++k) {
-    const int j = w.branch_j[k], a = w.branch_a[k];
+  for (size_t i = 0; i < w.branch_j.size(); ++i) {
+    const int j = w.branch_j[i], a = w.branch_a[i], k = w.branch_k[i];
     for (int d = 0; d < 3; ++d)
-      w.gmask[3 * j + d] =
-          w.grad[3 * a + d] * (F.F - w.branch_F0[k]) + w.N[a] * (F.dphi * gphi[d] + F.dpsi * gpsi[d]);
+      w.gmask[3 * j + d] = w.grad[3 * a + d] * (F.F[k] - w.branch_F0[i]) +
+                           w.N[a] * (F.dphi[k] * gphi[d] + F.dpsi[k] * gpsi[d]);
   }
 }
 
@@ -821,14 +824,16 @@ void add_branch_mass(Model& m, int e, MassWork& w) {
   const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
   double node_phi[10], node_psi[10];
   front_node_values(m, e, node_phi, node_psi);
-  std::vector<int> owner(n, -1);  // element node of each branch DOF node
+  std::vector<int> owner(n, -1), fk(n, 0);  // element node and function of each branch DOF node
   std::vector<double> F0(n, 0.0), v(n), M(static_cast<size_t>(n) * n, 0.0);
   for (int j = npe; j < n; ++j)
-    for (int a = 0; a < npe; ++a)
-      if (m.cuts.node_branch[local[a]] == local[j]) {
-        owner[j] = a;
-        F0[j] = branch_function(node_phi[a], node_psi[a]).F;
-      }
+    for (int a = 0; a < npe; ++a) {
+      const int k = local[j] - m.cuts.node_branch[local[a]];
+      if (m.cuts.node_branch[local[a]] < 0 || k < 0 || k >= kBranchFunctions) continue;
+      owner[j] = a;
+      fk[j] = k;
+      F0[j] = branch_function(node_phi[a], node_psi[a]).F[k];
+    }
   for (const PieceView& P : pieces_of(m, e))
     for (int k = 0; k < P.nsub; ++k) {
       const double* sub = P.rst ? P.rst + 12 * k : kRefTet;
@@ -840,7 +845,7 @@ void add_branch_mass(Model& m, int e, MassWork& w) {
         shape_values(npe, r, w.N.data());
         double phi = 0, psi = 0;
         for (int a = 0; a < npe; ++a) phi += w.N[a] * node_phi[a], psi += w.N[a] * node_psi[a];
-        const double F = branch_function(phi, psi).F;
+        const BranchValue F = branch_function(phi, psi);
         std::fill(v.begin(), v.end(), 0.0);
         for (int a = 0; a < npe; ++a) {
           v[a] = w.N[a];
@@ -848,7 +853,7 @@ void add_branch_mass(Model& m, int e, MassWork& w) {
             if (local[j] == P.enr[a]) v[j] = w.N[a];
         }
         for (int j = npe; j < n; ++j)
-          if (owner[j] >= 0) v[j] = w.N[owner[j]] * (F - F0[j]);
+          if (owner[j] >= 0) v[j] = w.N[owner[j]] * (F.F[fk[j]] - F0[j]);
         for (int i = 0; i < n; ++i)
           for (int j = i; j < n; ++j)
             if (owner[i] >= 0 || owner[j] >= 0) M[static_cast<size_t>(i) * n + j] += w.rho * wq * v[i] * v[j];

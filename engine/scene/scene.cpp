@@ -920,7 +920,8 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   Parser p(path, &applied);
   p.allowed_keys(root, "",
                  {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
-                  "solver", "static", "run", "output", "cuts", "render", "instruments", "contact", "haptics", "initial"});
+                  "solver", "static", "run", "output", "cuts", "cut_front", "render", "instruments", "contact", "haptics",
+                  "initial"});
 
   Scene s;
   s.path = path;
@@ -958,6 +959,8 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   if (auto it = root.find("solver"); it != root.end()) parse_solver(p, *it, s);
   if (auto it = root.find("static"); it != root.end()) parse_static(p, *it, s);
   if (auto it = root.find("initial"); it != root.end()) s.initial_static = p.choice(*it, "initial", {"rest", "static"}) == 1;
+  if (auto it = root.find("cut_front"); it != root.end())
+    s.front_enrichment = p.choice(*it, "cut_front", {"faces", "enriched"}) == 1;
   if (auto it = root.find("run"); it != root.end()) parse_run(p, *it, s);
   if (auto it = root.find("output"); it != root.end()) parse_output(p, *it, s);
   if (auto it = root.find("cuts"); it != root.end()) parse_cuts(p, *it, s);

@@ -273,10 +273,10 @@ struct Scene {
   int frames = 60;                      // run.frames default for `incise run`
   OutputSettings output;
   std::vector<CutSpec> cuts;
-  // Cut fronts inside elements open up to the front line (the front
-  // enrichment of engine/model/cut_layout.h) instead of closing at the last
-  // fully crossed face. Not a scene key yet: only static solves handle it
-  // (tools/study_slit_fronts.cpp sets it; docs/cutting.md).
+  // cut_front "enriched": cut fronts inside elements open up to the front
+  // line (the front enrichment of engine/model/cut_layout.h) instead of
+  // closing at the last fully crossed face ("faces"). Static solves only so
+  // far: the cutting stage refuses it in frames (docs/cutting.md).
   bool front_enrichment = false;
   std::vector<InstrumentSpec> instruments;
   ContactSettings contact;

@@ -239,3 +239,32 @@ TEST(FrameOutputs, NonFiniteFieldIsRefused) {
 }
 
 }  // namespace
+
+namespace {
+
+// cut_front "enriched" (issue 21): incise static solves with it and reports
+// the front elements; it needs consistent mass, and the frame commands
+// refuse it, each with an error naming the key.
+TEST_F(CliErrors, EnrichedCutFrontIsForStaticWithConsistentMass) {
+  ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 7 3 3 --out " + path("beam.vtu")).code, 0);
+  const std::string slit =
+      R"(, "mass": "consistent", "cut_front": "enriched",
+      "cuts": [{"type": "polygon", "points": [[2, -1, 0.45], [2, 2, 0.45], [2, 2, 3], [2, -1, 3]]}])";
+  write("scene.json", incise::test::beam_scene_json(2, R"("model": "linear", "young": 1e5, "poisson": 0.3, "density": 1)", slit));
+  const Result st = incise("static " + path("scene.json"));
+  EXPECT_EQ(st.code, 0) << st.out;
+  EXPECT_NE(st.out.find(" front elements enriched ("), std::string::npos) << st.out;
+  const Result run = incise("run " + path("scene.json") + " --frames 1");
+  EXPECT_EQ(run.code, 1) << run.out;
+  EXPECT_NE(run.out.find(path("scene.json") + ": cut_front \"enriched\" is built for static solves only (incise static)"),
+            std::string::npos) << run.out;
+  const Result lumped = incise("static " + path("scene.json") + " --set mass=lumped");
+  EXPECT_EQ(lumped.code, 1) << lumped.out;
+  EXPECT_NE(lumped.out.find(": the cut front enrichment needs \"mass\": \"consistent\""), std::string::npos) << lumped.out;
+  const Result bad = incise("static " + path("scene.json") + " --set cut_front=edges");
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_NE(bad.out.find("cut_front"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("\"enriched\""), std::string::npos) << bad.out;
+}
+
+}  // namespace

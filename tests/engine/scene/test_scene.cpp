@@ -388,7 +388,7 @@ TEST_F(SceneTest, SolverSettingsChecked) {
 TEST_F(SceneTest, UnknownTopLevelKey) {
   expect_error(minimal(R"("materal": {})"),
                "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
-               "prescribed, integrator, solver, static, run, output, cuts, render, instruments, contact, haptics, initial; did you mean "
+               "prescribed, integrator, solver, static, run, output, cuts, cut_front, render, instruments, contact, haptics, initial; did you mean "
                "\"material\"?");
 }
 
