@@ -157,11 +157,17 @@ TEST(CutSurface, ACutThatCutsNothingIsReported) {
   poly.json_path = "cuts[2]";
   poly.points = {{2.5, 3, 0}, {2.5, 4, 0}, {2.5, 4, 1}, {2.5, 3, 1}};
   s.cuts.push_back(poly);
+  // The same beside the body in x = 2.3, a plane through elements (they
+  // straddle it, but the polygon's boundary passes through none of them).
+  poly.json_path = "cuts[3]";
+  for (auto& p : poly.points) p[0] = 2.3;
+  s.cuts.push_back(poly);
   auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
   const std::vector<std::string> w = cuts_that_cut_nothing(*sim);
-  ASSERT_EQ(w.size(), 2u);
+  ASSERT_EQ(w.size(), 3u);
   EXPECT_EQ(w[0], "scene.json: cuts[1] does not cross the body: it cuts nothing");
   EXPECT_EQ(w[1], "scene.json: cuts[2] does not cross the body: it cuts nothing");
+  EXPECT_EQ(w[2], "scene.json: cuts[3] does not cross the body: it cuts nothing");
 }
 
 }  // namespace
