@@ -38,6 +38,7 @@ void check(const incise::CutSurface& s) {
   const double x[3] = {0.25, -0.5, 1.0};
   const incise::CutSurface::Value v = s.value(x);
   if (std::isnan(v.phi) || v.sign < -1 || v.sign > 1) bad("value() at a point");
+  if (std::isnan(s.front_distance(x))) bad("front_distance() at a point");
 }
 
 }  // namespace

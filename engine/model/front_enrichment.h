@@ -10,6 +10,7 @@
 // span the rest of the near-front field.
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "engine/mesh/mesh.h"
 
@@ -72,6 +73,22 @@ inline void front_node_values(const Model& m, int e, double* phi, double* psi) {
     phi[a] = 0.5 * (m.cuts.front_phi[i] + m.cuts.front_phi[j]);
     psi[a] = 0.5 * (m.cuts.front_psi[i] + m.cuts.front_psi[j]);
   }
+}
+
+// Of an element's DOF nodes `local` (n; the first npe its mesh nodes): for
+// each j, the element node a whose branch DOF node it is and the function
+// k, into owner[j], fk[j] (owner -1: not a branch DOF node).
+inline void branch_owners(const Model& m, const int* local, int n, std::vector<int>& owner, std::vector<int>& fk) {
+  const int npe = m.mesh.npe();
+  owner.assign(n, -1);
+  fk.assign(n, 0);
+  for (int j = npe; j < n; ++j)
+    for (int a = 0; a < npe; ++a) {
+      const int b = m.cuts.node_branch[local[a]], k = local[j] - b;
+      if (b < 0 || k < 0 || k >= kBranchFunctions) continue;
+      owner[j] = a;
+      fk[j] = k;
+    }
 }
 
 // Whether element e has a node with a branch DOF node.

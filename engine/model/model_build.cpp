@@ -208,14 +208,14 @@ void prepare_branch(const Model& m, int e, ElementWork& w) {
   if (!element_has_branch(m, e)) return;
   const int npe = m.mesh.npe();
   front_node_values(m, e, w.node_phi, w.node_psi);
+  std::vector<int> owner, fk;
+  branch_owners(m, w.local.data(), static_cast<int>(w.local.size()), owner, fk);
   for (int j = npe; j < static_cast<int>(w.local.size()); ++j)
-    for (int a = 0; a < npe; ++a) {
-      const int k = w.local[j] - m.cuts.node_branch[w.local[a]];
-      if (m.cuts.node_branch[w.local[a]] < 0 || k < 0 || k >= kBranchFunctions) continue;
+    if (owner[j] >= 0) {
       w.branch_j.push_back(j);
-      w.branch_a.push_back(a);
-      w.branch_k.push_back(k);
-      w.branch_F0.push_back(branch_function(w.node_phi[a], w.node_psi[a]).F[k]);
+      w.branch_a.push_back(owner[j]);
+      w.branch_k.push_back(fk[j]);
+      w.branch_F0.push_back(branch_function(w.node_phi[owner[j]], w.node_psi[owner[j]]).F[fk[j]]);
     }
 }
 
@@ -824,16 +824,11 @@ void add_branch_mass(Model& m, int e, MassWork& w) {
   const int* sc = &m.elem_scatter[m.elem_scatter_ptr[e]];
   double node_phi[10], node_psi[10];
   front_node_values(m, e, node_phi, node_psi);
-  std::vector<int> owner(n, -1), fk(n, 0);  // element node and function of each branch DOF node
+  std::vector<int> owner, fk;  // element node and function of each branch DOF node
+  branch_owners(m, local, n, owner, fk);
   std::vector<double> F0(n, 0.0), v(n), M(static_cast<size_t>(n) * n, 0.0);
   for (int j = npe; j < n; ++j)
-    for (int a = 0; a < npe; ++a) {
-      const int k = local[j] - m.cuts.node_branch[local[a]];
-      if (m.cuts.node_branch[local[a]] < 0 || k < 0 || k >= kBranchFunctions) continue;
-      owner[j] = a;
-      fk[j] = k;
-      F0[j] = branch_function(node_phi[a], node_psi[a]).F[k];
-    }
+    if (owner[j] >= 0) F0[j] = branch_function(node_phi[owner[j]], node_psi[owner[j]]).F[fk[j]];
   for (const PieceView& P : pieces_of(m, e))
     for (int k = 0; k < P.nsub; ++k) {
       const double* sub = P.rst ? P.rst + 12 * k : kRefTet;
