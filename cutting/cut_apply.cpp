@@ -1,5 +1,7 @@
 #include "cutting/cut_apply.h"
 
+#include "engine/model/front_enrichment.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -298,6 +300,20 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
         }
       }
     }
+  // Front enrichment: a mesh node with branch DOFs in both models keeps
+  // their values (the piece values above leave them out; their functions
+  // vanish at the nodes). Exact where the front did not move; the frame
+  // commands do not let it move yet (cut_stage.cpp).
+  if (L.has_branch() && from.cuts.has_branch()) {
+    std::vector<double>* f[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
+    const std::vector<double>* g[4] = {&os.u, &os.v, &os.a, &os.du};
+    for (int i = 0; i < to.nnode; ++i) {
+      const int b = L.node_branch[i], ob = from.cuts.node_branch[i];
+      if (b < 0 || ob < 0) continue;
+      for (int k = 0; k < nf; ++k)
+        for (int c = 0; c < 3 * kBranchFunctions; ++c) (*f[k])[3 * b + c] = (*g[k])[3 * ob + c];
+    }
+  }
   return ns;
 }
 

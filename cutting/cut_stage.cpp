@@ -6,10 +6,18 @@
 
 namespace incise {
 
+void check_front_enrichment_in_frames(const Scene& scene) {
+  if (!scene.front_enrichment) return;
+  bool moving = !scene.instruments.empty();
+  for (const CutSpec& c : scene.cuts) moving = moving || c.type == CutSpec::Type::Swept;
+  if (moving)
+    throw Error(scene.path + ": cut_front \"enriched\" runs in frames only with cuts that do not move (plane, "
+                "polygon, mesh) and no instruments so far; swept cuts and instruments need \"faces\" "
+                "(docs/cutting.md)");
+}
+
 void cutting_stage(Simulation& sim) {
-  if (sim.scene.front_enrichment)
-    throw Error(sim.scene.path + ": cut_front \"enriched\" is built for static solves only (incise static); the "
-                "frames of run, bench, replay and render need \"faces\" (docs/cutting.md)");
+  check_front_enrichment_in_frames(sim.scene);
   const double t = sim.state.time, dt = sim.model.dt;
   const int swept = sweep_blades(sim);  // the scalpels' bands of this frame
   const CutUpdate cut = update_cuts(sim, t, t + dt, swept > 0);

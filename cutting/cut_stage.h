@@ -7,6 +7,11 @@
 
 namespace incise {
 
+// cut_front "enriched" in frames: refused (an Error naming the scene) with
+// swept cuts or instruments, whose moving fronts and contact points the
+// front enrichment does not carry yet (docs/cutting.md).
+void check_front_enrichment_in_frames(const Scene& scene);
+
 // One run of the stage; records the cut's parts in sim.ws.timing.
 void cutting_stage(Simulation& sim);
 

@@ -325,23 +325,44 @@ void split_element(const LevelSets& ls, int e, const std::vector<ElemCut>& ec, P
 
 // An element the front of cut c passes through, under front enrichment: one
 // piece, integrated over the sub-tetrahedra of its cut plane (phi = 0) and
-// front plane (psi = 0), inside each of which F is smooth. Their faces are
-// tagged inside (5): the element is not opened, its branch DOFs open it.
+// front plane (psi = 0), inside each of which F is smooth. The element is
+// not opened by pieces (its branch DOFs open it): of their faces on those
+// planes, the ones on the cut behind the front keep the cut tag (4, the
+// display draws them), the others are tagged inside (5).
 void split_front_element(const LevelSets& ls, int e, int c, const CutLayout& L, PieceSet& ps) {
   std::vector<double> ph(8);
   int npos = 0, nneg = 0;
+  double scale = 0;
   for (int k = 0; k < 4; ++k) {
     ph[k] = ls.at(c, ls.node(e, k));
     ph[4 + k] = L.front_psi[ls.node(e, k)];
     npos += ph[4 + k] > 0;
     nneg += ph[4 + k] < 0;
+    scale = std::max(scale, std::abs(ph[k]));
   }
+  const std::vector<double> level = ph;  // phi, psi at the corners
   const int nc = npos > 0 && nneg > 0 ? 2 : 1;
   ph.resize(4 * static_cast<size_t>(nc));
   SubTets& sub = ps.subs[e];
   sub = subdivide_tet(ph, nc);
-  for (signed char& f : sub.face)
-    if (f == 4) f = 5;
+  auto at = [&](int which, const double* r) {  // phi (0) or psi (1) at local point r
+    const double* f = &level[4 * static_cast<size_t>(which)];
+    return (1 - r[0] - r[1] - r[2]) * f[0] + r[0] * f[1] + r[1] * f[2] + r[2] * f[3];
+  };
+  for (int t = 0; t < sub.size(); ++t)
+    for (int k = 0; k < 4; ++k) {
+      signed char& tag = sub.face[4 * static_cast<size_t>(t) + k];
+      if (tag != 4) continue;
+      bool on_cut = true;
+      double cen[3] = {0, 0, 0};
+      for (int j = 0; j < 4; ++j) {
+        if (j == k) continue;
+        const double* v = &sub.rst[12 * static_cast<size_t>(t) + 3 * j];
+        on_cut = on_cut && std::abs(at(0, v)) <= 1e-9 * scale;
+        for (int d = 0; d < 3; ++d) cen[d] += v[d] / 3;
+      }
+      tag = on_cut && at(1, cen) < 0 ? 4 : 5;
+    }
   Piece P{e, {}, {}, 0.0};
   for (int t = 0; t < sub.size(); ++t) {
     P.subtets.push_back(t);

@@ -50,7 +50,8 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
 // build_mass; [preprint] eqs. (81)-(82)), so
 //   m_u a_u + sum_q m_q a_q = r_u,  m_q (a_u + a_q) = r_q
 // gives a_u = (r_u - sum_q r_q) / (m_u - sum_q m_q) (the home piece's mass)
-// and a_q = r_q / m_q - a_u: a direct solve. On the DOF nodes with mark
+// and a_q = r_q / m_q - a_u: a direct solve (a branch DOF of the front
+// enrichment has no coupling: a = r / m). On the DOF nodes with mark
 // (every one when mark is null; a marked enriched node's mesh node must be
 // marked too); a is left alone elsewhere, 0 on constrained DOFs.
 void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, const std::vector<char>* mark,
@@ -75,7 +76,7 @@ void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, cons
   for (int c = nstd; c < n; ++c) {
     if (!marked(c)) continue;
     const int h = home[c - nstd];
-    a[c] = (m.constrained[c] || h < 0) ? 0.0 : r[c] / m.mass_csc[m.diag[c]] - a[h];
+    a[c] = m.constrained[c] ? 0.0 : r[c] / m.mass_csc[m.diag[c]] - (h >= 0 ? a[h] : 0.0);
   }
 }
 

@@ -100,4 +100,27 @@ inline bool element_has_branch(const Model& m, int e) {
   return false;
 }
 
+// Adds the branch DOFs' part of a field at a point of element e (N: the
+// shape values there) to out: sum_a,k N_a (F_k(x) - F_k(x_a)) w_(b_a + k),
+// w a DOF vector (u or v). side: +1 or -1, the side of the cut's plane the
+// point belongs to (a sub-tetrahedron's, where the caller knows it: a corner
+// on the plane has a phi of either sign in roundoff); 0: the sign of phi
+// there (+ when exactly 0).
+inline void add_branch_field(const Model& m, int e, const double* N, int side, const double* w, double out[3]) {
+  if (!element_has_branch(m, e)) return;
+  const int npe = m.mesh.npe();
+  const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * npe];
+  double phi[10], psi[10], ph = 0, ps = 0;
+  front_node_values(m, e, phi, psi);
+  for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
+  const BranchValue F = side != 0 ? branch_function(side * std::abs(ph), ps, side) : branch_function(ph, ps);
+  for (int a = 0; a < npe; ++a) {
+    const int b = m.cuts.node_branch[nodes[a]];
+    if (b < 0) continue;
+    const BranchValue Fa = branch_function(phi[a], psi[a]);
+    for (int k = 0; k < kBranchFunctions; ++k)
+      for (int d = 0; d < 3; ++d) out[d] += N[a] * (F.F[k] - Fa.F[k]) * w[3 * (b + k) + d];
+  }
+}
+
 }  // namespace incise

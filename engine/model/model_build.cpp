@@ -695,6 +695,7 @@ struct MassWork {
   std::vector<double> Xe, N, grad;  // (npe, 3), (npe), (npe, 3)
   std::vector<double> Me, Mp;       // (npe, npe) the element's and a piece's rho int N_a N_b
   std::vector<double> hrz;          // (npe) the element's HRZ lumped masses
+  double hrz_scale = 1.0;           // rho V / tr Me: HRZ's factor on the consistent diagonal
   MassWork(const Mesh& mesh_, double rho_) : mesh(mesh_), rho(rho_), cub(cubature_duffy(mesh_.npe() == 4 ? 2 : 7)) {
     const int npe = mesh.npe();
     Xe.resize(3 * npe), N.resize(npe), grad.resize(3 * npe), Me.resize(npe * npe), Mp.resize(npe * npe);
@@ -747,6 +748,7 @@ void element_mass(Model& m, int e, bool reuse, MassWork& w) {
   double trace = 0.0;
   for (int a = 0; a < npe; ++a) trace += w.Me[a * npe + a];
   for (int a = 0; a < npe; ++a) w.hrz[a] = w.rho * vol * w.Me[a * npe + a] / trace;
+  w.hrz_scale = w.rho * vol / trace;
 }
 
 // Adds value to the (i, j) entries (i, j: local DOF nodes of an element with n
@@ -812,11 +814,14 @@ void add_piece_mass(Model& m, int e, const PieceView& P, bool lumped, bool spars
   }
 }
 
-// The consistent mass entries of element e's branch DOF nodes (front
-// enrichment): rho int v_i v_j over its pieces, v the DOF node's function in
-// the piece (N_a; N_a for the piece's enriched DOF node at a; N_a (F - F_a)
-// for a branch DOF node), for every pair with a branch DOF node; the others
-// are add_piece_mass's. mass_lumped gets the branch diagonal (reported).
+// The mass of element e's branch DOF nodes (front enrichment): rho int v_i
+// v_j over its pieces, v the DOF node's function in the piece (N_a; N_a for
+// the piece's enriched DOF node at a; N_a (F - F_a) for a branch DOF node).
+// Consistent: every pair with a branch DOF node (the others are
+// add_piece_mass's). Lumped: the branch diagonal times HRZ's factor rho V /
+// tr Me (the element's standard nodes get the same factor), no coupling, so
+// M g with g on the standard DOFs leaves the branch DOFs unloaded
+// (build_gravity). mass_lumped gets the branch diagonal either way.
 void add_branch_mass(Model& m, int e, MassWork& w) {
   const int npe = w.mesh.npe();
   const int b0 = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b0;
@@ -854,12 +859,16 @@ void add_branch_mass(Model& m, int e, MassWork& w) {
             if (owner[i] >= 0 || owner[j] >= 0) M[static_cast<size_t>(i) * n + j] += w.rho * wq * v[i] * v[j];
       }
     }
+  const bool lumped = m.mass_kind == MassKind::Lumped;
   for (int i = 0; i < n; ++i)
     for (int j = i; j < n; ++j)
-      if (owner[i] >= 0 || owner[j] >= 0) add_mass_entry(m, sc, n, i, j, M[static_cast<size_t>(i) * n + j]);
-  for (int j = npe; j < n; ++j)
-    if (owner[j] >= 0)
-      for (int d = 0; d < 3; ++d) m.mass_lumped[3 * local[j] + d] += M[static_cast<size_t>(j) * n + j];
+      if ((owner[i] >= 0 || owner[j] >= 0) && !lumped) add_mass_entry(m, sc, n, i, j, M[static_cast<size_t>(i) * n + j]);
+  for (int j = npe; j < n; ++j) {
+    if (owner[j] < 0) continue;
+    const double mb = (lumped ? w.hrz_scale : 1.0) * M[static_cast<size_t>(j) * n + j];
+    for (int d = 0; d < 3; ++d) m.mass_lumped[3 * local[j] + d] += mb;
+    if (lumped) add_mass_entry(m, sc, n, j, j, mb);
+  }
 }
 
 // Lumped with enrichment: the standard block is diagonal (add_mass_entry(a,
@@ -889,6 +898,10 @@ void build_gravity(Model& m, const Scene& scene) {
     // is m_q g on q and the u's own diagonal (every piece's share) times g:
     // mass_lumped times g on every DOF, the DOF's component of g.
     for (int d = 0; d < m.ndof(); ++d) m.f_gravity[d] = m.mass_lumped[d] * scene.gravity[d % 3];
+    // Branch DOFs (front enrichment) have no coupling: M g is 0 there.
+    for (int i = 0; m.cuts.has_branch() && i < m.nnode; ++i)
+      for (int k = 0; m.cuts.node_branch[i] >= 0 && k < kBranchFunctions; ++k)
+        for (int d = 0; d < 3; ++d) m.f_gravity[3 * (m.cuts.node_branch[i] + k) + d] = 0.0;
   } else {  // consistent: the sparse product
     std::vector<double> g(m.ndof(), 0.0);
     for (int d = 0; d < 3 * m.nnode; ++d) g[d] = scene.gravity[d % 3];
@@ -917,9 +930,6 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
   if (reuse) m.elem_mass = base->elem_mass;
   else m.elem_mass.assign(static_cast<size_t>(m.nelem) * npe * npe, 0.0);
   const bool lumped = m.mass_kind == MassKind::Lumped;
-  if (lumped && m.cuts.has_branch())
-    throw Error(scene.path + ": the cut front enrichment needs \"mass\": \"consistent\" (a lumping of its branch "
-                "DOFs is not built yet)");
   // Lumped: a mesh node's own DOFs get the element's whole HRZ mass (the
   // pieces' shares sum to it), so they are the uncut mesh's, whatever the
   // cuts: a rebuild copies them from base and visits only the elements that

@@ -1,6 +1,7 @@
 #include "engine/output/display_mesh.h"
 
 #include "engine/fem/element.h"
+#include "engine/model/front_enrichment.h"
 
 namespace incise {
 namespace {
@@ -12,6 +13,19 @@ void append_reference_rst(int npe, std::vector<double>& out) {
   for (int a = 0; a < npe; ++a)
     for (int c = 0; c < 3; ++c)
       out.push_back(a < 4 ? corner[a][c] : 0.5 * (corner[kTet10Edge[a - 4][0]][c] + corner[kTet10Edge[a - 4][1]][c]));
+}
+
+// Which side of the front's cut plane sub-tetrahedron v (4 x 3 local
+// coordinates) of element e lies on: the sign of phi at its centroid (+1
+// without front enrichment). Its corners on the plane take that side.
+int subtet_side(const Model& m, int e, const double* v) {
+  if (!element_has_branch(m, e)) return 1;
+  double phi[10], psi[10], c[3] = {0, 0, 0};
+  front_node_values(m, e, phi, psi);
+  for (int k = 0; k < 4; ++k)
+    for (int d = 0; d < 3; ++d) c[d] += 0.25 * v[3 * k + d];
+  const double f = (1 - c[0] - c[1] - c[2]) * phi[0] + c[0] * phi[1] + c[1] * phi[2] + c[2] * phi[3];
+  return f < 0 ? -1 : 1;
 }
 
 }  // namespace
@@ -70,6 +84,7 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
       const int* enr = &L.piece_enr[static_cast<size_t>(P) * npe];
       for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
         const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
+        const int side = subtet_side(m, e, v);
         for (int a = 0; a < npe; ++a) {
           double r[3];
           if (a < 4) {
@@ -86,6 +101,8 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
               u[c] += N[b] * (s.u[3 * nodes[b] + c] + (enr[b] >= 0 ? s.u[3 * enr[b] + c] : 0.0));
               vel[c] += N[b] * (s.v[3 * nodes[b] + c] + (enr[b] >= 0 ? s.v[3 * enr[b] + c] : 0.0));
             }
+          add_branch_field(m, e, N, side, s.u.data(), u);  // front enrichment (none without)
+          add_branch_field(m, e, N, side, s.v.data(), vel);
           d.cells.push_back(d.npoint());
           d.cell_rst.insert(d.cell_rst.end(), r, r + 3);
           d.X.insert(d.X.end(), X, X + 3);

@@ -91,20 +91,9 @@ std::array<double, 3> interpolate_displacement(const Model& m, const double* u, 
   for (int a = 0; a < npe; ++a)
     for (int d = 0; d < 3; ++d)
       out[d] += N[a] * (u[3 * nodes[a] + d] + (enr && enr[a] >= 0 ? u[3 * enr[a] + d] : 0.0));
-  if (element_has_branch(m, hit.elem)) {  // front enrichment: + sum_a,k N_a (F_k - F_k(x_a)) b_ak
-    double phi[10], psi[10], ph = 0, ps = 0;
-    front_node_values(m, hit.elem, phi, psi);
-    for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
-    // A point exactly on the cut's plane behind the front is taken on its + side.
-    const BranchValue F = branch_function(ph, ps);
-    for (int a = 0; a < npe; ++a) {
-      const int b = m.cuts.node_branch[nodes[a]];
-      if (b < 0) continue;
-      const BranchValue Fa = branch_function(phi[a], psi[a]);
-      for (int k = 0; k < kBranchFunctions; ++k)
-        for (int d = 0; d < 3; ++d) out[d] += N[a] * (F.F[k] - Fa.F[k]) * u[3 * (b + k) + d];
-    }
-  }
+  // Front enrichment; a point exactly on the cut's plane behind the front is
+  // taken on its + side.
+  add_branch_field(m, hit.elem, N, 0, u, out.data());
   return out;
 }
 

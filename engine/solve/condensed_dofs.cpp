@@ -31,7 +31,9 @@ std::vector<char> weak_nodes(const Model& m, double fraction) {
   for (int a = 0; a < m.nnode; ++a) weak[a] = home[a] < fraction * total[a];
   for (int j = 0; j < L.n_enriched; ++j) {
     const int a = L.enr_node[j];
-    if (enr[j] < fraction * total[a]) weak[a] = 1;
+    // A branch DOF node (front enrichment) holds no piece of its own: not a region.
+    const bool branch = L.has_branch() && L.node_branch[a] >= 0 && m.nnode + j >= L.node_branch[a];
+    if (!branch && enr[j] < fraction * total[a]) weak[a] = 1;
   }
   return weak;
 }
