@@ -1,7 +1,5 @@
 #include "cutting/cut_apply.h"
 
-#include "engine/model/front_enrichment.h"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +8,7 @@
 #include <thread>
 
 #include "engine/fem/polar.h"
+#include "engine/model/front_enrichment.h"
 #include "engine/solve/workspace_carry.h"
 #include "engine/output/probe.h"
 #include "engine/dynamics/step.h"

@@ -533,8 +533,8 @@ std::vector<int> front_elements(const Model& base, const LevelSets& ls, const st
                   " holds a cut front and another cut; only one cut per front element is handled");
     tip[e] = c;
   }
-  // (One ring: widening it to the elements sharing a node with the front's
-  // made the slit study's errors larger, not smaller.)
+  // Only the front elements' nodes get branch DOFs (enriching a ring one
+  // element wider made the slit study's errors larger, not smaller).
   for (int e = 0; e < ls.nt; ++e)
     for (int a = 0; tip[e] >= 0 && a < ls.npe; ++a) {
       const int c = tip[e];

@@ -90,6 +90,15 @@ std::vector<double> slit_solve(const Mesh& mesh, Scene s, bool xfem, const std::
   return out;
 }
 
+std::vector<std::array<double, 3>> slit_far_probes() {
+  std::vector<std::array<double, 3>> p;
+  for (double x = 0.25; x < 4.0; x += 0.25)
+    if (std::abs(x - 2.0) > 0.3)
+      for (double y : {0.25, 0.75})
+        for (double z : {0.2, 0.8}) p.push_back({x, y, z});
+  return p;
+}
+
 double relative_l2(const std::vector<double>& u, const std::vector<double>& ref) {
   double e = 0, n = 0;
   for (size_t k = 0; k < u.size(); ++k) {
@@ -102,19 +111,6 @@ double relative_l2(const std::vector<double>& u, const std::vector<double>& ref)
 }  // namespace incise
 
 using namespace incise;
-
-namespace {
-
-std::vector<std::array<double, 3>> probes() {
-  std::vector<std::array<double, 3>> p;
-  for (double x = 0.25; x < 4.0; x += 0.25)
-    if (std::abs(x - 2.0) > 0.3)
-      for (double y : {0.25, 0.75})
-        for (double z : {0.2, 0.8}) p.push_back({x, y, z});
-  return p;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   bool quick = false, fronts = false, only_enriched = false;
@@ -142,13 +138,13 @@ int main(int argc, char** argv) {
     Stopwatch clock;
     int dof = 0;
     const Mesh ref_mesh = duplicate_nodes_along_slit(raise_to_tet10(make_beam(4, 1, 1, ref[0], ref[1], ref[1], 1)), 2.0, 0.5);
-    const std::vector<double> uref = slit_solve(ref_mesh, slit_scene(c, 2), false, probes(), &dof);
+    const std::vector<double> uref = slit_solve(ref_mesh, slit_scene(c, 2), false, slit_far_probes(), &dof);
     std::fprintf(stderr, "%s: reference %d DOF in %.1f s\n", c.name, dof, clock.lap() / 1000);
     for (int order : {1, 2}) {
       double prev = 0, prev_h = 0;
       for (const auto& lv : levels) {
         const Mesh mesh = make_beam(4, 1, 1, lv[0], lv[1], lv[1], 1);
-        const std::vector<double> u = slit_solve(mesh, slit_scene(c, order), true, probes(), &dof);
+        const std::vector<double> u = slit_solve(mesh, slit_scene(c, order), true, slit_far_probes(), &dof);
         const double e = relative_l2(u, uref);
         const double h = 1.0 / lv[1];
         char ord[32] = "";

@@ -24,6 +24,9 @@ Scene slit_scene(const SlitCase& c, int order);
 std::vector<double> slit_solve(const Mesh& mesh, Scene s, bool xfem, const std::vector<std::array<double, 3>>& probes,
                                int* dof);
 
+// The probes away from the slit (|x - 2| > 0.3): 104 points.
+std::vector<std::array<double, 3>> slit_far_probes();
+
 // Relative L2 difference of u against ref, over the probes.
 double relative_l2(const std::vector<double>& u, const std::vector<double>& ref);
 

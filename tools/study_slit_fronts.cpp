@@ -56,15 +56,6 @@ Mesh graded_conforming_beam(int n) {
   return duplicate_nodes_along_slit(raise_to_tet10(m), 2.0, 0.5);
 }
 
-std::vector<std::array<double, 3>> far_probes() {
-  std::vector<std::array<double, 3>> p;
-  for (double x = 0.25; x < 4.0; x += 0.25)
-    if (std::abs(x - 2.0) > 0.3)
-      for (double y : {0.25, 0.75})
-        for (double z : {0.2, 0.8}) p.push_back({x, y, z});
-  return p;
-}
-
 // Both slit faces (1e-6 from the plane), the front line and just behind it,
 // and the uncut material ahead of the front.
 std::vector<std::array<double, 3>> near_probes() {
@@ -78,7 +69,7 @@ std::vector<std::array<double, 3>> near_probes() {
 }
 
 std::vector<std::array<double, 3>> all_probes() {
-  std::vector<std::array<double, 3>> p = far_probes();
+  std::vector<std::array<double, 3>> p = slit_far_probes();
   for (const auto& q : near_probes()) p.push_back(q);
   return p;
 }
@@ -90,7 +81,7 @@ struct Errors {
 
 // Errors of the displacement u at all_probes() against ref (the same probes).
 Errors compare(const std::vector<double>& u, const std::vector<double>& ref, int dof) {
-  const auto split = static_cast<std::ptrdiff_t>(3 * far_probes().size());
+  const auto split = static_cast<std::ptrdiff_t>(3 * slit_far_probes().size());
   Errors e;
   e.dof = dof;
   e.far = relative_l2({u.begin(), u.begin() + split}, {ref.begin(), ref.begin() + split});
