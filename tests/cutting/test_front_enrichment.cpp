@@ -270,3 +270,52 @@ TEST(FrontEnrichment, DisplayDrawsTheOpeningInsideTheFrontElement) {
 
 }  // namespace
 }  // namespace incise
+
+namespace incise {
+namespace {
+
+// A second cut elsewhere rebuilds the model: the first cut's front and its
+// branch DOFs are unchanged, so their values carry over and the field near
+// that front (its opening) is the same just before and just after the
+// rebuild (transfer_kinematics).
+TEST(FrontEnrichment, ARebuildForAnotherCutCarriesTheOpeningOver) {
+  Scene s = test::block_scene(2);
+  s.front_enrichment = true;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  CutSpec slit;
+  slit.type = CutSpec::Type::Polygon;
+  slit.points = {{2, -1, 0.45}, {2, 2, 0.45}, {2, 2, 3}, {2, -1, 3}};
+  slit.json_path = "cuts[0]";
+  CutSpec end = test::plane_cut({3.6, 0, 0}, {1, 0, 0.1}, "cuts[1]");
+  end.at_time = 0.3;
+  s.cuts = {slit, end};
+  auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
+  while (sim->state.time < 0.3 - 1e-9) {
+    update_cuts(*sim, sim->state.time, sim->state.time + sim->model.dt);
+    step(sim->model, sim->state, sim->ws);
+  }
+  const int before = sim->model.ndof();
+  std::vector<std::array<double, 3>> pts;
+  for (double y : {0.2, 0.5, 0.8})
+    for (double z : {0.46, 0.5, 0.6, 0.9})
+      for (double x : {2 - 1e-7, 2 + 1e-7}) pts.push_back({x, y, z});
+  std::vector<std::array<double, 3>> u0, u1;
+  for (const auto& p : pts) u0.push_back(at(*sim, p[0], p[1], p[2]));
+  const CutUpdate up = update_cuts(*sim, sim->state.time, sim->state.time + sim->model.dt);
+  ASSERT_TRUE(up.changed);
+  ASSERT_NE(sim->model.ndof(), before);
+  ASSERT_TRUE(sim->model.cuts.has_branch());
+  for (const auto& p : pts) u1.push_back(at(*sim, p[0], p[1], p[2]));
+  double diff = 0, open = 0;
+  for (size_t k = 0; k < pts.size(); ++k)
+    for (int c = 0; c < 3; ++c) {
+      diff = std::max(diff, std::abs(u1[k][c] - u0[k][c]));
+      if (k % 2) open = std::max(open, std::abs(u0[k][c] - u0[k - 1][c]));
+    }
+  std::printf("opening near the first front %.3e; its change across the rebuild %.3e\n", open, diff);
+  EXPECT_GT(open, 1e-5);
+  EXPECT_LT(diff, 1e-12);
+}
+
+}  // namespace
+}  // namespace incise
