@@ -8,8 +8,9 @@
 namespace incise {
 
 // cut_front "enriched" in frames: refused (an Error naming the scene) with
-// swept cuts or instruments, whose moving fronts and contact points the
-// front enrichment does not carry yet (docs/cutting.md).
+// swept cuts (a moving front's state transfer changes the energy by up to
+// 7% of the gravity work) and instruments (their contact points do not carry
+// the branch DOFs) so far (docs/cutting.md).
 void check_front_enrichment_in_frames(const Scene& scene);
 
 // One run of the stage; records the cut's parts in sim.ws.timing.

@@ -244,8 +244,8 @@ namespace {
 
 // cut_front "enriched" (issue 21): incise static solves with it (lumped or
 // consistent mass) and reports the front elements; frames run with a cut
-// that does not move and refuse a swept one; a value not allowed is an error
-// naming the key.
+// that does not move and refuse a swept one and instruments; a value not
+// allowed is an error naming the key.
 TEST_F(CliErrors, EnrichedCutFrontRunsStaticAndWithCutsThatDoNotMove) {
   ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 7 3 3 --out " + path("beam.vtu")).code, 0);
   const std::string slit =
@@ -255,19 +255,23 @@ TEST_F(CliErrors, EnrichedCutFrontRunsStaticAndWithCutsThatDoNotMove) {
   const Result st = incise("static " + path("scene.json"));
   EXPECT_EQ(st.code, 0) << st.out;
   EXPECT_NE(st.out.find(" front elements enriched ("), std::string::npos) << st.out;
-  // Frames run with a cut that does not move and no instruments; a swept
-  // cut is refused.
+  // Frames run with a cut that does not move; a swept cut and instruments
+  // are refused.
   EXPECT_EQ(incise("run " + path("scene.json") + " --frames 3").code, 0);
   write("swept.json",
         incise::test::beam_scene_json(2, R"("model": "linear", "young": 1e5, "poisson": 0.3, "density": 1)",
                                       R"(, "cut_front": "enriched", "cuts": [{"type": "swept",
       "edge_start": [[2, -1, 1.5], [2, 2, 1.5]], "edge_end": [[2, -1, 0.45], [2, 2, 0.45]], "duration": 0.1}])"));
-  const Result run = incise("run " + path("swept.json") + " --frames 3");
-  EXPECT_EQ(run.code, 1) << run.out;
-  EXPECT_NE(run.out.find(path("swept.json") + ": cut_front \"enriched\" runs in frames only with cuts that do not "
-                                              "move (plane, polygon, mesh) and no instruments so far"),
-            std::string::npos) << run.out;
-  EXPECT_EQ(incise("static " + path("scene.json") + " --set mass=lumped").code, 0);
+  for (const std::string& args :
+       {"run " + path("swept.json") + " --frames 3",
+        "run " + path("scene.json") + " --frames 3 --set " +
+            R"('instruments=[{"type": "probe", "radius": 0.1, "pose": {"position": [1, 0.5, 1.2]}}]')"}) {
+    const Result run = incise(args);
+    EXPECT_EQ(run.code, 1) << run.out;
+    EXPECT_NE(run.out.find(": cut_front \"enriched\" runs in frames only with cuts that do not move (plane, polygon, "
+                           "mesh) and no instruments so far"),
+              std::string::npos) << run.out;
+  }
   const Result bad = incise("static " + path("scene.json") + " --set cut_front=edges");
   EXPECT_EQ(bad.code, 1) << bad.out;
   EXPECT_NE(bad.out.find("cut_front"), std::string::npos) << bad.out;
