@@ -62,6 +62,15 @@ TEST(FrontEnrichment, CutSurfaceFrontDistanceIsSignedFromTheNearestBoundaryEdge)
   EXPECT_GE(plane->front_distance(on), 1e300);  // no boundary, no front
 }
 
+// The slit x = 2, z >= z_front through the beam (a polygon reaching past it).
+CutSpec slit_cut(double z_front) {
+  CutSpec c;
+  c.type = CutSpec::Type::Polygon;
+  c.points = {{2, -1, z_front}, {2, 2, z_front}, {2, 2, 3}, {2, -1, 3}};
+  c.json_path = "cuts[0]";
+  return c;
+}
+
 // A cantilever [0,4]x[0,1]x[0,1] clamped at x = 0 under gravity (linear,
 // consistent mass), slit x = 2 for z >= z_front, solved statically.
 std::unique_ptr<Simulation> slit_beam(const Mesh& mesh, bool xfem, bool enriched, double z_front) {
@@ -69,13 +78,7 @@ std::unique_ptr<Simulation> slit_beam(const Mesh& mesh, bool xfem, bool enriched
   s.material.model = MaterialModel::Linear;
   s.mass = MassKind::Consistent;
   s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-  if (xfem) {
-    CutSpec c;
-    c.type = CutSpec::Type::Polygon;
-    c.points = {{2, -1, z_front}, {2, 2, z_front}, {2, 2, 3}, {2, -1, 3}};
-    c.json_path = "cuts[0]";
-    s.cuts = {c};
-  }
+  if (xfem) s.cuts = {slit_cut(z_front)};
   s.front_enrichment = enriched;
   auto sim = test::make_sim(mesh, s);
   if (xfem) apply_all_cuts(*sim);
@@ -182,11 +185,6 @@ TEST(FrontEnrichment, FrontInsideElementsIsAsAccurateAsAConformingMesh) {
   EXPECT_LT(ee, 1.1 * ec);
 }
 
-}  // namespace
-}  // namespace incise
-
-namespace incise {
-namespace {
 
 // Frames with the enriched front (a cut that does not move): the undamped
 // linear beam conserves E = T + U - f.u under the trapezoidal rule with
@@ -199,10 +197,7 @@ TEST(FrontEnrichment, UndampedFramesConserveEnergyWithLumpedAndConsistentMass) {
     s.mass = mass;
     s.front_enrichment = true;
     s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-    CutSpec c;
-    c.type = CutSpec::Type::Polygon;
-    c.points = {{2, -1, 0.45}, {2, 2, 0.45}, {2, 2, 3}, {2, -1, 3}};
-    c.json_path = "cuts[0]";
+    CutSpec c = slit_cut(0.45);
     c.at_time = 0.2;  // cut while the beam swings: the branch DOFs appear with the state moving
     s.cuts = {c};
     auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
@@ -268,11 +263,6 @@ TEST(FrontEnrichment, DisplayDrawsTheOpeningInsideTheFrontElement) {
   EXPECT_LT(worst, 1e-6 * umax);
 }
 
-}  // namespace
-}  // namespace incise
-
-namespace incise {
-namespace {
 
 // A second cut elsewhere rebuilds the model: the first cut's front and its
 // branch DOFs are unchanged, so their values carry over and the field near
@@ -282,10 +272,7 @@ TEST(FrontEnrichment, ARebuildForAnotherCutCarriesTheOpeningOver) {
   Scene s = test::block_scene(2);
   s.front_enrichment = true;
   s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-  CutSpec slit;
-  slit.type = CutSpec::Type::Polygon;
-  slit.points = {{2, -1, 0.45}, {2, 2, 0.45}, {2, 2, 3}, {2, -1, 3}};
-  slit.json_path = "cuts[0]";
+  const CutSpec slit = slit_cut(0.45);
   CutSpec end = test::plane_cut({3.6, 0, 0}, {1, 0, 0.1}, "cuts[1]");
   end.at_time = 0.3;
   s.cuts = {slit, end};
@@ -317,11 +304,6 @@ TEST(FrontEnrichment, ARebuildForAnotherCutCarriesTheOpeningOver) {
   EXPECT_LT(diff, 1e-12);
 }
 
-}  // namespace
-}  // namespace incise
-
-namespace incise {
-namespace {
 
 // A blade sweeping down through the beam moves the front every frame: the
 // state is carried to each new model (transfer_kinematics), where F changed
