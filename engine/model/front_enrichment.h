@@ -13,7 +13,6 @@
 #include <vector>
 
 #include "engine/mesh/mesh.h"
-
 #include "engine/model/model.h"
 
 namespace incise {
@@ -28,7 +27,7 @@ namespace incise {
 // kBranchFunctions of them are enriched (one DOF node each): F0 only. With
 // all four the slit study (tools/study_slit_fronts.cpp) stopped converging
 // (errors of 1-4% at every level; F0 and F1: erratic); with F0 it converges
-// at order 1.8-2, below the conforming mesh's error (docs/benchmarks.md,
+// at order 1.2-1.7, at 0.4-1.2x the conforming mesh's error (docs/benchmarks.md,
 // "Issue 21: the slit's front"). Likely cause, not verified: where F1..F3
 // are smooth over a node's support, N_a (F_k - F_k(x_a)) summed over the
 // nodes is F_k minus its interpolant, almost zero: a near-null direction
