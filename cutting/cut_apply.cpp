@@ -43,16 +43,6 @@ void old_piece_values(const Model& m, const State& s, int e, int P, int a, int n
   for (int k = 0; k < nf; ++k) add_branch_field(m, e, N, side, f[k]->data(), out + 3 * k);
 }
 
-// The side of the front's cut the local point rst of element e lies on in
-// model m (0: e has no front enrichment there).
-int front_side(const Model& m, int e, const double rst[3]) {
-  if (!element_has_branch(m, e)) return 0;
-  double phi[10], psi[10];
-  front_node_values(m, e, phi, psi);
-  const double f = (1 - rst[0] - rst[1] - rst[2]) * phi[0] + rst[0] * phi[1] + rst[1] * phi[2] + rst[2] * phi[3];
-  return f < 0 ? -1 : 1;
-}
-
 // Warm starts for the new model's rotation slots: an element with as many
 // slots as before keeps its old rotations (uncut elements, and cut ones whose
 // pieces did not change), the others start from the identity. Saves the polar
@@ -313,30 +303,29 @@ void project_branch_dofs(const Model& from, const State& os, const Model& to, in
     branch_owners(to, &to.elem_dof_node[b0], n, owner, fk);
     double phi[10], psi[10];
     front_node_values(to, e, phi, psi);
+    std::vector<double> F0(n);  // F_k at each branch DOF node's own node
+    for (int j = 0; j < n; ++j)
+      F0[j] = owner[j] >= 0 ? branch_function(phi[owner[j]], psi[owner[j]]).F[fk[j]] : 0.0;
     for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P)
       for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
         const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
-        const double vol6 = std::abs(((v[3] - v[0]) * ((v[7] - v[1]) * (v[11] - v[2]) - (v[8] - v[2]) * (v[10] - v[1])) -
-                                      (v[4] - v[1]) * ((v[6] - v[0]) * (v[11] - v[2]) - (v[8] - v[2]) * (v[9] - v[0])) +
-                                      (v[5] - v[2]) * ((v[6] - v[0]) * (v[10] - v[1]) - (v[7] - v[1]) * (v[9] - v[0]))));
+        const double vol6 = 6.0 * std::abs(subtet_ref_volume(v));
         for (int q = 0; q < cub.npoint(); ++q) {
-          const double* l = &cub.rst[3 * q];
           ProbeHit hit;
           hit.elem = e;
           hit.piece = P;
-          for (int d = 0; d < 3; ++d)
-            hit.rst[d] = (1 - l[0] - l[1] - l[2]) * v[d] + l[0] * v[3 + d] + l[1] * v[6 + d] + l[2] * v[9 + d];
+          map_to_element(v, &cub.rst[3 * q], hit.rst);
           const double w = cub.weight[q] * vol6 * shape_global_gradients(npe, Xe, hit.rst, grad);
           shape_values(npe, hit.rst, N);
           double ph = 0, ps = 0;
           for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
           const BranchValue F = branch_function(ph, ps);
-          double basis[40];
-          int idx[40], m = 0;
+          double basis[10 * kBranchFunctions];  // the element's branch DOF nodes' functions
+          int idx[10 * kBranchFunctions], m = 0;
           for (int j = 0; j < n; ++j) {
             if (owner[j] < 0) continue;
             const int a = owner[j];
-            basis[m] = N[a] * (F.F[fk[j]] - branch_function(phi[a], psi[a]).F[fk[j]]);
+            basis[m] = N[a] * (F.F[fk[j]] - F0[j]);
             idx[m++] = col[to.elem_dof_node[b0 + j]];
           }
           ProbeHit old = hit;
@@ -393,7 +382,8 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
           if ((pass == 0) != (q < 0)) continue;
           const int i = to.mesh.tet[static_cast<size_t>(e) * npe + a];
           // The old opening at a node that keeps branch DOFs stays in them
-          // (carried below); at one that loses them it goes to u and q here.
+          // (fitted below, project_branch_dofs); at one that loses them it
+          // goes to u and q here.
           const bool keeps_branch = L.has_branch() && L.node_branch[i] >= 0;
           double val[12];
           old_piece_values(from, os, e, Q, a, nf, keeps_branch ? 0 : side, val);

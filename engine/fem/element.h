@@ -35,4 +35,24 @@ Cubature cubature_duffy(int degree);
 double shape_global_gradients(int npe, const double* Xe /* (npe, 3) */, const double rst[3],
                               double* dNdX /* (npe, 3) */);
 
+// Maps a point of sub-tet `sub` (4 x 3 corners in an element's local
+// coordinates; rst_q: the point's coordinates in the sub-tet, as a cubature
+// gives them) to the element's local coordinates r.
+inline void map_to_element(const double* sub, const double* rst_q, double* r) {
+  const double L[4] = {1.0 - rst_q[0] - rst_q[1] - rst_q[2], rst_q[0], rst_q[1], rst_q[2]};
+  for (int d = 0; d < 3; ++d) r[d] = L[0] * sub[d] + L[1] * sub[3 + d] + L[2] * sub[6 + d] + L[3] * sub[9 + d];
+}
+
+// Signed volume of a sub-tetrahedron given by its 4 corners v (4 x 3) in an
+// element's local coordinates (the reference tetrahedron has 1/6).
+inline double subtet_ref_volume(const double* v) {
+  double a[3], b[3], c[3];
+  for (int d = 0; d < 3; ++d) {
+    a[d] = v[3 + d] - v[d];
+    b[d] = v[6 + d] - v[d];
+    c[d] = v[9 + d] - v[d];
+  }
+  return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+}
+
 }  // namespace incise

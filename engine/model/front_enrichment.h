@@ -99,6 +99,16 @@ inline bool element_has_branch(const Model& m, int e) {
   return false;
 }
 
+// The side of the front's cut plane (the sign of phi, + at 0) local point
+// rst of element e lies on; 0 when e has no branch DOF node.
+inline int front_side(const Model& m, int e, const double rst[3]) {
+  if (!element_has_branch(m, e)) return 0;
+  double phi[10], psi[10];
+  front_node_values(m, e, phi, psi);
+  const double f = (1 - rst[0] - rst[1] - rst[2]) * phi[0] + rst[0] * phi[1] + rst[1] * phi[2] + rst[2] * phi[3];
+  return f < 0 ? -1 : 1;
+}
+
 // Adds the branch DOFs' part of a field at a point of element e (N: the
 // shape values there) to out: sum_a,k N_a (F_k(x) - F_k(x_a)) w_(b_a + k),
 // w a DOF vector (u or v). side: +1 or -1, the side of the cut's plane the

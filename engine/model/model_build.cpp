@@ -44,22 +44,6 @@ std::vector<PieceView> pieces_of(const Model& m, int e) {
   return out;
 }
 
-// Maps a point of sub-tet `sub` (cubature coordinates rst_q) to the element's local coordinates.
-void map_to_element(const double* sub, const double* rst_q, double* r) {
-  const double L[4] = {1.0 - rst_q[0] - rst_q[1] - rst_q[2], rst_q[0], rst_q[1], rst_q[2]};
-  for (int d = 0; d < 3; ++d) r[d] = L[0] * sub[d] + L[1] * sub[3 + d] + L[2] * sub[6 + d] + L[3] * sub[9 + d];
-}
-
-double subtet_ref_volume(const double* v) {
-  double a[3], b[3], c[3];
-  for (int d = 0; d < 3; ++d) {
-    a[d] = v[3 + d] - v[d];
-    b[d] = v[6 + d] - v[d];
-    c[d] = v[9 + d] - v[d];
-  }
-  return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
-}
-
 const double kRefTet[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
 
 // Whether element e has the same pieces in m's layout as in base's (none
@@ -831,6 +815,7 @@ void add_branch_mass(Model& m, int e, MassWork& w) {
   front_node_values(m, e, node_phi, node_psi);
   std::vector<int> owner, fk;  // element node and function of each branch DOF node
   branch_owners(m, local, n, owner, fk);
+  const bool lumped = m.mass_kind == MassKind::Lumped;
   std::vector<double> F0(n, 0.0), v(n), M(static_cast<size_t>(n) * n, 0.0);
   for (int j = npe; j < n; ++j)
     if (owner[j] >= 0) F0[j] = branch_function(node_phi[owner[j]], node_psi[owner[j]]).F[fk[j]];
@@ -856,10 +841,10 @@ void add_branch_mass(Model& m, int e, MassWork& w) {
           if (owner[j] >= 0) v[j] = w.N[owner[j]] * (F.F[fk[j]] - F0[j]);
         for (int i = 0; i < n; ++i)
           for (int j = i; j < n; ++j)
-            if (owner[i] >= 0 || owner[j] >= 0) M[static_cast<size_t>(i) * n + j] += w.rho * wq * v[i] * v[j];
+            if ((owner[i] >= 0 || owner[j] >= 0) && (!lumped || i == j))  // lumped: the diagonal only
+              M[static_cast<size_t>(i) * n + j] += w.rho * wq * v[i] * v[j];
       }
     }
-  const bool lumped = m.mass_kind == MassKind::Lumped;
   for (int i = 0; i < n; ++i)
     for (int j = i; j < n; ++j)
       if ((owner[i] >= 0 || owner[j] >= 0) && !lumped) add_mass_entry(m, sc, n, i, j, M[static_cast<size_t>(i) * n + j]);

@@ -16,16 +16,13 @@ void append_reference_rst(int npe, std::vector<double>& out) {
 }
 
 // Which side of the front's cut plane sub-tetrahedron v (4 x 3 local
-// coordinates) of element e lies on: the sign of phi at its centroid (+1
-// without front enrichment). Its corners on the plane take that side.
+// coordinates) of element e lies on: its centroid's (0 without front
+// enrichment). Its corners on the plane take that side.
 int subtet_side(const Model& m, int e, const double* v) {
-  if (!element_has_branch(m, e)) return 1;
-  double phi[10], psi[10], c[3] = {0, 0, 0};
-  front_node_values(m, e, phi, psi);
+  double c[3] = {0, 0, 0};
   for (int k = 0; k < 4; ++k)
     for (int d = 0; d < 3; ++d) c[d] += 0.25 * v[3 * k + d];
-  const double f = (1 - c[0] - c[1] - c[2]) * phi[0] + c[0] * phi[1] + c[1] * phi[2] + c[2] * phi[3];
-  return f < 0 ? -1 : 1;
+  return front_side(m, e, c);
 }
 
 }  // namespace
