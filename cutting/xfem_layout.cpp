@@ -533,11 +533,27 @@ std::vector<int> front_elements(const Model& base, const LevelSets& ls, const st
                   " holds a cut front and another cut; only one cut per front element is handled");
     tip[e] = c;
   }
-  // Only the front elements' nodes get branch DOFs (enriching a ring one
-  // element wider made the slit study's errors larger, not smaller).
+  // The nodes of the front elements and of every element sharing a corner
+  // with one get branch DOFs (a ring one element wide). Enriching the front
+  // elements' nodes alone left the sqrt(r) field to a support about h wide
+  // and the slit study 1.0-1.2x the conforming mesh's error with the front
+  // inside elements; with the ring it is 0.02-0.2x (docs/benchmarks.md,
+  // "Issue 21: the enrichment ring").
+  std::vector<int> enr_cut = tip;  // (nelem): the cut whose branch functions enrich the element's nodes, -1 none
   for (int e = 0; e < ls.nt; ++e)
-    for (int a = 0; tip[e] >= 0 && a < ls.npe; ++a) {
-      const int c = tip[e];
+    for (int a = 0; tip[e] >= 0 && a < 4; ++a) {
+      const int i = ls.node(e, a);
+      for (int k = base.node_elem_ptr[i]; k < base.node_elem_ptr[i + 1]; ++k) {
+        int& f = enr_cut[base.node_elem[k]];
+        if (f >= 0 && f != tip[e])
+          throw Error("front enrichment: element " + std::to_string(base.node_elem[k]) +
+                      " lies next to the fronts of two cuts");
+        f = tip[e];
+      }
+    }
+  for (int e = 0; e < ls.nt; ++e)
+    for (int a = 0; enr_cut[e] >= 0 && a < ls.npe; ++a) {
+      const int c = enr_cut[e];
       const int i = ls.node(e, a);
       L.node_branch[i] = 1;
       for (int k = base.node_elem_ptr[i]; k < base.node_elem_ptr[i + 1]; ++k)
@@ -554,7 +570,7 @@ std::vector<int> front_elements(const Model& base, const LevelSets& ls, const st
   return tip;
 }
 
-// Each node of a front element gets kBranchFunctions branch DOF nodes, after the enriched ones.
+// Each node front_elements marked (node_branch 1) gets kBranchFunctions branch DOF nodes, after the enriched ones.
 void add_branch_nodes(const LevelSets& ls, CutLayout& L, std::vector<int>& enr_node) {
   for (int i = 0; i < ls.nn; ++i)
     if (L.node_branch[i] == 1) {

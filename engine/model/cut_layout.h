@@ -28,7 +28,8 @@ struct CutLayout {
   std::vector<unsigned char> elem_split;     // (nelem) 1 when the element is cut into pieces
 
   // Front enrichment (compute_cut_layout with branch_front; empty without):
-  // every node a of an element a cut's front passes through gets
+  // every node a of an element a cut's front passes through, or of an
+  // element sharing a corner with one (a ring one element wide), gets
   // kBranchFunctions consecutive branch DOF nodes b_k (among the enriched
   // DOF nodes above, enr_node = a) carrying N_a(x) (F_k(x) - F_k(x_a)), F_k
   // the crack-tip functions of engine/model/front_enrichment.h: the first

@@ -24,11 +24,13 @@ namespace incise {
 //   F1 = sqrt(r) cos(theta/2) = sqrt((r + psi) / 2)
 //   F2 = F0 sin(theta),  F3 = F1 sin(theta)
 // dF0 = (F1, -F0) / 2r, dF1 = (F0, F1) / 2r (by phi, psi; phi = 2 F0 F1).
-// kBranchFunctions of them are enriched (one DOF node each): F0 only. With
-// all four the slit study (tools/study_slit_fronts.cpp) stopped converging
-// (errors of 1-4% at every level; F0 and F1: erratic); with F0 it converges
-// at order 1.2-1.7, at 0.4-1.2x the conforming mesh's error (docs/benchmarks.md,
-// "Issue 21: the slit's front"). Likely cause, not verified: where F1..F3
+// kBranchFunctions of them are enriched (one DOF node each): F0 only, on the
+// nodes of the front elements and of the ring of elements around them
+// (cutting/xfem_layout.cpp). With all four (front elements only) the slit
+// study (tools/study_slit_fronts.cpp) stopped converging (errors of 1-4% at
+// every level; F0 and F1: erratic); with F0 and the ring it converges at
+// order 0.9-1.4 with 0.02-0.2x the conforming mesh's error (docs/benchmarks.md,
+// "Issue 21: the enrichment ring"). Likely cause, not verified: where F1..F3
 // are smooth over a node's support, N_a (F_k - F_k(x_a)) summed over the
 // nodes is F_k minus its interpolant, almost zero: a near-null direction
 // of the stiffness (F0 jumps across the cut, so it has none there).
