@@ -69,6 +69,7 @@ struct FrameTiming {
   int contacts = 0;           // contact rows of the frame (after reduction to contact.max_rows)
   int grasp_rows = 0;         // bilateral grasp rows
   int contact_sweeps = 0;     // projected Gauss-Seidel sweeps (all Newton iterations)
+  int compliance_columns = 0; // columns of Y = A^-1 H^T substituted (0 where an earlier Newton iteration's or frame's Y served)
   double contact_force = 0;   // |sum of lambda dir| over the contact and grasp rows (N)
   double max_depth = 0;       // deepest penetration collision found at the frame's start (before the response)
   int bvh_refits = 0;         // tissue collision model refitted this frame

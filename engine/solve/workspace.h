@@ -46,6 +46,13 @@ struct Workspace {
   std::vector<double> contact_W;     // (nrow, nrow) the compliance H A^-1 H^T of the last solve
   std::vector<double> contact_Wc;    // (nrow, nrow) the same plus the tools' coupling springs (ContactRows::compliance)
   int contact_frame = -1;            // State::frame contact_W and contact_work were computed in
+  // The rows (H: ptr, dof, coef) and the lagged factor (contact_factor_key)
+  // contact_work's Y = P^-1 H^T was computed for: a later frame with the
+  // same rows and the same factor takes Y and W over (contact_solve.cpp).
+  std::vector<int> contact_Y_ptr, contact_Y_dof;
+  std::vector<double> contact_Y_coef;
+  long long contact_Y_key = -1;
+  std::vector<double> contact_Z;     // (nrow, ndof) project_contact_kinematics' columns (Y stays in contact_work)
   std::vector<double> contact_h, contact_z;  // (ndof) scratch of the contact kinematics (project_contact_kinematics)
 
   FrameTiming timing;           // the last (or current) frame

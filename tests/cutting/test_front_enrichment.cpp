@@ -14,6 +14,7 @@
 #include "engine/model/front_enrichment.h"
 #include "engine/output/display_mesh.h"
 #include "engine/output/probe.h"
+#include "engine/util/error.h"
 #include "tests/cutting/test_util.h"
 
 namespace incise {
@@ -157,6 +158,40 @@ TEST(FrontEnrichment, FrontsWithin1e12hOfANodeLayerGiveTheSameSolution) {
     std::printf("front %+.0e h off the node layer: relative difference %.3e\n", off / h, std::sqrt(e / n));
     EXPECT_LT(std::sqrt(e / n), 1e-3);
   }
+}
+
+// Two slits whose fronts lie a few element columns apart: an element with
+// one front's branch DOFs would share a corner with one holding the
+// other's, and a corner carries one front's level sets, so the build stops
+// with an error naming the fronts of two cuts; seven columns apart both get
+// their enrichment.
+TEST(FrontEnrichment, FrontsOfTwoCutsCloseTogetherAreAnErrorFartherApartNot) {
+  const Mesh mesh = make_beam(4, 1, 1, 14, 3, 3, 1);  // x cells 2/7 wide
+  const auto build = [&](double x1, double x2) {
+    Scene s = test::block_scene(2);
+    s.front_enrichment = true;
+    s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+    CutSpec first = slit_cut(0.45), second = slit_cut(0.45);
+    for (auto& p : first.points) p[0] = x1;
+    for (auto& p : second.points) p[0] = x2;
+    second.json_path = "cuts[1]";
+    s.cuts = {first, second};
+    auto sim = test::make_sim(mesh, s);
+    apply_all_cuts(*sim);
+    return sim;
+  };
+  const double h = 2.0 / 7;
+  try {
+    build(3.5 * h, 5.5 * h);  // mid-cell, two columns apart
+    ADD_FAILURE() << "fronts two columns apart were accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("fronts of two cuts"), std::string::npos) << e.what();
+  }
+  const auto sim = build(3.5 * h, 10.5 * h);
+  int branch = 0;
+  for (int b : sim->model.cuts.node_branch) branch += b >= 0;
+  std::printf("fronts seven columns apart: %d nodes with branch DOFs\n", branch);
+  EXPECT_GT(branch, 0);
 }
 
 TEST(FrontEnrichment, FrontInsideElementsIsAsAccurateAsAConformingMesh) {
