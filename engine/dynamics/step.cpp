@@ -415,10 +415,12 @@ void consistent_acceleration(const Model& m, State& s, Workspace& ws) {
   // DOF on the slit beam of tests/cutting/test_front_enrichment.cpp, and a
   // first step that lost 6e-6 of the gravity work when capped at 500). A
   // direct solve then: once per cut, as the factorization of the step.
+  // Simplicial: BLAS-free, so safe beside the lagged policy's background
+  // factorization (engine/solve/cholmod_solver.h, blas_concurrency_safe).
   std::vector<double> Mc = m.mass_csc;
   project_constraints(m, Mc.data());
   CholmodSolver direct;
-  direct.configure(FactorMethod::Auto, OrderingMethod::Auto);
+  direct.configure(FactorMethod::Simplicial, OrderingMethod::Auto);
   direct.analyze(n, m.Ap, m.Ai);
   direct.factorize(Mc.data());
   direct.solve(rhs.data(), s.a.data());
