@@ -96,11 +96,12 @@ void query_contacts(const CollisionModel& model, const ToolShape& tool, const Co
       c.depth = tc.depth;
       c.elem = s.vert_elem[tv[0]];
       c.piece = s.vert_piece[tv[0]];
+      c.side = s.vert_side[tv[0]];
       for (int d = 0; d < 3; ++d) {
         c.rst[d] = 0;
         for (int j = 0; j < 3; ++j) c.rst[d] += tc.bary[j] * s.vert_rst[3 * tv[j] + d];
       }
-      c.weights = s.point_weights(c.elem, c.piece, c.rst);
+      c.weights = s.point_weights(c.elem, c.piece, c.rst, c.side);
     }
   }
   auto deeper = [](const TissueContact& a, const TissueContact& b) {

@@ -57,6 +57,7 @@ struct TissueContact {
   // straight-sided, affinely deformed faces; on curved ones it is the
   // material point, within the tessellation error of the triangle.
   int elem = -1, piece = -1;
+  int side = 0;                  // of the front's cut plane (TissueSurface::vert_side)
   double rst[3] = {0, 0, 0};
   PointWeights weights;
 };

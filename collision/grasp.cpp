@@ -57,6 +57,7 @@ void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFram
     HeldPoint h;
     h.elem = surface.vert_elem[cand.v];
     h.piece = surface.vert_piece[cand.v];
+    h.side = surface.vert_side[cand.v];
     for (int d = 0; d < 3; ++d) {
       h.rst[d] = surface.vert_rst[3 * cand.v + d];
       h.local[d] = l[d];
@@ -71,7 +72,7 @@ void add_grasp_rows(const State& state, const Grasp& grasp, const ToolFrame& too
                     const TissueSurface& surface, ContactRows& rows) {
   if (!grasp.holding) return;
   for (const HeldPoint& h : grasp.held) {
-    const PointWeights w = surface.point_weights(h.elem, h.piece, h.rst);
+    const PointWeights w = surface.point_weights(h.elem, h.piece, h.rst, h.side);
     double X[3], x[3];
     surface.reference_position(h.elem, h.rst, X);
     point_position(w, X, state.u.data(), x);

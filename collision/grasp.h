@@ -17,6 +17,7 @@ namespace incise {
 
 struct HeldPoint {
   int elem = -1, piece = -1;
+  int side = 0;                 // of the front's cut plane (TissueSurface::vert_side)
   double rst[3] = {0, 0, 0};
   double local[3] = {0, 0, 0};  // position in the tool frame when it was taken
 };

@@ -27,9 +27,14 @@ TissueSurface::TissueSurface(const Model& m, const State& s, int segs) {
   elem_node = m.mesh.tet;
   piece_enr = m.cuts.piece_enr;
   node_X.assign(m.X.begin(), m.X.begin() + 3 * static_cast<size_t>(m.nnode));
+  node_branch = m.cuts.node_branch;
+  front_phi = m.cuts.front_phi;
+  front_psi = m.cuts.front_psi;
+  const BranchView branch = branch_view();
   const size_t nv = static_cast<size_t>(nface) * vpf, nt = static_cast<size_t>(nface) * g.tris_per_face;
   vert_elem.reserve(nv);
   vert_piece.reserve(nv);
+  vert_side.reserve(nv);
   vert_rst.reserve(3 * nv);
   vert_X.reserve(3 * nv);
   vert_ptr.reserve(nv + 1);
@@ -42,6 +47,15 @@ TissueSurface::TissueSurface(const Model& m, const State& s, int segs) {
     const int e = d.cell_elem[c], piece = d.cell_piece[c];
     const int* corner = kTetFace[surf.face_local[f]];  // the face's corners in the cell, outward order
     const double* crst = &d.cell_rst[static_cast<size_t>(d.npe()) * 3 * c];
+    // A sub-tetrahedron's side of the front's cut plane: its centroid's (its
+    // cut faces lie on the plane, where phi's sign is roundoff), as the
+    // display takes it. A whole element's points take phi's own sign (0):
+    // one may straddle the plane ahead of the front, where F is continuous.
+    double centroid[3] = {0, 0, 0};
+    for (int k = 0; k < 4; ++k)
+      for (int j = 0; j < 3; ++j) centroid[j] += 0.25 * crst[3 * k + j];
+    const bool sub = m.has_cuts() && m.cuts.elem_split[e];
+    const int side = sub ? point_front_side(npe, &elem_node[static_cast<size_t>(e) * npe], branch, centroid) : 0;
     const int base = nvert();
     for (int v = 0; v < vpf; ++v) {
       // rst is linear over the cell's (sub-)tetrahedron, so over the face.
@@ -50,9 +64,10 @@ TissueSurface::TissueSurface(const Model& m, const State& s, int segs) {
       for (int j = 0; j < 3; ++j)
         for (int k = 0; k < 3; ++k) rst[k] += L[j] * crst[3 * corner[j] + k];
       reference_position(e, rst, X);
-      const PointWeights w = point_weights(e, piece, rst);
+      const PointWeights w = point_weights(e, piece, rst, side);
       vert_elem.push_back(e);
       vert_piece.push_back(piece);
+      vert_side.push_back(static_cast<signed char>(side));
       vert_rst.insert(vert_rst.end(), rst, rst + 3);
       vert_X.insert(vert_X.end(), X, X + 3);
       vert_dofnode.insert(vert_dofnode.end(), w.dofnode, w.dofnode + w.n);
@@ -69,9 +84,15 @@ TissueSurface::TissueSurface(const Model& m, const State& s, int segs) {
   update_positions(s);
 }
 
-PointWeights TissueSurface::point_weights(int elem, int piece, const double rst[3]) const {
+BranchView TissueSurface::branch_view() const {
+  if (node_branch.empty()) return {};
+  return {node_branch.data(), front_phi.data(), front_psi.data()};
+}
+
+PointWeights TissueSurface::point_weights(int elem, int piece, const double rst[3], int side) const {
   return point_dof_weights(npe, &elem_node[static_cast<size_t>(elem) * npe],
-                           piece >= 0 ? &piece_enr[static_cast<size_t>(piece) * npe] : nullptr, rst);
+                           piece >= 0 ? &piece_enr[static_cast<size_t>(piece) * npe] : nullptr, rst, branch_view(),
+                           side);
 }
 
 void TissueSurface::reference_position(int elem, const double rst[3], double X[3]) const {

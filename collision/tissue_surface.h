@@ -30,10 +30,15 @@ struct TissueSurface {
   std::vector<int> elem_node;       // (nelem, npe) model.mesh.tet
   std::vector<int> piece_enr;       // (npiece, npe) model.cuts.piece_enr; empty without cuts
   std::vector<double> node_X;       // (nnode, 3) reference positions of the mesh nodes
+  // The front enrichment's per-node data (model.cuts.node_branch,
+  // front_phi, front_psi); empty without it.
+  std::vector<int> node_branch;
+  std::vector<double> front_phi, front_psi;
 
   // Vertices: per face, the face grid's vertices in its order.
   std::vector<int> vert_elem;       // (nvert) element holding the material point
   std::vector<int> vert_piece;      // (nvert) its piece (CutLayout), -1 without cuts
+  std::vector<signed char> vert_side;  // (nvert) side of the front's cut plane (its sub-tetrahedron's), 0: phi's sign
   std::vector<double> vert_rst;     // (nvert, 3) local coordinates in the element
   std::vector<double> vert_X;       // (nvert, 3) reference position X(rst)
   std::vector<int> vert_ptr;        // (nvert + 1) into vert_dofnode / vert_weight
@@ -55,9 +60,11 @@ struct TissueSurface {
   // when the state does not fit the model the surface was built on.
   void update_positions(const State& state);
 
-  // DOF weights and reference position X(rst) of any point (elem, piece, rst).
-  PointWeights point_weights(int elem, int piece, const double rst[3]) const;
+  // DOF weights and reference position X(rst) of any point (elem, piece,
+  // rst; side: of the front's cut plane, as vert_side, 0 = phi's sign).
+  PointWeights point_weights(int elem, int piece, const double rst[3], int side = 0) const;
   void reference_position(int elem, const double rst[3], double X[3]) const;
+  BranchView branch_view() const;  // of the copies above (null without front enrichment)
 
   int nvert() const { return static_cast<int>(vert_elem.size()); }
   int ntri() const { return static_cast<int>(tri_face.size()); }

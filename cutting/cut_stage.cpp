@@ -8,12 +8,12 @@ namespace incise {
 
 void check_front_enrichment_in_frames(const Scene& scene) {
   if (!scene.front_enrichment) return;
-  bool moving = !scene.instruments.empty();
+  bool moving = false;
   for (const CutSpec& c : scene.cuts) moving = moving || c.type == CutSpec::Type::Swept;
+  for (const InstrumentSpec& i : scene.instruments) moving = moving || i.kind == InstrumentSpec::Kind::Scalpel;
   if (moving)
     throw Error(scene.path + ": cut_front \"enriched\" runs in frames only with cuts that do not move (plane, "
-                "polygon, mesh) and no instruments so far; swept cuts and instruments need \"faces\" "
-                "(docs/cutting.md)");
+                "polygon, mesh) so far; swept cuts and scalpels need \"faces\" (docs/cutting.md)");
 }
 
 void cutting_stage(Simulation& sim) {

@@ -66,13 +66,44 @@ inline BranchValue branch_function(double phi, double psi, int side = 1) {
 // tet10 mid-edge node the mean of its corners'. Interpolated with the
 // element's shape functions they are linear in the local coordinates (as the
 // sub-element split sees them), also in a curved element.
-inline void front_node_values(const Model& m, int e, double* phi, double* psi) {
-  const int npe = m.mesh.npe();
-  const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * npe];
+// From the element's npe mesh nodes and the per-node level sets
+// (CutLayout::front_phi, front_psi), without a Model (the collision
+// surface keeps copies).
+inline void front_node_values(int npe, const int* nodes, const double* front_phi, const double* front_psi, double* phi,
+                              double* psi) {
   for (int a = 0; a < npe; ++a) {
     const int i = a < 4 ? nodes[a] : nodes[kTet10Edge[a - 4][0]], j = a < 4 ? i : nodes[kTet10Edge[a - 4][1]];
-    phi[a] = 0.5 * (m.cuts.front_phi[i] + m.cuts.front_phi[j]);
-    psi[a] = 0.5 * (m.cuts.front_psi[i] + m.cuts.front_psi[j]);
+    phi[a] = 0.5 * (front_phi[i] + front_phi[j]);
+    psi[a] = 0.5 * (front_psi[i] + front_psi[j]);
+  }
+}
+inline void front_node_values(const Model& m, int e, double* phi, double* psi) {
+  const int npe = m.mesh.npe();
+  front_node_values(npe, &m.mesh.tet[static_cast<size_t>(e) * npe], m.cuts.front_phi.data(), m.cuts.front_psi.data(),
+                    phi, psi);
+}
+
+// The branch part of the field at a point with shape values N of an element
+// with these nodes: f(b, w) for each branch DOF node b and its weight
+// w = N_a (F_k(x) - F_k(x_a)). side: +1 or -1, the side of the cut's plane
+// the point belongs to (a sub-tetrahedron's, where the caller knows it: a
+// corner on the plane has a phi of either sign in roundoff); 0: the sign of
+// phi there (+ when exactly 0). Nothing when no node has branch DOF nodes.
+template <class Fn>
+void for_each_branch_weight(int npe, const int* nodes, const int* node_branch, const double* front_phi,
+                            const double* front_psi, const double* N, int side, Fn&& f) {
+  bool any = false;
+  for (int a = 0; a < npe && !any; ++a) any = node_branch[nodes[a]] >= 0;
+  if (!any) return;
+  double phi[10], psi[10], ph = 0, ps = 0;
+  front_node_values(npe, nodes, front_phi, front_psi, phi, psi);
+  for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
+  const BranchValue F = side != 0 ? branch_function(side * std::abs(ph), ps, side) : branch_function(ph, ps);
+  for (int a = 0; a < npe; ++a) {
+    const int b = node_branch[nodes[a]];
+    if (b < 0) continue;
+    const BranchValue Fa = branch_function(phi[a], psi[a]);
+    for (int k = 0; k < kBranchFunctions; ++k) f(b + k, N[a] * (F.F[k] - Fa.F[k]));
   }
 }
 
@@ -103,35 +134,32 @@ inline bool element_has_branch(const Model& m, int e) {
 
 // The side of the front's cut plane (the sign of phi, + at 0) local point
 // rst of element e lies on; 0 when e has no branch DOF node.
-inline int front_side(const Model& m, int e, const double rst[3]) {
-  if (!element_has_branch(m, e)) return 0;
-  double phi[10], psi[10];
-  front_node_values(m, e, phi, psi);
-  const double f = (1 - rst[0] - rst[1] - rst[2]) * phi[0] + rst[0] * phi[1] + rst[1] * phi[2] + rst[2] * phi[3];
+// From the element's npe mesh nodes and the CutLayout arrays (no Model).
+inline int front_side(int npe, const int* nodes, const int* node_branch, const double* front_phi, const double rst[3]) {
+  bool any = false;
+  for (int a = 0; a < npe && !any; ++a) any = node_branch[nodes[a]] >= 0;
+  if (!any) return 0;
+  const double f = (1 - rst[0] - rst[1] - rst[2]) * front_phi[nodes[0]] + rst[0] * front_phi[nodes[1]] +
+                   rst[1] * front_phi[nodes[2]] + rst[2] * front_phi[nodes[3]];
   return f < 0 ? -1 : 1;
+}
+inline int front_side(const Model& m, int e, const double rst[3]) {
+  if (!m.cuts.has_branch()) return 0;
+  const int npe = m.mesh.npe();
+  return front_side(npe, &m.mesh.tet[static_cast<size_t>(e) * npe], m.cuts.node_branch.data(), m.cuts.front_phi.data(),
+                    rst);
 }
 
 // Adds the branch DOFs' part of a field at a point of element e (N: the
 // shape values there) to out: sum_a,k N_a (F_k(x) - F_k(x_a)) w_(b_a + k),
-// w a DOF vector (u or v). side: +1 or -1, the side of the cut's plane the
-// point belongs to (a sub-tetrahedron's, where the caller knows it: a corner
-// on the plane has a phi of either sign in roundoff); 0: the sign of phi
-// there (+ when exactly 0).
+// w a DOF vector (u or v); side as for for_each_branch_weight.
 inline void add_branch_field(const Model& m, int e, const double* N, int side, const double* w, double out[3]) {
-  if (!element_has_branch(m, e)) return;
+  if (!m.cuts.has_branch()) return;
   const int npe = m.mesh.npe();
-  const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * npe];
-  double phi[10], psi[10], ph = 0, ps = 0;
-  front_node_values(m, e, phi, psi);
-  for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
-  const BranchValue F = side != 0 ? branch_function(side * std::abs(ph), ps, side) : branch_function(ph, ps);
-  for (int a = 0; a < npe; ++a) {
-    const int b = m.cuts.node_branch[nodes[a]];
-    if (b < 0) continue;
-    const BranchValue Fa = branch_function(phi[a], psi[a]);
-    for (int k = 0; k < kBranchFunctions; ++k)
-      for (int d = 0; d < 3; ++d) out[d] += N[a] * (F.F[k] - Fa.F[k]) * w[3 * (b + k) + d];
-  }
+  for_each_branch_weight(npe, &m.mesh.tet[static_cast<size_t>(e) * npe], m.cuts.node_branch.data(),
+                         m.cuts.front_phi.data(), m.cuts.front_psi.data(), N, side, [&](int b, double wt) {
+                           for (int d = 0; d < 3; ++d) out[d] += wt * w[3 * b + d];
+                         });
 }
 
 }  // namespace incise

@@ -5,9 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "engine/mesh/mesh_io.h"
+#include "engine/model/front_enrichment.h"
 #include "engine/output/display_mesh.h"
 #include "engine/util/error.h"
 #include "render/tessellate.h"
@@ -117,6 +119,58 @@ TEST(TissueSurface, CutFaceNormalsPointAcrossTheGapAwayFromTheirSide) {
   }
   EXPECT_GT(side0, 0);
   EXPECT_EQ(side0, side1) << "the two faces of a straight cut have the same triangles";
+}
+
+// With the front enrichment (a slit ending inside elements) the vertices
+// move with the branch DOF nodes too, N_a (F - F_a) on their cell's side of
+// the cut's plane: the surface is still the renderer's (whose display mesh
+// evaluates the same field; with 2 segments the grid points are the cells'
+// own face points), and zeroing the branch DOFs moves it.
+TEST(TissueSurface, VerticesFollowTheFrontEnrichmentsBranchDofs) {
+  const Mesh mesh = collision_block();  // 2 x 1 x 1, cells 0.5 wide
+  const Scene s = block_scene(2);
+  const Model uncut = build_model(mesh, s);
+  CutSpec slit;  // x = 1.25 (mid-cell), from z = 0.3 (inside a cell) up
+  slit.type = CutSpec::Type::Polygon;
+  slit.points = {{1.25, -1, 0.3}, {1.25, 2, 0.3}, {1.25, 2, 2}, {1.25, -1, 2}};
+  slit.json_path = "cuts[0]";
+  const auto surf_cut = make_cut_surface(slit, 0.0);
+  const CutLayout layout = compute_cut_layout(uncut, {surf_cut.get()}, nullptr, true);
+  const Model m = build_model(mesh, s, &layout);
+  ASSERT_TRUE(m.cuts.has_branch());
+  State st;
+  st.u.resize(m.ndof());
+  for (int d = 0; d < m.ndof(); ++d) st.u[d] = 0.01 * std::sin(0.37 * d + 0.1);
+  st.v.assign(m.ndof(), 0.0);
+  st.a.assign(m.ndof(), 0.0);
+  const TissueSurface ts(m, st, 2);
+  const DisplayMesh d = display_mesh(m, st);
+  const Surface surf = extract_surface(d);
+  const Tessellation t = build_tessellation(surf, d, 2);
+  std::vector<float> pos, nrm;
+  std::vector<double> work;
+  tessellate(surf, t, d, pos, nrm, work);
+  ASSERT_EQ(ts.nvert(), t.nvert());
+  double worst = 0;
+  for (int k = 0; k < 3 * ts.nvert(); ++k) worst = std::max(worst, std::abs(ts.x[k] - pos[k]));
+  State st0 = st;
+  for (int i = 0; i < m.nnode; ++i)
+    if (m.cuts.node_branch[i] >= 0)
+      for (int k = 0; k < kBranchFunctions; ++k)
+        for (int c = 0; c < 3; ++c) st0.u[3 * (m.cuts.node_branch[i] + k) + c] = 0.0;
+  const TissueSurface ts0(m, st0, 2);
+  double moved = 0;
+  int sides[2] = {0, 0};
+  for (int k = 0; k < 3 * ts.nvert(); ++k) moved = std::max(moved, std::abs(ts.x[k] - ts0.x[k]));
+  for (int v = 0; v < ts.nvert(); ++v)
+    if (ts.vert_side[v] != 0) ++sides[ts.vert_side[v] > 0];
+  std::printf("surface against the renderer %.2e; the branch DOFs move it by up to %.2e; %d / %d vertices on "
+              "either side of the front's plane\n",
+              worst, moved, sides[0], sides[1]);
+  EXPECT_LT(worst, 1e-6) << "float positions of the renderer (block 2 x 1 x 1)";
+  EXPECT_GT(moved, 1e-3);
+  EXPECT_GT(sides[0], 0);
+  EXPECT_GT(sides[1], 0);
 }
 
 TEST(TissueSurface, UpdatePositionsFollowsTheStateAndChecksItsSize) {

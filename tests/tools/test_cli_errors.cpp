@@ -255,9 +255,12 @@ TEST_F(CliErrors, EnrichedCutFrontRunsStaticAndWithCutsThatDoNotMove) {
   const Result st = incise("static " + path("scene.json"));
   EXPECT_EQ(st.code, 0) << st.out;
   EXPECT_NE(st.out.find(" front elements enriched ("), std::string::npos) << st.out;
-  // Frames run with a cut that does not move; a swept cut and instruments
-  // are refused.
+  // Frames run with a cut that does not move, with a probe too; a swept cut
+  // and a scalpel are refused.
   EXPECT_EQ(incise("run " + path("scene.json") + " --frames 3").code, 0);
+  const Result probe = incise("run " + path("scene.json") + " --frames 3 --set " +
+                              R"('instruments=[{"type": "probe", "radius": 0.1, "pose": {"position": [2.3, 0.5, 1.05]}}]')");
+  EXPECT_EQ(probe.code, 0) << probe.out;
   write("swept.json",
         incise::test::beam_scene_json(2, R"("model": "linear", "young": 1e5, "poisson": 0.3, "density": 1)",
                                       R"(, "cut_front": "enriched", "cuts": [{"type": "swept",
@@ -265,11 +268,11 @@ TEST_F(CliErrors, EnrichedCutFrontRunsStaticAndWithCutsThatDoNotMove) {
   for (const std::string& args :
        {"run " + path("swept.json") + " --frames 3",
         "run " + path("scene.json") + " --frames 3 --set " +
-            R"('instruments=[{"type": "probe", "radius": 0.1, "pose": {"position": [1, 0.5, 1.2]}}]')"}) {
+            R"('instruments=[{"type": "scalpel", "blade": [0.3, 0.01, 0.1], "pose": {"position": [1, 0.5, 1.2]}}]')"}) {
     const Result run = incise(args);
     EXPECT_EQ(run.code, 1) << run.out;
     EXPECT_NE(run.out.find(": cut_front \"enriched\" runs in frames only with cuts that do not move (plane, polygon, "
-                           "mesh) and no instruments so far"),
+                           "mesh) so far; swept cuts and scalpels need \"faces\""),
               std::string::npos) << run.out;
   }
   const Result bad = incise("static " + path("scene.json") + " --set cut_front=edges");
