@@ -1,23 +1,13 @@
 #include "cutting/cut_stage.h"
 
+#include <cstdio>
+
 #include "cutting/blade_sweep.h"
 #include "cutting/cut_apply.h"
-#include "engine/util/error.h"
 
 namespace incise {
 
-void check_front_enrichment_in_frames(const Scene& scene) {
-  if (!scene.front_enrichment) return;
-  bool moving = false;
-  for (const CutSpec& c : scene.cuts) moving = moving || c.type == CutSpec::Type::Swept;
-  for (const InstrumentSpec& i : scene.instruments) moving = moving || i.kind == InstrumentSpec::Kind::Scalpel;
-  if (moving)
-    throw Error(scene.path + ": cut_front \"enriched\" runs in frames only with cuts that do not move (plane, "
-                "polygon, mesh) so far; swept cuts and scalpels need \"faces\" (docs/cutting.md)");
-}
-
 void cutting_stage(Simulation& sim) {
-  check_front_enrichment_in_frames(sim.scene);
   const double t = sim.state.time, dt = sim.model.dt;
   const int swept = sweep_blades(sim);  // the scalpels' bands of this frame
   const CutUpdate cut = update_cuts(sim, t, t + dt, swept > 0);
@@ -38,6 +28,11 @@ void install_cutting_stage(Simulation& sim) {
   for (const InstrumentSpec& i : sim.scene.instruments) scalpel = scalpel || i.kind == InstrumentSpec::Kind::Scalpel;
   if (!sim.scene.cuts.empty() || scalpel) sim.pipeline.set(kStageCutting, cutting_stage);
   warn_cuts_that_cut_nothing(sim);
+  if (scalpel && sim.scene.front_enrichment)
+    std::fprintf(stderr,
+                 "warning: %s: cut_front \"enriched\" enriches the fronts of the scene's cuts once they are "
+                 "complete; the scalpels' incisions keep theirs on element faces (docs/cutting.md)\n",
+                 sim.scene.path.c_str());
 }
 
 }  // namespace incise

@@ -7,12 +7,6 @@
 
 namespace incise {
 
-// cut_front "enriched" in frames: refused (an Error naming the scene) with
-// swept cuts (a moving front's state transfer changes the energy by up to
-// 7% of the gravity work) and instruments (their contact points do not carry
-// the branch DOFs) so far (docs/cutting.md).
-void check_front_enrichment_in_frames(const Scene& scene);
-
 // One run of the stage; records the cut's parts in sim.ws.timing.
 void cutting_stage(Simulation& sim);
 

@@ -582,7 +582,7 @@ void add_branch_nodes(const LevelSets& ls, CutLayout& L, std::vector<int>& enr_n
 }  // namespace
 
 CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts, CutReport* report,
-                             bool branch_front) {
+                             const std::vector<char>& branch_front) {
   CutReport rep;
   CutLayout L;
   const LevelSets ls = corner_level_sets(base.mesh, cuts);
@@ -590,8 +590,11 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
   const std::vector<std::vector<ElemCut>> cuts_of = classify_elements(ls, rep, fronts);
   const std::vector<FacePair> pairs = face_pairs(base);
   const std::vector<char> separated = separate_faces(ls, pairs, L, rep);
-  const std::vector<int> tip =
-      branch_front && !fronts.empty() ? front_elements(base, ls, fronts, cuts_of, L) : std::vector<int>{};
+  std::vector<std::pair<int, int>> enriched_fronts;  // the fronts of the surfaces flagged in branch_front
+  for (const auto& f : fronts)
+    if (static_cast<size_t>(f.second) < branch_front.size() && branch_front[f.second]) enriched_fronts.push_back(f);
+  const std::vector<int> tip = !enriched_fronts.empty() ? front_elements(base, ls, enriched_fronts, cuts_of, L)
+                                                        : std::vector<int>{};
   const PieceSet ps = make_pieces(ls, cuts_of, tip, L, rep);
   const std::vector<std::vector<int>> adj = connect_pieces(ls, pairs, separated, cuts_of, ps);
   rep.bodies = count_bodies(adj);

@@ -46,10 +46,15 @@ struct CutReport {
 // Known limit: node regions are found across shared faces, so a mesh pinched
 // at a single node or edge already counts as two regions there; once a cut
 // splits an element at such a node, the pinch is released.
-// branch_front: the cut front enrichment of CutLayout::node_branch (for now
-// only tools/study_slit_fronts.cpp asks for it; docs/cutting.md); without it
-// a front closes the opening at the last fully crossed element face.
-CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts, CutReport* report = nullptr,
-                             bool branch_front = false);
+// branch_front: the cut front enrichment of CutLayout::node_branch (scene
+// cut_front "enriched", docs/cutting.md) for every surface, or (the vector
+// form: one flag per surface of `cuts`) for those flagged; without it a
+// front closes the opening at the last fully crossed element face.
+CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts, CutReport* report,
+                             const std::vector<char>& branch_front);
+inline CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts,
+                                    CutReport* report = nullptr, bool branch_front = false) {
+  return compute_cut_layout(base, cuts, report, std::vector<char>(branch_front ? cuts.size() : 0, 1));
+}
 
 }  // namespace incise
