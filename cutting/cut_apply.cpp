@@ -8,6 +8,7 @@
 #include <thread>
 
 #include <Eigen/Dense>
+#include <Eigen/Sparse>
 
 #include "engine/fem/element.h"
 #include "engine/fem/polar.h"
@@ -288,9 +289,9 @@ std::vector<int> dofnode_map(const Model& from, const Model& to) {
 // 13.5%; fitting u's b in the energy norm: 6.3%): the old field's sqrt(r)
 // at the old front is not in the new space, so a growing front stays on
 // element faces (prepare_cut) and only fronts at rest are enriched.
-// Points: the 4-point rule on every sub-tetrahedron of the new pieces. The
-// system is dense (nb^3 / 3 flops: a ring of 500 branch DOF nodes, 4e7;
-// rebuilds with enriched fronts come from other cuts only).
+// Points: the 4-point rule on every sub-tetrahedron of the new pieces. A is
+// sparse (branch DOF nodes sharing an element), factored by Eigen's
+// simplicial LDL^T.
 void project_branch_dofs(const Model& from, const State& os, const Model& to, int nf, Kinematics& ns) {
   const CutLayout& L = to.cuts;
   const int npe = to.mesh.npe();
@@ -303,10 +304,12 @@ void project_branch_dofs(const Model& from, const State& os, const Model& to, in
   const int nb = static_cast<int>(node_of.size());
   const std::vector<double>* oldf[4] = {&os.u, &os.v, &os.a, &os.du};
   std::vector<double>* newf[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(nb, nb), R = Eigen::MatrixXd::Zero(nb, 3 * nf);
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(nb, 3 * nf);
+  std::vector<Eigen::Triplet<double>> A;  // (nb, nb), sparse: branch DOF nodes sharing an element
   const Cubature& cub = cubature_tet4();
   double Xe[30], grad[30], N[10];
   std::vector<int> owner, fk;
+  constexpr int kM = 10 * kBranchFunctions;  // branch DOF nodes of one element at most
   for (int e = 0; e < to.nelem; ++e) {
     if (!element_has_branch(to, e)) continue;
     const int* nodes = &to.mesh.tet[static_cast<size_t>(e) * npe];
@@ -319,6 +322,10 @@ void project_branch_dofs(const Model& from, const State& os, const Model& to, in
     std::vector<double> F0(n);  // F_k at each branch DOF node's own node
     for (int j = 0; j < n; ++j)
       F0[j] = owner[j] >= 0 ? branch_function(phi[owner[j]], psi[owner[j]]).F[fk[j]] : 0.0;
+    double Ae[kM * kM] = {0};
+    int idx[kM], m = 0;
+    for (int j = 0; j < n; ++j)
+      if (owner[j] >= 0) idx[m++] = col[to.elem_dof_node[b0 + j]];
     for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P)
       for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
         const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
@@ -333,14 +340,9 @@ void project_branch_dofs(const Model& from, const State& os, const Model& to, in
           double ph = 0, ps = 0;
           for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
           const BranchValue F = branch_function(ph, ps);
-          double basis[10 * kBranchFunctions];  // the element's branch DOF nodes' functions
-          int idx[10 * kBranchFunctions], m = 0;
-          for (int j = 0; j < n; ++j) {
-            if (owner[j] < 0) continue;
-            const int a = owner[j];
-            basis[m] = N[a] * (F.F[fk[j]] - F0[j]);
-            idx[m++] = col[to.elem_dof_node[b0 + j]];
-          }
+          double basis[kM];  // the element's branch DOF nodes' functions, in idx's order
+          for (int j = 0, i = 0; j < n; ++j)
+            if (owner[j] >= 0) basis[i++] = N[owner[j]] * (F.F[fk[j]] - F0[j]);
           ProbeHit old = hit;
           old.piece = from.has_cuts() ? piece_containing(from, e, hit.rst) : -1;
           for (int k = 0; k < nf; ++k) {  // (the branch DOFs of newf are still 0)
@@ -350,11 +352,17 @@ void project_branch_dofs(const Model& from, const State& os, const Model& to, in
               for (int c = 0; c < 3; ++c) R(idx[i], 3 * k + c) += w * basis[i] * (uo[c] - un[c]);
           }
           for (int i = 0; i < m; ++i)
-            for (int j = 0; j < m; ++j) A(idx[i], idx[j]) += w * basis[i] * basis[j];
+            for (int j = 0; j < m; ++j) Ae[i * kM + j] += w * basis[i] * basis[j];
         }
       }
+    for (int i = 0; i < m; ++i)
+      for (int j = 0; j < m; ++j) A.emplace_back(idx[i], idx[j], Ae[i * kM + j]);
   }
-  const Eigen::MatrixXd B = A.ldlt().solve(R);
+  Eigen::SparseMatrix<double> As(nb, nb);
+  As.setFromTriplets(A.begin(), A.end());
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(As);
+  if (ldlt.info() != Eigen::Success) return;  // (no branch DOF with any support: they stay 0)
+  const Eigen::MatrixXd B = ldlt.solve(R);
   for (int j = 0; j < nb; ++j)
     for (int k = 0; k < nf; ++k)
       for (int c = 0; c < 3; ++c) (*newf[k])[3 * node_of[j] + c] = std::isfinite(B(j, 3 * k + c)) ? B(j, 3 * k + c) : 0.0;
