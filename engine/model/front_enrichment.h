@@ -33,7 +33,9 @@ namespace incise {
 // "Issue 21: the enrichment ring"). Likely cause, not verified: where F1..F3
 // are smooth over a node's support, N_a (F_k - F_k(x_a)) summed over the
 // nodes is F_k minus its interpolant, almost zero: a near-null direction
-// of the stiffness (F0 jumps across the cut, so it has none there).
+// of the stiffness (F0 jumps across the cut, so it has none there). With
+// the ring and all four, CHOLMOD found the slit's stiffness not positive
+// definite (nineteenth session), which fits.
 inline constexpr int kTipFunctions = 4;
 inline constexpr int kBranchFunctions = 1;
 struct BranchValue {
