@@ -100,7 +100,12 @@ void collision_stage(Simulation& sim) {
     if (!touches(spec)) continue;
     const ToolFrame& tf = sim.tools[i];
     if (spec.kind == InstrumentSpec::Kind::Grasper) {
-      update_grasp(sim.model, spec, tf, surface, sim.model_version, cd.grasps[i]);
+      const bool was_holding = cd.grasps[i].holding;
+      const std::vector<HeldPoint>* imposed = nullptr;
+      for (const GraspTaken& g : cd.imposed)
+        if (g.frame == sim.state.frame && g.tool == static_cast<int>(i)) imposed = &g.held;
+      update_grasp(sim.model, spec, tf, surface, sim.model_version, cd.grasps[i], imposed);
+      if (!was_holding && cd.grasps[i].holding) cd.taken.push_back({sim.state.frame, static_cast<int>(i), cd.grasps[i].held});
       if (cd.grasps[i].holding) {
         add_grasp_rows(sim.state, cd.grasps[i], tf, sim.model.dt, static_cast<int>(i), surface, rows);
         continue;  // the jaws hold: no contact rows from them

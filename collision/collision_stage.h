@@ -32,6 +32,8 @@ struct CollisionData {
   std::vector<double> margin;            // (instruments) detection margin (tool length units)
   std::vector<ContactResult> results;    // (instruments) the last query
   std::vector<Grasp> grasps;             // (instruments) held points of graspers
+  std::vector<GraspTaken> taken;         // every grasp's points when it closed, in order
+  std::vector<GraspTaken> imposed;       // points to take instead when a grasp closes (incise compare)
   ContactRequest request;
   std::vector<unsigned char> face_seen;  // (surface faces) tool parts with a row on the face this frame
   struct Candidate {

@@ -10,7 +10,7 @@
 namespace incise {
 
 void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFrame& tool, const TissueSurface& surface,
-                  int model_version, Grasp& grasp) {
+                  int model_version, Grasp& grasp, const std::vector<HeldPoint>* imposed) {
   const bool closed = tool.after.jaw >= spec.grasp_at;
   if (!closed) {
     grasp.holding = false;
@@ -22,6 +22,13 @@ void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFram
       for (HeldPoint& h : grasp.held) h.piece = piece_containing(model, h.elem, h.rst);
       grasp.model_version = model_version;
     }
+    return;
+  }
+  if (imposed) {
+    grasp.held = *imposed;
+    for (HeldPoint& h : grasp.held) h.piece = model.has_cuts() ? piece_containing(model, h.elem, h.rst) : -1;
+    grasp.holding = !grasp.held.empty();
+    grasp.model_version = model_version;
     return;
   }
   // Closing now: the vertices between the jaws, in the tool frame at the

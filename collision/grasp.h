@@ -28,6 +28,16 @@ struct Grasp {
   std::vector<HeldPoint> held;
 };
 
+// The points a grasp took when it closed (frame: State::frame of the frame
+// it closed in; tool: the instrument), as logged by the collision stage and
+// imposed on another run of the same scene (incise compare: the policy's
+// grasps take the reference's points, so its error measures the solver, not
+// which surface points happened to lie between the jaws).
+struct GraspTaken {
+  int frame = 0, tool = 0;
+  std::vector<HeldPoint> held;
+};
+
 // Most points a grasp holds (three rows each).
 inline constexpr int kMaxHeldPoints = 6;
 
@@ -36,8 +46,10 @@ inline constexpr int kMaxHeldPoints = 6;
 // their inner faces and up to a jaw thickness beyond, nearest the tool's
 // origin, at their place in the tool frame at the frame's start. After a cut
 // (a new model version) the held points' pieces are looked up on `model`.
+// imposed: when closing, take these points instead (their pieces looked up
+// on `model`).
 void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFrame& tool, const TissueSurface& surface,
-                  int model_version, Grasp& grasp);
+                  int model_version, Grasp& grasp, const std::vector<HeldPoint>* imposed = nullptr);
 
 // The rows of a holding grasp: each point from where it is now to where the
 // jaws carry it at the frame's end (moving with them: the rows' velocity).

@@ -104,5 +104,41 @@ TEST(Grasp, AGrasperLiftsAFlapAndLetsItFallBack) {
   EXPECT_NEAR(flap_end_lift(*sim), flap_end_lift(*untouched), 0.02 * held_lift) << "the flap fell back";
 }
 
+// The collision stage logs the points each grasp took when it closed; a
+// second run given that log (as incise compare gives the policy the
+// reference's) takes exactly those points, here a run started with the
+// flap's upper layer 2 mm higher, which left alone takes other points.
+TEST(Grasp, ARunTakesTheGraspPointsItIsGiven) {
+  auto first = flap_sim(true);
+  while (first->state.time < 0.3) advance_frame(*first);
+  const std::vector<GraspTaken> taken = collision_data(*first)->taken;
+  ASSERT_EQ(taken.size(), 1u);
+  ASSERT_FALSE(taken[0].held.empty());
+  auto second = flap_sim(true);
+  for (double& u : second->state.u) u = 0.0;
+  for (int i = 0; i < second->model.nnode; ++i)  // another position at closing: other vertices between the jaws
+    if (second->model.X[3 * i + 2] > 0.045) second->state.u[3 * i + 2] = 0.002;
+  auto third = flap_sim(true);
+  for (int i = 0; i < third->model.nnode; ++i) third->state.u[3 * i + 2] = second->state.u[3 * i + 2];
+  collision_data(*second)->imposed = taken;
+  while (second->state.time < 0.3) advance_frame(*second), advance_frame(*third);
+  const std::vector<HeldPoint>& got = collision_data(*second)->grasps[0].held;
+  ASSERT_EQ(got.size(), taken[0].held.size());
+  for (size_t k = 0; k < got.size(); ++k) {
+    EXPECT_EQ(got[k].elem, taken[0].held[k].elem);
+    for (int d = 0; d < 3; ++d) {
+      EXPECT_EQ(got[k].rst[d], taken[0].held[k].rst[d]);
+      EXPECT_EQ(got[k].local[d], taken[0].held[k].local[d]);
+    }
+  }
+  EXPECT_EQ(collision_data(*second)->taken[0].frame, taken[0].frame);
+  // Left to itself the same start takes other points.
+  const std::vector<HeldPoint>& free = collision_data(*third)->grasps[0].held;
+  bool differs = free.size() != taken[0].held.size();
+  for (size_t k = 0; !differs && k < free.size(); ++k)
+    for (int d = 0; d < 3; ++d) differs = differs || free[k].local[d] != taken[0].held[k].local[d];
+  EXPECT_TRUE(differs) << "the test needs a start whose grasp takes other points";
+}
+
 }  // namespace
 }  // namespace incise
