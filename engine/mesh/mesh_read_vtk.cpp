@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -19,6 +20,14 @@
 
 namespace incise::meshio {
 namespace {
+
+// 3 n values must be countable (a smaller absurd count is refused when the
+// data runs out, naming how many values the header announced).
+void check_point_count(const TextFile& f, long long n) {
+  constexpr long long kMaxPoints = std::numeric_limits<long long>::max() / 3;
+  if (n > kMaxPoints)
+    f.fail("the number of points must be at most " + std::to_string(kMaxPoints) + ", got " + std::to_string(n));
+}
 
 int tet_nodes(long long type) { return type == 10 ? 4 : type == 24 ? 10 : 0; }
 const char* kKinds = "VTK cell types 10 (tet4) and 24 (tet10)";
@@ -154,6 +163,7 @@ Mesh read_legacy_binary(TextFile& f, const std::string& path) {
       const long long n = get_long(f, tok[1], "the number of points");
       const size_t each = b.size_of(tok[2]);
       if (n < 0) f.fail("the number of points must not be negative");
+      check_point_count(f, n);
       b.check(3 * static_cast<uint64_t>(n), each, "POINTS");
       for (long long p = 0; p < n; ++p) {
         double x[3];
@@ -271,6 +281,7 @@ Mesh read_legacy(const std::string& path) {
       const int hline = f.line();
       const long long n = t.need_long("the number of points");
       if (n < 0) f.fail("the number of points must not be negative");
+      check_point_count(f, n);
       t.need("the point data type");
       for (long long p = 0; p < n; ++p) {
         double x[3];

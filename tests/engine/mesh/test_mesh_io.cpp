@@ -277,6 +277,14 @@ TEST_F(MeshIo, MalformedNumbersNameFileAndLine) {
 }
 
 TEST_F(MeshIo, NonFiniteCoordinatesAreRejected) {
+  // A count whose 3 values per point would overflow (found by fuzz_mesh).
+  const std::string big = error_of([&] {
+    read_mesh(write("big.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\n"
+                               "POINTS 8647214748364882058 double\n0 0 0\n"));
+  });
+  EXPECT_NE(big.find("big.vtk:5: the number of points must be at most 3074457345618258602, got 8647214748364882058"),
+            std::string::npos)
+      << big;
   std::string p = write("nan.vtk",
                         "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n0 0 0\n1 0 0\n"
                         "0 nan 0\n0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n");
