@@ -436,6 +436,7 @@ CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_chan
 
 CutUpdate apply_all_cuts(Simulation& sim) {
   warn_cuts_that_cut_nothing(sim);
+  for (const std::string& w : fronts_left_on_faces(sim)) std::fprintf(stderr, "warning: %s\n", w.c_str());
   std::vector<double> progress(sim.scene.cuts.size(), 1.0);
   double t_end = 0.0;
   for (const CutSpec& c : sim.scene.cuts) t_end = std::max(t_end, c.at_time + c.duration);
@@ -465,6 +466,28 @@ std::vector<std::string> cuts_that_cut_nothing(const Simulation& sim) {
 
 void warn_cuts_that_cut_nothing(const Simulation& sim) {
   for (const std::string& w : cuts_that_cut_nothing(sim)) std::fprintf(stderr, "warning: %s\n", w.c_str());
+}
+
+std::vector<std::string> fronts_left_on_faces(const Simulation& sim) {
+  std::vector<std::string> out;
+  if (!sim.scene.front_enrichment) return out;
+  std::vector<std::unique_ptr<CutSurface>> owned;
+  std::vector<const CutSurface*> surfaces;
+  std::vector<const CutSpec*> spec;
+  for (const CutSpec& c : sim.scene.cuts)  // each complete (a swept cut at the end of its sweep)
+    if (auto s = make_cut_surface(c, c.at_time + c.duration)) {
+      surfaces.push_back(s.get());
+      owned.push_back(std::move(s));
+      spec.push_back(&c);
+    }
+  if (surfaces.empty()) return out;
+  CutReport rep;
+  compute_cut_layout(sim.model, surfaces, &rep, true);
+  for (int k : rep.fronts_on_faces)
+    out.push_back((sim.scene.path.empty() ? std::string() : sim.scene.path + ": ") + spec[k]->json_path +
+                  ": its front stays on element faces: it lies a few elements from an earlier cut's enriched "
+                  "front, or in an element another cut splits (cut_front \"enriched\", docs/cutting.md)");
+  return out;
 }
 
 }  // namespace incise

@@ -47,6 +47,9 @@ CutUpdate apply_all_cuts(Simulation& sim);
 std::vector<std::string> cuts_that_cut_nothing(const Simulation& sim);
 // Prints them to stderr as warnings; called once when cutting is set up.
 void warn_cuts_that_cut_nothing(const Simulation& sim);
+// cut_front "enriched": the scene cuts whose fronts, all cuts complete, stay
+// on element faces (compute_cut_layout's fronts_on_faces), one message each.
+std::vector<std::string> fronts_left_on_faces(const Simulation& sim);
 
 struct Kinematics {
   std::vector<double> u, v, a;  // (to.ndof) the transferred fields

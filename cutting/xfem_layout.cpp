@@ -590,11 +590,30 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
   const std::vector<std::vector<ElemCut>> cuts_of = classify_elements(ls, rep, fronts);
   const std::vector<FacePair> pairs = face_pairs(base);
   const std::vector<char> separated = separate_faces(ls, pairs, L, rep);
-  std::vector<std::pair<int, int>> enriched_fronts;  // the fronts of the surfaces flagged in branch_front
-  for (const auto& f : fronts)
-    if (static_cast<size_t>(f.second) < branch_front.size() && branch_front[f.second]) enriched_fronts.push_back(f);
-  const std::vector<int> tip = !enriched_fronts.empty() ? front_elements(base, ls, enriched_fronts, cuts_of, L)
-                                                        : std::vector<int>{};
+  // The fronts of the surfaces flagged in branch_front, surface by surface:
+  // one that front_elements refuses beside the earlier ones (two fronts a
+  // few elements apart, a front element another cut splits) keeps its
+  // front on faces.
+  std::vector<std::pair<int, int>> enriched_fronts;
+  for (int c = 0; c < static_cast<int>(cuts.size()); ++c) {
+    if (static_cast<size_t>(c) >= branch_front.size() || !branch_front[c]) continue;
+    std::vector<std::pair<int, int>> trial = enriched_fronts;
+    for (const auto& f : fronts)
+      if (f.second == c) trial.push_back(f);
+    if (trial.size() == enriched_fronts.size()) continue;  // no front inside the body
+    try {
+      front_elements(base, ls, trial, cuts_of, L);
+      enriched_fronts = std::move(trial);
+    } catch (const Error&) {
+      rep.fronts_on_faces.push_back(c);
+    }
+  }
+  // L as for the accepted set (a refused trial may have written part of it).
+  std::vector<int> tip;
+  L.node_branch.clear();
+  L.front_phi.clear();
+  L.front_psi.clear();
+  if (!enriched_fronts.empty()) tip = front_elements(base, ls, enriched_fronts, cuts_of, L);
   const PieceSet ps = make_pieces(ls, cuts_of, tip, L, rep);
   const std::vector<std::vector<int>> adj = connect_pieces(ls, pairs, separated, cuts_of, ps);
   rep.bodies = count_bodies(adj);

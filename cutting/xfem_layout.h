@@ -39,6 +39,11 @@ struct CutReport {
   int enriched_nodes = 0;  // enriched DOF nodes
   double min_fraction = 1.0;  // smallest piece volume fraction
   int bodies = 1;          // connected pieces of tissue after the cuts
+  // Surfaces (indices into `cuts`) flagged for front enrichment whose front
+  // stayed on element faces: it lies too close to an earlier surface's
+  // enriched front (a corner carries one front's level sets) or in an
+  // element another cut splits.
+  std::vector<int> fronts_on_faces;
 };
 
 // cuts: the active surfaces (order = enrichment order). base: a model of the
@@ -49,7 +54,9 @@ struct CutReport {
 // branch_front: the cut front enrichment of CutLayout::node_branch (scene
 // cut_front "enriched", docs/cutting.md) for every surface, or (the vector
 // form: one flag per surface of `cuts`) for those flagged; without it a
-// front closes the opening at the last fully crossed element face.
+// front closes the opening at the last fully crossed element face. Flagged
+// surfaces are taken in order; one whose front cannot be enriched beside
+// the earlier ones keeps it on faces (report->fronts_on_faces).
 CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts, CutReport* report,
                              const std::vector<char>& branch_front);
 inline CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurface*>& cuts,
