@@ -35,10 +35,6 @@ PointWeights point_dof_weights(int npe, const int* nodes, const int* enr, const 
   return w;
 }
 
-int point_front_side(int npe, const int* nodes, const BranchView& branch, const double rst[3]) {
-  return branch.node_branch ? front_side(npe, nodes, branch.node_branch, branch.front_phi, rst) : 0;
-}
-
 void point_reference_position(const Model& m, int elem, const double rst[3], double X[3]) {
   const int npe = m.mesh.npe();
   double N[10];

@@ -43,11 +43,6 @@ PointWeights point_dof_weights(const Model& model, int elem, int piece, const do
 PointWeights point_dof_weights(int npe, const int* nodes, const int* enr, const double rst[3],
                                const BranchView& branch = {}, int side = 0);
 
-// The side of the front's cut plane (+1 or -1, + on it) that local point rst
-// of an element with these nodes lies on; 0 when none of its nodes has
-// branch DOF nodes.
-int point_front_side(int npe, const int* nodes, const BranchView& branch, const double rst[3]);
-
 // Reference position X(rst) = sum_a N_a(rst) X_a of the point.
 void point_reference_position(const Model& model, int elem, const double rst[3], double X[3]);
 

@@ -4,6 +4,7 @@
 
 #include "engine/fem/element.h"
 #include "engine/mesh/mesh.h"
+#include "engine/model/front_enrichment.h"
 #include "engine/output/display_mesh.h"
 #include "engine/output/face_grid.h"
 #include "engine/output/surface_extract.h"
@@ -47,15 +48,14 @@ TissueSurface::TissueSurface(const Model& m, const State& s, int segs) {
     const int e = d.cell_elem[c], piece = d.cell_piece[c];
     const int* corner = kTetFace[surf.face_local[f]];  // the face's corners in the cell, outward order
     const double* crst = &d.cell_rst[static_cast<size_t>(d.npe()) * 3 * c];
-    // A sub-tetrahedron's side of the front's cut plane: its centroid's (its
-    // cut faces lie on the plane, where phi's sign is roundoff), as the
-    // display takes it. A whole element's points take phi's own sign (0):
-    // one may straddle the plane ahead of the front, where F is continuous.
-    double centroid[3] = {0, 0, 0};
-    for (int k = 0; k < 4; ++k)
-      for (int j = 0; j < 3; ++j) centroid[j] += 0.25 * crst[3 * k + j];
-    const bool sub = m.has_cuts() && m.cuts.elem_split[e];
-    const int side = sub ? point_front_side(npe, &elem_node[static_cast<size_t>(e) * npe], branch, centroid) : 0;
+    // A sub-tetrahedron's side of the front's cut plane (its cut faces lie
+    // on the plane, where phi's sign is roundoff), as the display takes it.
+    // A whole element's points take phi's own sign (0): one may straddle the
+    // plane ahead of the front, where F is continuous.
+    const bool sub = branch.node_branch && m.cuts.elem_split[e];
+    const int side = sub ? subtet_front_side(npe, &elem_node[static_cast<size_t>(e) * npe], branch.node_branch,
+                                             branch.front_phi, crst)
+                         : 0;
     const int base = nvert();
     for (int v = 0; v < vpf; ++v) {
       // rst is linear over the cell's (sub-)tetrahedron, so over the face.

@@ -436,7 +436,6 @@ CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_chan
 
 CutUpdate apply_all_cuts(Simulation& sim) {
   warn_cuts_that_cut_nothing(sim);
-  for (const std::string& w : fronts_left_on_faces(sim)) std::fprintf(stderr, "warning: %s\n", w.c_str());
   std::vector<double> progress(sim.scene.cuts.size(), 1.0);
   double t_end = 0.0;
   for (const CutSpec& c : sim.scene.cuts) t_end = std::max(t_end, c.at_time + c.duration);
@@ -466,6 +465,7 @@ std::vector<std::string> cuts_that_cut_nothing(const Simulation& sim) {
 
 void warn_cuts_that_cut_nothing(const Simulation& sim) {
   for (const std::string& w : cuts_that_cut_nothing(sim)) std::fprintf(stderr, "warning: %s\n", w.c_str());
+  for (const std::string& w : fronts_left_on_faces(sim)) std::fprintf(stderr, "warning: %s\n", w.c_str());
 }
 
 std::vector<std::string> fronts_left_on_faces(const Simulation& sim) {

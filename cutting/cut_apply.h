@@ -45,7 +45,8 @@ CutUpdate apply_all_cuts(Simulation& sim);
 // message each ("scene.json: cuts[1] does not cross the body: it cuts
 // nothing"), so a misplaced cut is not silently a no-op.
 std::vector<std::string> cuts_that_cut_nothing(const Simulation& sim);
-// Prints them to stderr as warnings; called once when cutting is set up.
+// Prints them, and fronts_left_on_faces', to stderr as warnings; called once
+// when cutting is set up.
 void warn_cuts_that_cut_nothing(const Simulation& sim);
 // cut_front "enriched": the scene cuts whose fronts, all cuts complete, stay
 // on element faces (compute_cut_layout's fronts_on_faces), one message each.

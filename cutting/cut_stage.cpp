@@ -28,7 +28,6 @@ void install_cutting_stage(Simulation& sim) {
   for (const InstrumentSpec& i : sim.scene.instruments) scalpel = scalpel || i.kind == InstrumentSpec::Kind::Scalpel;
   if (!sim.scene.cuts.empty() || scalpel) sim.pipeline.set(kStageCutting, cutting_stage);
   warn_cuts_that_cut_nothing(sim);
-  for (const std::string& w : fronts_left_on_faces(sim)) std::fprintf(stderr, "warning: %s\n", w.c_str());
   if (scalpel && sim.scene.front_enrichment)
     std::fprintf(stderr,
                  "warning: %s: cut_front \"enriched\" enriches the fronts of the scene's cuts once they are "

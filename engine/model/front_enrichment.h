@@ -85,6 +85,13 @@ inline void front_node_values(const Model& m, int e, double* phi, double* psi) {
                     phi, psi);
 }
 
+// Whether any of an element's npe mesh nodes has branch DOF nodes.
+inline bool nodes_have_branch(int npe, const int* nodes, const int* node_branch) {
+  for (int a = 0; a < npe; ++a)
+    if (node_branch[nodes[a]] >= 0) return true;
+  return false;
+}
+
 // The branch part of the field at a point with shape values N of an element
 // with these nodes: f(b, w) for each branch DOF node b and its weight
 // w = N_a (F_k(x) - F_k(x_a)). side: +1 or -1, the side of the cut's plane
@@ -94,9 +101,7 @@ inline void front_node_values(const Model& m, int e, double* phi, double* psi) {
 template <class Fn>
 void for_each_branch_weight(int npe, const int* nodes, const int* node_branch, const double* front_phi,
                             const double* front_psi, const double* N, int side, Fn&& f) {
-  bool any = false;
-  for (int a = 0; a < npe && !any; ++a) any = node_branch[nodes[a]] >= 0;
-  if (!any) return;
+  if (!nodes_have_branch(npe, nodes, node_branch)) return;
   double phi[10], psi[10], ph = 0, ps = 0;
   front_node_values(npe, nodes, front_phi, front_psi, phi, psi);
   for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
@@ -127,20 +132,15 @@ inline void branch_owners(const Model& m, const int* local, int n, std::vector<i
 
 // Whether element e has a node with a branch DOF node.
 inline bool element_has_branch(const Model& m, int e) {
-  if (!m.cuts.has_branch()) return false;
   const int npe = m.mesh.npe();
-  for (int a = 0; a < npe; ++a)
-    if (m.cuts.node_branch[m.mesh.tet[static_cast<size_t>(e) * npe + a]] >= 0) return true;
-  return false;
+  return m.cuts.has_branch() && nodes_have_branch(npe, &m.mesh.tet[static_cast<size_t>(e) * npe], m.cuts.node_branch.data());
 }
 
 // The side of the front's cut plane (the sign of phi, + at 0) local point
 // rst of element e lies on; 0 when e has no branch DOF node.
 // From the element's npe mesh nodes and the CutLayout arrays (no Model).
 inline int front_side(int npe, const int* nodes, const int* node_branch, const double* front_phi, const double rst[3]) {
-  bool any = false;
-  for (int a = 0; a < npe && !any; ++a) any = node_branch[nodes[a]] >= 0;
-  if (!any) return 0;
+  if (!nodes_have_branch(npe, nodes, node_branch)) return 0;
   const double f = (1 - rst[0] - rst[1] - rst[2]) * front_phi[nodes[0]] + rst[0] * front_phi[nodes[1]] +
                    rst[1] * front_phi[nodes[2]] + rst[2] * front_phi[nodes[3]];
   return f < 0 ? -1 : 1;
@@ -150,6 +150,18 @@ inline int front_side(const Model& m, int e, const double rst[3]) {
   const int npe = m.mesh.npe();
   return front_side(npe, &m.mesh.tet[static_cast<size_t>(e) * npe], m.cuts.node_branch.data(), m.cuts.front_phi.data(),
                     rst);
+}
+
+// The side of a sub-tetrahedron v (4 x 3 local coordinates) of an element:
+// its centroid's (its corners on the plane take that side; 0 without
+// branch DOF nodes). The display and the collision surface take it for
+// every point of the sub-tetrahedron.
+inline int subtet_front_side(int npe, const int* nodes, const int* node_branch, const double* front_phi,
+                             const double* v) {
+  double c[3] = {0, 0, 0};
+  for (int k = 0; k < 4; ++k)
+    for (int d = 0; d < 3; ++d) c[d] += 0.25 * v[3 * k + d];
+  return front_side(npe, nodes, node_branch, front_phi, c);
 }
 
 // Adds the branch DOFs' part of a field at a point of element e (N: the

@@ -15,16 +15,6 @@ void append_reference_rst(int npe, std::vector<double>& out) {
       out.push_back(a < 4 ? corner[a][c] : 0.5 * (corner[kTet10Edge[a - 4][0]][c] + corner[kTet10Edge[a - 4][1]][c]));
 }
 
-// Which side of the front's cut plane sub-tetrahedron v (4 x 3 local
-// coordinates) of element e lies on: its centroid's (0 without front
-// enrichment). Its corners on the plane take that side.
-int subtet_side(const Model& m, int e, const double* v) {
-  double c[3] = {0, 0, 0};
-  for (int k = 0; k < 4; ++k)
-    for (int d = 0; d < 3; ++d) c[d] += 0.25 * v[3 * k + d];
-  return front_side(m, e, c);
-}
-
 }  // namespace
 
 DisplayMesh display_mesh(const Model& m, const State& s) {
@@ -81,7 +71,9 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
       const int* enr = &L.piece_enr[static_cast<size_t>(P) * npe];
       for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
         const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
-        const int side = subtet_side(m, e, v);
+        const int side = m.cuts.has_branch() ? subtet_front_side(npe, nodes, m.cuts.node_branch.data(),
+                                                                 m.cuts.front_phi.data(), v)
+                                              : 0;
         for (int a = 0; a < npe; ++a) {
           double r[3];
           if (a < 4) {

@@ -275,9 +275,9 @@ struct Scene {
   std::vector<CutSpec> cuts;
   // cut_front "enriched": cut fronts inside elements open up to the front
   // line (the front enrichment of engine/model/cut_layout.h) instead of
-  // closing at the last fully crossed face ("faces"). Static solves, and
-  // frames with cuts that do not move and no instruments: the cutting stage
-  // refuses swept cuts and instruments with it (docs/cutting.md).
+  // closing at the last fully crossed face ("faces"): a scene cut's once it
+  // is complete; a scalpel's incision keeps its front on faces
+  // (cutting/cut_apply.cpp prepare_cut, docs/cutting.md).
   bool front_enrichment = false;
   std::vector<InstrumentSpec> instruments;
   ContactSettings contact;
