@@ -153,6 +153,171 @@ bool same_rows(const ContactRows& c, const Workspace& ws) {
   return c.ptr == ws.contact_Y_ptr && c.dof == ws.contact_Y_dof && c.coef == ws.contact_Y_coef;
 }
 
+// constrained_refine's projection for the active rows act: H_A on the free
+// DOFs, Y's columns, W_AA^-1 (a complete orthogonal decomposition: rows
+// redundant to roundoff, several contacts on one face, leave W_AA singular,
+// and the least-norm multipliers keep the projection defined).
+class ActiveRowProjection final : public ConstraintProjection {
+ public:
+  ActiveRowProjection(const Model& m, const ContactRows& c, const double* Y, const std::vector<int>& act,
+                      const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& Winv)
+      : m_(m), c_(c), Y_(Y), act_(act), Winv_(Winv), mu(Eigen::VectorXd::Zero(static_cast<int>(act.size()))),
+        t_(static_cast<int>(act.size())) {}
+
+  void primal(double* z) override {  // z -= Y W^-1 H z
+    if (act_.empty()) return;
+    for (size_t a = 0; a < act_.size(); ++a) {
+      const int i = act_[a];
+      double hz = 0.0;
+      for (int k = c_.ptr[i]; k < c_.ptr[i + 1]; ++k)
+        if (!m_.constrained[c_.dof[k]]) hz += c_.coef[k] * z[c_.dof[k]];
+      t_[static_cast<int>(a)] = hz;
+    }
+    const Eigen::VectorXd nu = Winv_.solve(t_);
+    const int n = m_.ndof();
+    for (size_t a = 0; a < act_.size(); ++a) {
+      const double* y = Y_ + static_cast<size_t>(act_[a]) * n;
+      for (int d = 0; d < n; ++d) z[d] -= nu[static_cast<int>(a)] * y[d];
+    }
+  }
+  void dual(double* r) override {  // r -= H^T W^-1 Y^T r, the removed multipliers summed in mu
+    if (act_.empty()) return;
+    const int n = m_.ndof();
+    for (size_t a = 0; a < act_.size(); ++a) {
+      const double* y = Y_ + static_cast<size_t>(act_[a]) * n;
+      double yr = 0.0;
+      for (int d = 0; d < n; ++d) yr += y[d] * r[d];
+      t_[static_cast<int>(a)] = yr;
+    }
+    const Eigen::VectorXd dm = Winv_.solve(t_);
+    for (size_t a = 0; a < act_.size(); ++a) {
+      const int i = act_[a];
+      for (int k = c_.ptr[i]; k < c_.ptr[i + 1]; ++k)
+        if (!m_.constrained[c_.dof[k]]) r[c_.dof[k]] -= dm[static_cast<int>(a)] * c_.coef[k];
+    }
+    mu += dm;
+  }
+
+ private:
+  const Model& m_;
+  const ContactRows& c_;
+  const double* Y_;
+  const std::vector<int>& act_;
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& Winv_;
+
+ public:
+  Eigen::VectorXd mu;  // (nact) H_A^T mu removed from the residuals so far
+
+ private:
+  Eigen::VectorXd t_;
+};
+
+// One refinement (solve_contacts, contact.refine_rounds): the active rows of
+// lambda held, the Newton increment du = Delta - base minimised over them by
+// constrained_refine on A du = rhs0 + H^T lambda (rhs0: the Newton residual
+// without the contact force), lambda_A taking the multipliers. True when the
+// result leaves the LCP's feasible set (a contact pulling, friction off its
+// cone, an inactive contact pressed in by more than tol_move): the LCP then
+// runs again from it. False when feasible, or when there was nothing to do.
+bool refine_on_active_rows(const Model& m, Workspace& ws, std::vector<double>& lambda, double tol_move) {
+  ContactRows& c = ws.contacts;
+  const std::vector<double>& W = ws.contact_W;
+  const std::vector<double>& rhs0 = ws.contact_rhs;
+  const std::vector<double>& base = ws.contact_base;
+  const int r = c.nrow(), n = m.ndof();
+  // No active row left (a release: lambda_old back to 0 through Y) is plain
+  // CG on the same system.
+  const std::vector<int> act = active_rows(c, W, lambda);
+  const int k = static_cast<int>(act.size());
+  Eigen::MatrixXd Wa = Eigen::MatrixXd::Identity(std::max(k, 1), std::max(k, 1));
+  for (int a = 0; a < k; ++a)
+    for (int q = 0; q < k; ++q) Wa(a, q) = W[static_cast<size_t>(act[a]) * r + act[q]];
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> Winv(Wa);
+  std::vector<double>& b = ws.contact_b;
+  std::vector<double>& x = ws.contact_x;
+  resize_with_headroom(b, n);
+  resize_with_headroom(x, n);
+  std::copy(rhs0.begin(), rhs0.begin() + n, b.begin());
+  for (int i = 0; i < r; ++i)
+    for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e)
+      if (!m.constrained[c.dof[e]]) b[c.dof[e]] += c.coef[e] * lambda[i];
+  for (int d = 0; d < n; ++d) x[d] = ws.delta[d] - base[d];
+  ActiveRowProjection proj(m, c, ws.contact_work.data(), act, Winv);
+  if (!constrained_refine(m, ws, b.data(), x.data(), proj) || !proj.mu.allFinite()) return false;
+  for (int d = 0; d < n; ++d)
+    if (!m.constrained[d]) ws.delta[d] = base[d] + x[d];
+  // b - A du = H_A^T mu: the rows' forces are lambda - mu.
+  for (int a = 0; a < k; ++a) lambda[act[a]] -= proj.mu[a];
+  c.lambda = lambda;
+  for (int i = 0; i < r; ++i) {
+    if (!(W[static_cast<size_t>(i) * r + i] > 0.0)) continue;
+    switch (c.kind[i]) {
+      case RowKind::Contact: {
+        if (lambda[i] < 0.0) return true;
+        double hd = 0.0;
+        for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e) hd += c.coef[e] * ws.delta[c.dof[e]];
+        if (hd < c.target[i] - tol_move) return true;
+        break;
+      }
+      case RowKind::Friction:
+        if (std::abs(lambda[i]) > c.friction * std::max(0.0, lambda[c.normal_row[i]])) return true;
+        break;
+      case RowKind::Grasp:
+        break;
+    }
+  }
+  return false;
+}
+
+// One solve of the LCP from the rows' state after the increment so far
+// (b = target - H Delta + W lambda_old, W: the compliance PGS and the polish
+// use, with the tools' springs), then Delta += Y dlambda and lambda taken.
+// Returns the PGS sweeps.
+int lcp_round(const Model& m, Workspace& ws, const std::vector<double>& Wsolve) {
+  ContactRows& c = ws.contacts;
+  const int r = c.nrow(), n = m.ndof();
+  const std::vector<double>& W = ws.contact_W;  // the tissue's: it is the tissue that moved by W lambda_old
+  std::vector<double> b(r), lambda = c.lambda;
+  for (int i = 0; i < r; ++i) {
+    double hd = 0.0, wl = 0.0;
+    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) hd += c.coef[k] * ws.delta[c.dof[k]];
+    for (int j = 0; j < r; ++j) wl += W[static_cast<size_t>(i) * r + j] * c.lambda[j];
+    b[i] = c.target[i] - hd + wl;
+  }
+  const int sweeps = projected_gauss_seidel(c, Wsolve, b, lambda, c.max_sweeps, 1e-12 * ws.contact_scale);
+  polish_active_set(c, Wsolve, b, lambda);
+  for (int i = 0; i < r; ++i) {
+    const double dl = lambda[i] - c.lambda[i];
+    if (dl == 0.0) continue;
+    const double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
+    for (int d = 0; d < n; ++d) ws.delta[d] += dl * y[d];
+  }
+  c.lambda = lambda;
+  return sweeps;
+}
+
+// ws.contact_force = H^T lambda and the total force in ws.timing.
+void record_contact_force(const Model& m, Workspace& ws) {
+  const ContactRows& c = ws.contacts;
+  ws.contact_force.assign(m.ndof(), 0.0);
+  double F[3] = {0, 0, 0};
+  for (int i = 0; i < c.nrow(); ++i) {
+    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) ws.contact_force[c.dof[k]] += c.coef[k] * c.lambda[i];
+    for (int d = 0; d < 3; ++d) F[d] += c.lambda[i] * c.dir[3 * i + d];
+  }
+  ws.timing.contact_force = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+}
+
+// Whether the refinement applies (contact_solve.h): the iterative policies (exact's Y is
+// A^-1; warped has no A to refine on) and no tool held through a spring (its
+// rows are not constraints on Delta alone).
+bool refinable(const Model& m, const ContactRows& c) {
+  if (c.refine_rounds <= 0 || !iterative_policy(m)) return false;
+  for (int i = 0; i < c.nrow(); ++i)
+    if (c.tool_compliance(i) > 0.0) return false;
+  return true;
+}
+
 }  // namespace
 
 void solve_contacts(const Model& m, State& s, Workspace& ws) {
@@ -200,7 +365,6 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   std::vector<double>& W = ws.contact_W;
   if (!reuse) W.assign(static_cast<size_t>(r) * r, 0.0);
   ws.contact_frame = s.frame;
-  std::vector<double> b(r), lambda = c.lambda;
   for (int i = 0; i < r && !reuse; ++i)
     for (int j = 0; j < r; ++j) {
       const double* y = ws.contact_work.data() + static_cast<size_t>(j) * n;
@@ -232,92 +396,39 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
     }
     Wsolve = &Wc;
   }
-  // Under the iterative policies Y is the preconditioner's A^-1 H^T, not
-  // the exact one: Delta += Y dlambda meets the rows but leaves the contact
-  // force out of equilibrium by the preconditioner's error, which a later
-  // Newton iteration would see but the frame's last one does not (and later
-  // iterations reuse the first one's Y). Measured on drag15mm-20k with CG at
-  // 1e-8 and a fresh factor each frame: 8e-4 relative error against exact
-  // at the first contact frame (1.1e-6 with four rounds below), 5.7e-9 with
-  // one Newton iteration a frame. So the correction x = A^-1 H^T dlambda is
-  // refined by CG to the solver's tolerance from Y dlambda (refine_inverse),
-  // and what that leaves on the rows, H (x - Y dlambda), goes through the
-  // LCP again with the same W: lambda moves by about W^-1 times the rows'
-  // violation each round, a fixed point iteration whose limit is exact's
-  // (Delta, lambda) while W approximates H A^-1 H^T. Rounds stop when the
-  // next one would move the rows by less than the tolerance times the first
-  // correction, or after contact.refine_rounds (0: Y dlambda alone, the
-  // default: at the realtime preset refining doubled the probe scene's frame
-  // without moving its error, docs/benchmarks.md); the last small correction
-  // then takes Y.
-  const int refine_rounds = iterative_policy(m) ? c.refine_rounds : 0;  // exact's Y is A^-1; warped has no A to refine on
-  std::vector<double>& g = ws.contact_h;
-  std::vector<double>& x = ws.contact_z;
-  g.resize(n);
-  x.resize(n);
-  // out += Y (lambda - c.lambda), row by row.
-  const auto add_correction = [&](double* out) {
-    for (int i = 0; i < r; ++i) {
-      const double dl = lambda[i] - c.lambda[i];
-      if (dl == 0.0) continue;
-      const double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
-      for (int d = 0; d < n; ++d) out[d] += dl * y[d];
+  // The scale (a displacement) of the tolerances of this iteration's LCP
+  // rounds: the largest |b_i| of the first.
+  double bmax = 0.0;
+  for (int i = 0; i < r; ++i) {
+    double hd = 0.0, wl = 0.0;
+    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) hd += c.coef[k] * ws.delta[c.dof[k]];
+    for (int j = 0; j < r; ++j) wl += W[static_cast<size_t>(i) * r + j] * c.lambda[j];
+    bmax = std::max(bmax, std::abs(c.target[i] - hd + wl));
+  }
+  ws.contact_scale = bmax;
+  // The refinement's starting point: the Newton increment du = Delta - base
+  // and the residual without the contact force.
+  if (refinable(m, c)) {
+    resize_with_headroom(ws.contact_base, n);
+    resize_with_headroom(ws.contact_rhs, n);
+    for (int d = 0; d < n; ++d) {
+      ws.contact_base[d] = ws.delta[d] - ws.du[d];
+      ws.contact_rhs[d] = ws.rhs[d];  // holds H^T lambda_entry: the force of the step's earlier iterations
     }
-  };
-  int sweeps = 0;
-  double bmax0 = 0.0;
-  for (int round = 0;; ++round) {
-    double bmax = 0.0;
-    for (int i = 0; i < r; ++i) {
-      double hd = 0.0, wl = 0.0;
-      for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) hd += c.coef[k] * ws.delta[c.dof[k]];
-      for (int j = 0; j < r; ++j) wl += W[static_cast<size_t>(i) * r + j] * c.lambda[j];
-      b[i] = c.target[i] - hd + wl;
-      bmax = std::max(bmax, std::abs(b[i]));
-    }
-    if (round == 0) bmax0 = bmax;
-    lambda = c.lambda;
-    sweeps += projected_gauss_seidel(c, *Wsolve, b, lambda, c.max_sweeps, 1e-12 * bmax0);
-    polish_active_set(c, *Wsolve, b, lambda);
-    bool last = round >= refine_rounds;
-    if (!last && round > 0) {  // how far this round moves the rows: W dlambda
-      double move = 0.0;
-      for (int i = 0; i < r; ++i) {
-        double wd = 0.0;
-        for (int j = 0; j < r; ++j) wd += W[static_cast<size_t>(i) * r + j] * (lambda[j] - c.lambda[j]);
-        move = std::max(move, std::abs(wd));
-      }
-      last = move <= m.solver.tolerance * bmax0;
-    }
-    if (last) {  // Delta += Y dlambda straight (the unrefined stage's sums, bit for bit)
-      add_correction(ws.delta.data());
-      c.lambda = lambda;
-      break;
-    }
-    // x0 = Y dlambda, g = H^T dlambda (constrained DOFs: no force, no motion).
-    std::fill(x.begin(), x.end(), 0.0);
-    std::fill(g.begin(), g.end(), 0.0);
-    add_correction(x.data());
     for (int i = 0; i < r; ++i)
       for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
-        if (!m.constrained[c.dof[k]]) g[c.dof[k]] += c.coef[k] * (lambda[i] - c.lambda[i]);
-    const bool refined = refine_inverse(m, ws, g.data(), x.data(), x.data());
-    if (refined) {
-      for (int d : m.fixed_dofs) x[d] = 0.0;
-      for (const auto& p : m.prescribed) x[p.dof] = 0.0;
+        if (!m.constrained[c.dof[k]]) ws.contact_rhs[c.dof[k]] -= c.coef[k] * c.lambda[i];
+  }
+  ws.timing.contact_sweeps += lcp_round(m, ws, *Wsolve);
+  if (refinable(m, c)) {  // contact_solve.h
+    std::vector<double> lambda = c.lambda;
+    for (int round = 0; round < c.refine_rounds; ++round) {
+      if (!refine_on_active_rows(m, ws, lambda, m.solver.tolerance * ws.contact_scale)) break;
+      ws.timing.contact_sweeps += lcp_round(m, ws, W);
+      lambda = c.lambda;
     }
-    for (int d = 0; d < n; ++d) ws.delta[d] += x[d];
-    c.lambda = lambda;
-    if (!refined) break;
   }
-  ws.contact_force.assign(n, 0.0);
-  double F[3] = {0, 0, 0};
-  for (int i = 0; i < r; ++i) {
-    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) ws.contact_force[c.dof[k]] += c.coef[k] * lambda[i];
-    for (int d = 0; d < 3; ++d) F[d] += lambda[i] * c.dir[3 * i + d];
-  }
-  ws.timing.contact_sweeps += sweeps;
-  ws.timing.contact_force = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+  record_contact_force(m, ws);
 }
 
 void project_contact_kinematics(const Model& m, State& s, Workspace& ws) {

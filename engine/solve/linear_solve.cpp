@@ -959,23 +959,52 @@ bool iterative_policy(const Model& m) {
   return m.solver.policy == SolverPolicy::Lagged || m.solver.policy == SolverPolicy::WarpedCG;
 }
 
-bool refine_inverse(const Model& m, Workspace& ws, const double* g, const double* x0, double* x) {
-  const size_t n = static_cast<size_t>(m.ndof());
+bool constrained_refine(const Model& m, Workspace& ws, const double* b, double* x, ConstraintProjection& proj) {
+  const int n = m.ndof();
   const int left = std::min(m.solver.max_iterations, budget_left(m, ws));
   const bool spent = m.solver.frame_iterations > 0 && ws.timing.iterations >= m.solver.frame_iterations;
-  if (!iterative_policy(m) || spent) {
-    if (x != x0) std::copy(x0, x0 + n, x);
-    return false;
+  if (!iterative_policy(m) || spent || left <= 0) return false;
+  auto& w = ws.work;
+  std::vector<double>& r = w.r;
+  std::vector<double>& z = w.z;
+  std::vector<double>& p = w.p;
+  std::vector<double>& q = w.q;
+  double bb = 0.0;
+  for (int i = 0; i < n; ++i) bb += b[i] * b[i];
+  const double bnorm = std::sqrt(bb), tol = m.solver.tolerance;
+  if (bnorm == 0.0) return true;
+  sym_matvec_parallel(m, w.plan, *w.pool, ws.A.data(), x, q.data());
+  for (int i = 0; i < n; ++i) r[i] = b[i] - q[i];
+  proj.dual(r.data());
+  double rel = std::sqrt(dot(r, r)) / bnorm;
+  int it = 0;
+  if (rel > tol) {
+    apply_factor_inverse(m, ws, r.data(), z.data());
+    proj.primal(z.data());
+    p = z;
+    double rz = dot(r, z);
+    while (it < left && rz > 0.0) {
+      sym_matvec_parallel(m, w.plan, *w.pool, ws.A.data(), p.data(), q.data());
+      ++it;
+      const double pq = dot(p, q);
+      if (!(pq > 0.0)) break;
+      const double alpha = rz / pq;
+      for (int i = 0; i < n; ++i) {
+        x[i] += alpha * p[i];
+        r[i] -= alpha * q[i];
+      }
+      proj.dual(r.data());  // A p leaves the range of the projected residuals by roundoff and by P's asymmetry
+      rel = std::sqrt(dot(r, r)) / bnorm;
+      if (rel <= tol || it == left) break;
+      apply_factor_inverse(m, ws, r.data(), z.data());
+      proj.primal(z.data());
+      const double rz_new = dot(r, z);
+      const double beta = rz_new / rz;
+      rz = rz_new;
+      for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+    }
   }
-  std::vector<double>& start = ws.work.refine_x0;
-  start.assign(x0, x0 + n);  // pcg writes x before it reads its start
-  const double residual = ws.timing.residual, start_residual = ws.timing.start_residual;
-  const bool converged = ws.timing.converged;
-  pcg(m, ws, ws.A.data(), g, x, [&](const double* r, double* z) { apply_factor_inverse(m, ws, r, z); }, left,
-      start.data());
-  ws.timing.residual = residual;
-  ws.timing.start_residual = start_residual;
-  ws.timing.converged = converged;
+  ws.timing.iterations += it;
   return true;
 }
 

@@ -80,16 +80,31 @@ void apply_factor_inverse(const Model& model, Workspace& ws, const double* b, do
 // warped, lagged before a cut maps it), column by column otherwise.
 void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const double* B, double* X);
 
-// x = A^-1 g to the CG tolerance, from the start x0 (both ndof; x0 may be x),
-// for the iterative policies (lagged, warped_cg): CG on this iteration's A
-// preconditioned by apply_factor_inverse, at most solver.max_iterations (and
-// what is left of solver.frame_iterations). The contact stage's correction
-// with it puts the contact force into equilibrium to the solver's tolerance,
-// where Y = (the preconditioner) H^T alone leaves the preconditioner's error.
-// Its iterations count in ws.timing.iterations; the solve's residual and
-// convergence in ws.timing are kept. False (x = x0) for the direct policies
-// or with no iteration left.
-bool refine_inverse(const Model& model, Workspace& ws, const double* g, const double* x0, double* x);
+// The projection onto the constraints H_A x = 0 of the contact stage's
+// active rows (engine/dynamics/contact_solve.cpp): primal(z) takes z into
+// their null space along the preconditioner's Y = P^-1 H_A^T (z -= Y W^-1 H_A z),
+// dual(r) removes H_A^T mu from a residual (mu = W^-1 Y^T r) and adds mu to
+// what it has removed so far.
+struct ConstraintProjection {
+  virtual void primal(double* z) = 0;
+  virtual void dual(double* r) = 0;
+
+ protected:
+  ~ConstraintProjection() = default;
+};
+
+// x = argmin of 1/2 x^T A x - b^T x over x0 + null(H_A), from the feasible x0
+// given in x, for the iterative policies (lagged, warped_cg): projected
+// preconditioned CG (Gould, Hribar & Nocedal, SIAM J. Sci. Comput. 23(4),
+// 2001, Algorithm II with the residual re-projected every iteration) with
+// the constraint preconditioner z = Pi P^-1 Pi^T r, Pi = I - Y W^-1 H_A:
+// every iterate meets the rows exactly, and at convergence b - A x =
+// H_A^T mu (the multipliers dual() removed). Stops when |Pi^T r| <= tol |b|,
+// or after solver.max_iterations (and what is left of
+// solver.frame_iterations); iterations count in ws.timing.iterations, the
+// Newton solve's residual and convergence in ws.timing are kept. False
+// (x untouched) for the direct policies or with no iteration left.
+bool constrained_refine(const Model& model, Workspace& ws, const double* b, double* x, ConstraintProjection& proj);
 
 // Whether the policy solves by CG on the current A (lagged, warped_cg).
 bool iterative_policy(const Model& model);

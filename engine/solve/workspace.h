@@ -54,6 +54,10 @@ struct Workspace {
   long long contact_Y_key = -1;
   std::vector<double> contact_Z;     // (nrow, ndof) project_contact_kinematics' columns (Y stays in contact_work)
   std::vector<double> contact_h, contact_z;  // (ndof) scratch of the contact kinematics (project_contact_kinematics)
+  // (ndof) the contact refinement's Delta before the iteration's solve, residual
+  // without the contact force, right-hand side and increment.
+  std::vector<double> contact_base, contact_rhs, contact_b, contact_x;
+  double contact_scale = 0.0;        // the largest |b_i| of the iteration's first LCP (a displacement)
 
   FrameTiming timing;           // the last (or current) frame
   // late_factor "skip": whether a finished background factor is taken is the
