@@ -36,7 +36,8 @@
 # (REALTIME_RESCUE) and late background factors skipped instead of waited for
 # (REALTIME_LATE=wait for deterministic runs), and the stepping thread on a CPU
 # of its own with the helpers on the others (REALTIME_AFFINITY=none leaves it
-# to the kernel). incise bench times FRAMES frames
+# to the kernel); the contact correction as the preconditioner gives it
+# (REALTIME_REFINE=2 refines it by projected CG: contact.refine_rounds). incise bench times FRAMES frames
 # too (BENCH_FRAMES to change), started at PACE Hz as the real-time loop does
 # (default 30; PACE=0 runs them back to back), and writes its per-frame trace
 # to BUILD/realtime/NAME.trace.csv. incise compare runs back to back.
@@ -63,6 +64,7 @@ precision="${REALTIME_FACTOR_PRECISION:-}"  # solver.factor_precision (the prese
 affinity="${REALTIME_AFFINITY:-}"           # solver.affinity (the preset: split; none leaves it to the kernel)
 coarse="${REALTIME_COARSE:-}"               # solver.coarse (the preset: none; corners: the two-level preconditioner)
 frame_its="${REALTIME_FRAME_ITERATIONS:-}"  # solver.frame_iterations (the preset: 0, no cap; N: CG iterations per frame)
+refine="${REALTIME_REFINE:-}"              # contact.refine_rounds (default 0; 2: the contact correction by projected CG, docs/numerics.md)
 set_opts=""
 add() { if [ -n "$2" ]; then set_opts="$set_opts --set $1=$2"; fi; }
 add solver.tolerance "$tol"
@@ -76,6 +78,7 @@ add solver.factor_precision "$precision"
 add solver.affinity "$affinity"
 add solver.coarse "$coarse"
 add solver.frame_iterations "$frame_its"
+add contact.refine_rounds "$refine"
 # name mesh-or-scene K
 # K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
 # CHOLMOD's OpenMP teams were made serial; single precision, eighth session:
