@@ -153,47 +153,64 @@ bool same_rows(const ContactRows& c, const Workspace& ws) {
   return c.ptr == ws.contact_Y_ptr && c.dof == ws.contact_Y_dof && c.coef == ws.contact_Y_coef;
 }
 
-// constrained_refine's projection for the active rows act: H_A on the free
-// DOFs, Y's columns, W_AA^-1 (a complete orthogonal decomposition: rows
-// redundant to roundoff, several contacts on one face, leave W_AA singular,
-// and the least-norm multipliers keep the projection defined).
+// constrained_refine's projection for the active rows act, in the space of
+// the DOFs and the spring-coupled tools' displacements w_t (3 each, after
+// the ndof DOFs; blk[i]: row i's tool block, -1 for a tool that is where its
+// pose says). Row i constrains H_i du + d_i . w_t (the tool yields by w_t =
+// c_t sum_j d_j lambda_j, so W_c = W + c_t d_i . d_j is its compliance); its
+// preconditioned column is (Y_i, c_t d_i). W_AA^-1: a complete orthogonal
+// decomposition (rows redundant to roundoff, several contacts on one face,
+// leave W_AA singular, and the least-norm multipliers keep the projection
+// defined).
 class ActiveRowProjection final : public ConstraintProjection {
  public:
   ActiveRowProjection(const Model& m, const ContactRows& c, const double* Y, const std::vector<int>& act,
-                      const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& Winv)
-      : m_(m), c_(c), Y_(Y), act_(act), Winv_(Winv), mu(Eigen::VectorXd::Zero(static_cast<int>(act.size()))),
-        t_(static_cast<int>(act.size())) {}
+                      const std::vector<int>& blk, const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& Winv)
+      : m_(m), c_(c), Y_(Y), act_(act), blk_(blk), Winv_(Winv),
+        mu(Eigen::VectorXd::Zero(static_cast<int>(act.size()))), t_(static_cast<int>(act.size())) {}
 
-  void primal(double* z) override {  // z -= Y W^-1 H z
+  void primal(double* z) override {  // z -= Y~ W^-1 H~ z
     if (act_.empty()) return;
+    const int n = m_.ndof();
     for (size_t a = 0; a < act_.size(); ++a) {
       const int i = act_[a];
       double hz = 0.0;
       for (int k = c_.ptr[i]; k < c_.ptr[i + 1]; ++k)
         if (!m_.constrained[c_.dof[k]]) hz += c_.coef[k] * z[c_.dof[k]];
+      if (blk_[i] >= 0)
+        for (int d = 0; d < 3; ++d) hz += c_.dir[3 * i + d] * z[n + 3 * blk_[i] + d];
       t_[static_cast<int>(a)] = hz;
     }
     const Eigen::VectorXd nu = Winv_.solve(t_);
-    const int n = m_.ndof();
     for (size_t a = 0; a < act_.size(); ++a) {
-      const double* y = Y_ + static_cast<size_t>(act_[a]) * n;
-      for (int d = 0; d < n; ++d) z[d] -= nu[static_cast<int>(a)] * y[d];
+      const int i = act_[a];
+      const double* y = Y_ + static_cast<size_t>(i) * n;
+      const double va = nu[static_cast<int>(a)];
+      for (int d = 0; d < n; ++d) z[d] -= va * y[d];
+      if (blk_[i] >= 0)
+        for (int d = 0; d < 3; ++d) z[n + 3 * blk_[i] + d] -= va * c_.tool_compliance(i) * c_.dir[3 * i + d];
     }
   }
-  void dual(double* r) override {  // r -= H^T W^-1 Y^T r, the removed multipliers summed in mu
+  void dual(double* r) override {  // r -= H~^T W^-1 Y~^T r, the removed multipliers summed in mu
     if (act_.empty()) return;
     const int n = m_.ndof();
     for (size_t a = 0; a < act_.size(); ++a) {
-      const double* y = Y_ + static_cast<size_t>(act_[a]) * n;
+      const int i = act_[a];
+      const double* y = Y_ + static_cast<size_t>(i) * n;
       double yr = 0.0;
       for (int d = 0; d < n; ++d) yr += y[d] * r[d];
+      if (blk_[i] >= 0)
+        for (int d = 0; d < 3; ++d) yr += c_.tool_compliance(i) * c_.dir[3 * i + d] * r[n + 3 * blk_[i] + d];
       t_[static_cast<int>(a)] = yr;
     }
     const Eigen::VectorXd dm = Winv_.solve(t_);
     for (size_t a = 0; a < act_.size(); ++a) {
       const int i = act_[a];
+      const double ma = dm[static_cast<int>(a)];
       for (int k = c_.ptr[i]; k < c_.ptr[i + 1]; ++k)
-        if (!m_.constrained[c_.dof[k]]) r[c_.dof[k]] -= dm[static_cast<int>(a)] * c_.coef[k];
+        if (!m_.constrained[c_.dof[k]]) r[c_.dof[k]] -= ma * c_.coef[k];
+      if (blk_[i] >= 0)
+        for (int d = 0; d < 3; ++d) r[n + 3 * blk_[i] + d] -= ma * c_.dir[3 * i + d];
     }
     mu += dm;
   }
@@ -203,6 +220,7 @@ class ActiveRowProjection final : public ConstraintProjection {
   const ContactRows& c_;
   const double* Y_;
   const std::vector<int>& act_;
+  const std::vector<int>& blk_;
   const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& Winv_;
 
  public:
@@ -213,40 +231,64 @@ class ActiveRowProjection final : public ConstraintProjection {
 };
 
 // One refinement (solve_contacts, contact.refine_rounds): the active rows of
-// lambda held, the Newton increment du = Delta - base minimised over them by
-// constrained_refine on A du = rhs0 + H^T lambda (rhs0: the Newton residual
-// without the contact force), lambda_A taking the multipliers. True when the
+// lambda held, the Newton increment du = Delta - base (and the coupled
+// tools' spring displacements w) minimised by constrained_refine on
+//   A du = rhs0 + H^T lambda,  k_t w_t = sum_i d_i lambda_i
+// (rhs0: the Newton residual without the contact force), lambda_A taking
+// the multipliers. Wsolve: W with the tools' springs (W_c). True when the
 // result leaves the LCP's feasible set (a contact pulling, friction off its
 // cone, an inactive contact pressed in by more than tol_move): the LCP then
 // runs again from it. False when feasible, or when there was nothing to do.
-bool refine_on_active_rows(const Model& m, Workspace& ws, std::vector<double>& lambda, double tol_move) {
+bool refine_on_active_rows(const Model& m, Workspace& ws, const std::vector<double>& Wsolve,
+                           std::vector<double>& lambda, double tol_move) {
   ContactRows& c = ws.contacts;
   const std::vector<double>& W = ws.contact_W;
   const std::vector<double>& rhs0 = ws.contact_rhs;
   const std::vector<double>& base = ws.contact_base;
   const int r = c.nrow(), n = m.ndof();
+  // The spring-coupled tools' blocks, in the order their rows come.
+  std::vector<int> blk(r, -1), block_tool;
+  std::vector<double> k_extra;
+  for (int i = 0; i < r; ++i) {
+    if (!(c.tool_compliance(i) > 0.0)) continue;
+    const auto it = std::find(block_tool.begin(), block_tool.end(), c.tool[i]);
+    blk[i] = static_cast<int>(it - block_tool.begin());
+    if (it == block_tool.end()) {
+      block_tool.push_back(c.tool[i]);
+      k_extra.insert(k_extra.end(), 3, 1.0 / c.tool_compliance(i));
+    }
+  }
+  const int nt = n + static_cast<int>(k_extra.size());
   // No active row left (a release: lambda_old back to 0 through Y) is plain
   // CG on the same system.
   const std::vector<int> act = active_rows(c, W, lambda);
   const int k = static_cast<int>(act.size());
   Eigen::MatrixXd Wa = Eigen::MatrixXd::Identity(std::max(k, 1), std::max(k, 1));
   for (int a = 0; a < k; ++a)
-    for (int q = 0; q < k; ++q) Wa(a, q) = W[static_cast<size_t>(act[a]) * r + act[q]];
+    for (int q = 0; q < k; ++q) Wa(a, q) = Wsolve[static_cast<size_t>(act[a]) * r + act[q]];
   const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> Winv(Wa);
   std::vector<double>& b = ws.contact_b;
   std::vector<double>& x = ws.contact_x;
-  resize_with_headroom(b, n);
-  resize_with_headroom(x, n);
+  resize_with_headroom(b, nt);
+  resize_with_headroom(x, nt);
   std::copy(rhs0.begin(), rhs0.begin() + n, b.begin());
-  for (int i = 0; i < r; ++i)
+  std::fill(b.begin() + n, b.begin() + nt, 0.0);
+  std::fill(x.begin() + n, x.begin() + nt, 0.0);
+  for (int i = 0; i < r; ++i) {
     for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e)
       if (!m.constrained[c.dof[e]]) b[c.dof[e]] += c.coef[e] * lambda[i];
+    if (blk[i] >= 0)
+      for (int d = 0; d < 3; ++d) {
+        b[n + 3 * blk[i] + d] += c.dir[3 * i + d] * lambda[i];
+        x[n + 3 * blk[i] + d] += c.tool_compliance(i) * c.dir[3 * i + d] * lambda[i];  // where the LCP left the spring
+      }
+  }
   for (int d = 0; d < n; ++d) x[d] = ws.delta[d] - base[d];
-  ActiveRowProjection proj(m, c, ws.contact_work.data(), act, Winv);
-  if (!constrained_refine(m, ws, b.data(), x.data(), proj) || !proj.mu.allFinite()) return false;
+  ActiveRowProjection proj(m, c, ws.contact_work.data(), act, blk, Winv);
+  if (!constrained_refine(m, ws, b.data(), x.data(), proj, k_extra) || !proj.mu.allFinite()) return false;
   for (int d = 0; d < n; ++d)
     if (!m.constrained[d]) ws.delta[d] = base[d] + x[d];
-  // b - A du = H_A^T mu: the rows' forces are lambda - mu.
+  // b - A~ x = H~_A^T mu: the rows' forces are lambda - mu.
   for (int a = 0; a < k; ++a) lambda[act[a]] -= proj.mu[a];
   c.lambda = lambda;
   for (int i = 0; i < r; ++i) {
@@ -254,9 +296,11 @@ bool refine_on_active_rows(const Model& m, Workspace& ws, std::vector<double>& l
     switch (c.kind[i]) {
       case RowKind::Contact: {
         if (lambda[i] < 0.0) return true;
-        double hd = 0.0;
-        for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e) hd += c.coef[e] * ws.delta[c.dof[e]];
-        if (hd < c.target[i] - tol_move) return true;
+        double gap = 0.0;
+        for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e) gap += c.coef[e] * ws.delta[c.dof[e]];
+        if (blk[i] >= 0)
+          for (int d = 0; d < 3; ++d) gap += c.dir[3 * i + d] * x[n + 3 * blk[i] + d];
+        if (gap < c.target[i] - tol_move) return true;
         break;
       }
       case RowKind::Friction:
@@ -308,15 +352,9 @@ void record_contact_force(const Model& m, Workspace& ws) {
   ws.timing.contact_force = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
 }
 
-// Whether the refinement applies (contact_solve.h): the iterative policies (exact's Y is
-// A^-1; warped has no A to refine on) and no tool held through a spring (its
-// rows are not constraints on Delta alone).
-bool refinable(const Model& m, const ContactRows& c) {
-  if (c.refine_rounds <= 0 || !iterative_policy(m)) return false;
-  for (int i = 0; i < c.nrow(); ++i)
-    if (c.tool_compliance(i) > 0.0) return false;
-  return true;
-}
+// Whether the refinement applies (contact_solve.h): the iterative policies
+// (exact's Y is A^-1; warped has no A to refine on).
+bool refinable(const Model& m, const ContactRows& c) { return c.refine_rounds > 0 && iterative_policy(m); }
 
 }  // namespace
 
@@ -423,8 +461,8 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   if (refinable(m, c)) {  // contact_solve.h
     std::vector<double> lambda = c.lambda;
     for (int round = 0; round < c.refine_rounds; ++round) {
-      if (!refine_on_active_rows(m, ws, lambda, m.solver.tolerance * ws.contact_scale)) break;
-      ws.timing.contact_sweeps += lcp_round(m, ws, W);
+      if (!refine_on_active_rows(m, ws, *Wsolve, lambda, m.solver.tolerance * ws.contact_scale)) break;
+      ws.timing.contact_sweeps += lcp_round(m, ws, *Wsolve);
       lambda = c.lambda;
     }
   }

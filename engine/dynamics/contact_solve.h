@@ -34,8 +34,7 @@ void begin_contacts(const Model& model, Workspace& ws);
 // The stage: lambda, the corrected ws.delta and ws.contact_force = H^T lambda.
 // Records rows, sweeps and the total force in ws.timing.
 //
-// contact.refine_rounds > 0 (the iterative policies, no tool held through a
-// spring): Y dlambda is the preconditioner's A^-1 H^T dlambda, so the rows
+// contact.refine_rounds > 0 (the iterative policies): Y dlambda is the preconditioner's A^-1 H^T dlambda, so the rows
 // hold but the contact force is out of equilibrium by the preconditioner's
 // error. The LCP's active rows (contacts pushing, grasps, friction sticking)
 // are then held exactly while a projected CG puts the rest into
@@ -45,7 +44,11 @@ void begin_contacts(const Model& model, Workspace& ws);
 // would. A result that leaves the LCP's feasible set (a contact pulling,
 // friction off its cone, an inactive contact pressed in) goes through the
 // LCP again (a round), at most refine_rounds times; the last LCP's Y dlambda
-// stands. Every Newton iteration, not only the last: the later iterations
+// stands. A tool held through a spring (the haptic probe: its rows yield by
+// c_t d_i . d_j lambda_j) brings its displacement w_t as three more
+// unknowns with stiffness 1/c_t, constrained with the tissue
+// (H_i du + d_i . w_t = target_i), so W_c is the constraint preconditioner's
+// compliance. Every Newton iteration, not only the last: the later iterations
 // then linearise where exact's do (refining only the last one left the
 // probe scene's error at frame 30 at 2.3e-1 against 1.2e-1, 1.8e-1 without;
 // docs/benchmarks.md).

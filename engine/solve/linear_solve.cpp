@@ -959,49 +959,62 @@ bool iterative_policy(const Model& m) {
   return m.solver.policy == SolverPolicy::Lagged || m.solver.policy == SolverPolicy::WarpedCG;
 }
 
-bool constrained_refine(const Model& m, Workspace& ws, const double* b, double* x, ConstraintProjection& proj) {
-  const int n = m.ndof();
+bool constrained_refine(const Model& m, Workspace& ws, const double* b, double* x, ConstraintProjection& proj,
+                        const std::vector<double>& k_extra) {
+  const int n = m.ndof(), ne = static_cast<int>(k_extra.size()), nt = n + ne;
   const int left = std::min(m.solver.max_iterations, budget_left(m, ws));
   const bool spent = m.solver.frame_iterations > 0 && ws.timing.iterations >= m.solver.frame_iterations;
   if (!iterative_policy(m) || spent || left <= 0) return false;
   auto& w = ws.work;
-  std::vector<double>& r = w.r;
-  std::vector<double>& z = w.z;
-  std::vector<double>& p = w.p;
-  std::vector<double>& q = w.q;
-  double bb = 0.0;
-  for (int i = 0; i < n; ++i) bb += b[i] * b[i];
-  const double bnorm = std::sqrt(bb), tol = m.solver.tolerance;
+  for (auto* v : {&w.cr, &w.cz, &w.cp, &w.cq}) resize_with_headroom(*v, nt);
+  double* r = w.cr.data();
+  double* z = w.cz.data();
+  double* p = w.cp.data();
+  double* q = w.cq.data();
+  const auto dot_t = [nt](const double* a, const double* c) {
+    double sum = 0.0;
+    for (int i = 0; i < nt; ++i) sum += a[i] * c[i];
+    return sum;
+  };
+  // q = A~ y, z = P~^-1 y: the tissue's A and preconditioner, the extra block's diagonal.
+  const auto matvec = [&](const double* y, double* out) {
+    sym_matvec_parallel(m, w.plan, *w.pool, ws.A.data(), y, out);
+    for (int e = 0; e < ne; ++e) out[n + e] = k_extra[e] * y[n + e];
+  };
+  const auto precondition = [&](const double* y, double* out) {
+    apply_factor_inverse(m, ws, y, out);
+    for (int e = 0; e < ne; ++e) out[n + e] = y[n + e] / k_extra[e];
+    proj.primal(out);
+  };
+  const double bnorm = std::sqrt(dot_t(b, b)), tol = m.solver.tolerance;
   if (bnorm == 0.0) return true;
-  sym_matvec_parallel(m, w.plan, *w.pool, ws.A.data(), x, q.data());
-  for (int i = 0; i < n; ++i) r[i] = b[i] - q[i];
-  proj.dual(r.data());
-  double rel = std::sqrt(dot(r, r)) / bnorm;
+  matvec(x, q);
+  for (int i = 0; i < nt; ++i) r[i] = b[i] - q[i];
+  proj.dual(r);
+  double rel = std::sqrt(dot_t(r, r)) / bnorm;
   int it = 0;
   if (rel > tol) {
-    apply_factor_inverse(m, ws, r.data(), z.data());
-    proj.primal(z.data());
-    p = z;
-    double rz = dot(r, z);
+    precondition(r, z);
+    std::copy(z, z + nt, p);
+    double rz = dot_t(r, z);
     while (it < left && rz > 0.0) {
-      sym_matvec_parallel(m, w.plan, *w.pool, ws.A.data(), p.data(), q.data());
+      matvec(p, q);
       ++it;
-      const double pq = dot(p, q);
+      const double pq = dot_t(p, q);
       if (!(pq > 0.0)) break;
       const double alpha = rz / pq;
-      for (int i = 0; i < n; ++i) {
+      for (int i = 0; i < nt; ++i) {
         x[i] += alpha * p[i];
         r[i] -= alpha * q[i];
       }
-      proj.dual(r.data());  // A p leaves the range of the projected residuals by roundoff and by P's asymmetry
-      rel = std::sqrt(dot(r, r)) / bnorm;
+      proj.dual(r);  // A p leaves the range of the projected residuals by roundoff and by P's asymmetry
+      rel = std::sqrt(dot_t(r, r)) / bnorm;
       if (rel <= tol || it == left) break;
-      apply_factor_inverse(m, ws, r.data(), z.data());
-      proj.primal(z.data());
-      const double rz_new = dot(r, z);
+      precondition(r, z);
+      const double rz_new = dot_t(r, z);
       const double beta = rz_new / rz;
       rz = rz_new;
-      for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+      for (int i = 0; i < nt; ++i) p[i] = z[i] + beta * p[i];
     }
   }
   ws.timing.iterations += it;

@@ -104,7 +104,14 @@ struct ConstraintProjection {
 // solver.frame_iterations); iterations count in ws.timing.iterations, the
 // Newton solve's residual and convergence in ws.timing are kept. False
 // (x untouched) for the direct policies or with no iteration left.
-bool constrained_refine(const Model& model, Workspace& ws, const double* b, double* x, ConstraintProjection& proj);
+//
+// k_extra: unknowns appended after the ndof DOFs, each with its own diagonal
+// stiffness (no coupling to the DOFs but through the constraints): the
+// contact stage's spring-coupled tools (their displacement along the
+// spring). b and x then have ndof + k_extra.size() entries; their block of
+// the preconditioner is 1 / k.
+bool constrained_refine(const Model& model, Workspace& ws, const double* b, double* x, ConstraintProjection& proj,
+                        const std::vector<double>& k_extra = {});
 
 // Whether the policy solves by CG on the current A (lagged, warped_cg).
 bool iterative_policy(const Model& model);

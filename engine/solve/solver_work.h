@@ -97,6 +97,7 @@ struct SolverWork {
   std::vector<char> node_identity;   // (ndofnode) 1 where 1 or 2 components are constrained: R = I keeps the projection
 
   std::vector<double> r, z, p, q, t;  // (ndof) CG work
+  std::vector<double> cr, cz, cp, cq;  // (ndof + extra) constrained_refine's CG work (the contact stage's tools appended)
   // solver.coarse "corners": the two-level preconditioner's coarse level and
   // its work vectors (ndof each).
   CoarseSpace coarse;
