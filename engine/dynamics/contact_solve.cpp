@@ -141,10 +141,12 @@ void polish_active_set(const ContactRows& c, const std::vector<double>& W, const
 // the Y used, so the rows are still met exactly and only the equilibrium
 // error of the correction, which the next Newton iteration or frame sees,
 // depends on how old Y is). -1: not reusable across frames (exact,
-// warped, a cut's patch or the coarse level, which change every frame).
+// warped, a cut's or the contacts' patch or the coarse level, which change
+// every frame).
 long long contact_factor_key(const Model& m, const Workspace& ws) {
   const SolverWork& w = ws.work;
-  if (m.solver.policy != SolverPolicy::Lagged || m.solver.coarse || !w.slot_map[w.front].empty() || w.front_frame < 0)
+  if (m.solver.policy != SolverPolicy::Lagged || m.solver.coarse || !w.slot_map[w.front].empty() || !w.patch_dof.empty() ||
+      w.front_frame < 0)
     return -1;
   return (static_cast<long long>(w.pattern) * SolverWork::kSlots + w.front) * 1000003LL + w.front_frame;
 }

@@ -444,7 +444,7 @@ const std::vector<std::string> kIterativeKeys{"tolerance", "max_iterations", "in
 const std::vector<std::string> kLaggedKeys{"refresh_every", "background",    "warp",        "single_precision",
                                            "factor_copy",   "factor_precision", "rescue_after", "late_factor",
                                            "patch",         "cut_ordering",  "background_priority", "coarse",
-                                           "condense_below"};
+                                           "condense_below", "contact_patch"};
 
 bool listed(const std::vector<std::string>& keys, const std::string& k) {
   return std::find(keys.begin(), keys.end(), k) != keys.end();
@@ -456,7 +456,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   p.allowed_keys(v, at, {"preset", "policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
                          "factorization", "ordering", "factor_precision", "initial_guess", "affinity", "coarse",
-                         "frame_iterations", "condense_below"});
+                         "frame_iterations", "condense_below", "contact_patch"});
   SolverSettings& o = s.solver;
   RuntimeSettings& rt = s.runtime;
   if (auto it = v.find("preset"); it != v.end()) s.preset = solver_preset_names()[p.choice(*it, at + ".preset", solver_preset_names())];
@@ -502,6 +502,10 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("condense_below"); it != v.end()) {
     o.condense_below = p.nonnegative(*it, at + ".condense_below");
     if (!(o.condense_below < 1.0)) p.fail(at + ".condense_below", " must be in [0, 1), got " + show(*it));
+  }
+  if (auto it = v.find("contact_patch"); it != v.end()) {
+    o.contact_patch = p.nonnegative_int(*it, at + ".contact_patch");
+    if (o.contact_patch > 3) p.fail(at + ".contact_patch", " must be an integer in [0, 3], got " + show(*it));
   }
   if (auto it = v.find("coarse"); it != v.end()) o.coarse = p.choice(*it, at + ".coarse", {"none", "corners"}) == 1;
   if (auto it = v.find("initial_guess"); it != v.end())
@@ -1003,6 +1007,7 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
       {"frame_iterations", std::to_string(o.frame_iterations)},
       {"coarse", quoted(o.coarse ? "corners" : "none")},
       {"condense_below", number_text(o.condense_below)},
+      {"contact_patch", std::to_string(o.contact_patch)},
       {"threads", std::to_string(rt.threads)},
       {"substitution_threads", std::to_string(rt.substitution_threads)},
       {"affinity", quoted(rt.split_affinity ? "split" : "none")},

@@ -388,12 +388,11 @@ void patch_apply(Workspace& ws, const double* r, double* z, bool add) {
 void lagged_apply(const Model& m, Workspace& ws, const double* A, const double* r, double* z) {
   auto& w = ws.work;
   const std::vector<int>& map = w.slot_map[w.front];
-  if (map.empty()) {
+  if (w.patch_dof.empty()) {
     factor_apply(m, ws, r, z);
-  } else if (w.patch_dof.empty()) {
-    factor_apply(m, ws, r, z);
-    for (int d = 0; d < m.ndof(); ++d)
-      if (map[d] < 0) z[d] = r[d] / A[m.diag[d]];
+    if (!map.empty())
+      for (int d = 0; d < m.ndof(); ++d)
+        if (map[d] < 0) z[d] = r[d] / A[m.diag[d]];
   } else if (!m.solver.multiplicative_patch) {
     factor_apply(m, ws, r, z);
     patch_apply(ws, r, z, /*add=*/true);
@@ -456,16 +455,45 @@ bool budget_ran_out(const Model& m, Workspace& ws, int left, int cap) {
 }
 
 // The patch's DOF nodes: unknown = a DOF node with a DOF the front map does
-// not carry, node_in = a node of an element touching an unknown one.
-void patch_nodes(const Model& m, const std::vector<int>& map, std::vector<char>& node_in, std::vector<char>& unknown) {
-  for (int d = 0; d < m.ndof(); ++d)
-    if (map[d] < 0) unknown[d / 3] = 1;
-  for (int e = 0; e < m.nelem; ++e) {
-    bool touch = false;
-    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = unknown[m.elem_dof_node[k]];
-    if (touch)
-      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) node_in[m.elem_dof_node[k]] = 1;
+// not carry, node_in = a node of an element touching an unknown one; and
+// (solver.contact_patch) the DOF nodes of the contact rows, grown by that
+// many element rings (contact_nodes: those seeds, sorted).
+void patch_nodes(const Model& m, const std::vector<int>& map, const std::vector<int>& contact_nodes,
+                 std::vector<char>& node_in, std::vector<char>& unknown) {
+  const auto grow = [&](std::vector<char>& from, std::vector<char>& to) {
+    for (int e = 0; e < m.nelem; ++e) {
+      bool touch = false;
+      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1] && !touch; ++k) touch = from[m.elem_dof_node[k]];
+      if (touch)
+        for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) to[m.elem_dof_node[k]] = 1;
+    }
+  };
+  if (!map.empty()) {
+    for (int d = 0; d < m.ndof(); ++d)
+      if (map[d] < 0) unknown[d / 3] = 1;
+    grow(unknown, node_in);
   }
+  if (contact_nodes.empty()) return;
+  std::vector<char> ring(m.ndofnode, 0), next;
+  for (int i : contact_nodes) ring[i] = 1;
+  for (int k = 0; k < m.solver.contact_patch; ++k) {
+    next = ring;
+    grow(ring, next);
+    ring.swap(next);
+  }
+  for (int i = 0; i < m.ndofnode; ++i) node_in[i] = node_in[i] || ring[i];
+}
+
+// solver.contact_patch: the DOF nodes the contact rows act on, sorted (empty: none).
+void contact_patch_seeds(const Model& m, const Workspace& ws, std::vector<int>& out) {
+  out.clear();
+  if (m.solver.contact_patch <= 0) return;
+  const ContactRows& c = ws.contacts;
+  for (int i = 0; i < c.nrow(); ++i)
+    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
+      if (!m.constrained[c.dof[k]]) out.push_back(c.dof[k] / 3);
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
 }
 
 // patch_dof (the patch nodes' DOFs in order) and g2l, its inverse (-1 off the patch).
@@ -483,7 +511,7 @@ void patch_dofs(const Model& m, const std::vector<char>& node_in, const std::vec
 // A new patch (the front slot or the pattern changed): its DOFs, pattern, rows and analysis.
 void build_patch(const Model& m, const std::vector<int>& map, SolverWork& w) {
   std::vector<char> node_in(m.ndofnode, 0), unknown(m.ndofnode, 0);
-  patch_nodes(m, map, node_in, unknown);
+  patch_nodes(m, map, w.patch_contact_nodes, node_in, unknown);
   std::vector<int> g2l(m.ndof(), -1);
   patch_dofs(m, node_in, unknown, w, g2l);
   std::vector<int> Pp(1, 0), Pi;
@@ -505,14 +533,18 @@ void build_patch(const Model& m, const std::vector<int>& map, SolverWork& w) {
 void lagged_patch(const Model& m, Workspace& ws, const double* A) {
   auto& w = ws.work;
   const std::vector<int>& map = w.slot_map[w.front];
-  if (map.empty()) {
+  std::vector<int>& seeds = w.patch_seeds;
+  contact_patch_seeds(m, ws, seeds);
+  if (map.empty() && seeds.empty()) {
     w.patch_dof.clear();
+    w.patch_contact_nodes.clear();
     w.patch_key = -1;
     return;
   }
   const long long key = (static_cast<long long>(w.pattern) * 2 + w.front) * 1000003LL + w.front_frame;
-  if (key != w.patch_key) {
+  if (key != w.patch_key || seeds != w.patch_contact_nodes) {
     w.patch_key = key;
+    w.patch_contact_nodes = seeds;
     build_patch(m, map, w);
   }
   if (w.patch_dof.empty()) return;  // the mapped factor knows every node: nothing to solve exactly
@@ -935,7 +967,7 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
       rotated_multi(m, ws, ws.solver, nullptr, k, B, X);
       return;
     case SolverPolicy::Lagged:
-      if (w.slot_map[w.front].empty()) {  // the front factor knows every DOF: no patch
+      if (w.slot_map[w.front].empty() && w.patch_dof.empty()) {  // the front factor knows every DOF: no patch
         // warp: Q F^-1 Q^T (factor_apply), Q = the rotations since the factor's frame
         if (!w.condensed.factored) {
           rotated_multi(m, ws, ws.slot(w.front), m.solver.warp ? &w.Q : nullptr, k, B, X);
@@ -952,7 +984,17 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
       rotated_multi(m, ws, ws.solver, &w.Rn, k, B, X);
       return;
   }
-  for (int c = 0; c < k; ++c) apply_factor_inverse(m, ws, B + c * n, X + c * n);
+  // Column by column; lagged_apply reads its input after writing its output
+  // (the Jacobi of unknown DOFs, the multiplicative patch), so an aliased
+  // column goes through a copy.
+  for (int c = 0; c < k; ++c) {
+    const double* b = B + c * n;
+    if (b == X + c * n) {
+      w.alias_col.assign(b, b + n);
+      b = w.alias_col.data();
+    }
+    apply_factor_inverse(m, ws, b, X + c * n);
+  }
 }
 
 bool iterative_policy(const Model& m) {

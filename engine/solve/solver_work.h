@@ -78,6 +78,8 @@ struct SolverWork {
   std::vector<int> patch_src;          // (patch nnz) position in the global A of each patch entry
   std::vector<double> patch_A, patch_r;
   long long patch_key = -1;            // (pattern, front slot, front frame) it was built for
+  std::vector<int> patch_contact_nodes;  // solver.contact_patch: the contact rows' DOF nodes it was built for
+  std::vector<int> patch_seeds;          // (scratch) this iteration's
   // Rows of A at the patch DOFs (every column), for the multiplicative combination.
   SparseRows patch_rows;
   std::vector<double> ms_r, ms_z;      // (ndof) multiplicative Schwarz work
@@ -97,6 +99,7 @@ struct SolverWork {
   std::vector<char> node_identity;   // (ndofnode) 1 where 1 or 2 components are constrained: R = I keeps the projection
 
   std::vector<double> r, z, p, q, t;  // (ndof) CG work
+  std::vector<double> alias_col;      // (ndof) apply_factor_inverse_multi's copy of an aliased column
   std::vector<double> cr, cz, cp, cq;  // (ndof + extra) constrained_refine's CG work (the contact stage's tools appended)
   // solver.coarse "corners": the two-level preconditioner's coarse level and
   // its work vectors (ndof each).

@@ -96,6 +96,8 @@ TEST(ContactSolve, RefinedCorrectionConvergesToExactUnderALaggedFactor) {
   sc.solver.tolerance = 1e-12;
   sc.solver.max_iterations = 1000;
   const Model lagged = build_model(beam(), sc);
+  sc.solver.contact_patch = 1;
+  const Model patched = build_model(beam(), sc);
   const std::vector<int> tip = tip_nodes(exact);
   // The tip pulled to `pull` over 5 frames by grasp rows, then held.
   const auto run = [&](const Model& m, int refine_rounds) {
@@ -114,10 +116,15 @@ TEST(ContactSolve, RefinedCorrectionConvergesToExactUnderALaggedFactor) {
   };
   const std::vector<double> ref = run(exact, 0);
   const double plain = test::rel_diff(run(lagged, 0), ref), refined = test::rel_diff(run(lagged, 1), ref);
-  std::printf("[ lagged against exact after 8 grasp frames: %.2e with Y dlambda, %.2e refined ]\n", plain, refined);
-  // Measured: 3.5e-2 and 2.9e-14.
+  const double patch = test::rel_diff(run(patched, 0), ref), patch_refined = test::rel_diff(run(patched, 1), ref);
+  std::printf("[ lagged against exact after 8 grasp frames: %.2e with Y dlambda, %.2e refined; "
+              "with a contact patch %.2e, %.2e ]\n", plain, refined, patch, patch_refined);
+  // Measured: 3.5e-2 and 2.9e-14; 5.6e-3 and 3.6e-14 (solver.contact_patch 1:
+  // the grasped nodes and a ring of elements factored exactly).
   EXPECT_GT(plain, 1e-3) << "the unrefined correction should show the preconditioner's error";
   EXPECT_LT(refined, 1e-10);
+  EXPECT_LT(patch, 0.5 * plain);
+  EXPECT_LT(patch_refined, 1e-10);
   EXPECT_EQ(test::rel_diff(run(exact, 3), ref), 0.0) << "exact's Y is A^-1: nothing to refine";
 }
 

@@ -848,6 +848,12 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
   EXPECT_EQ(s.solver.condense_below, 0.0);
   expect_error(minimal(R"("solver": {"policy": "lagged", "condense_below": 1})"),
                "solver.condense_below must be in [0, 1), got 1");
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged"})"), scene_path_).solver.contact_patch, 0);
+  EXPECT_EQ(parse_scene(minimal(R"("solver": {"policy": "lagged", "contact_patch": 2})"), scene_path_).solver.contact_patch, 2);
+  expect_error(minimal(R"("solver": {"policy": "lagged", "contact_patch": 4})"),
+               "solver.contact_patch must be an integer in [0, 3], got 4");
+  expect_error(minimal(R"("solver": {"contact_patch": 1})"),
+               "solver.contact_patch: only used by solver.policy \"lagged\"; solver.policy is \"exact\"");
   expect_error(minimal(R"("solver": {"condense_below": 0.1})"),
                "solver.condense_below: only used by solver.policy \"lagged\"; solver.policy is \"exact\"");
   // The lagged policy's two-valued string keys: default (true), the other

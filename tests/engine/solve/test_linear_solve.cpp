@@ -482,24 +482,38 @@ TEST(SolverPolicies, FrameIterationBudgetCapsCgAndReportsTheResidualTaken) {
 
 // apply_factor_inverse_multi (the contact compliance's columns in one
 // substitution) gives each column what apply_factor_inverse gives it, under
-// every policy, with the lagged factor warped by the rotations since its frame.
+// every policy, with the lagged factor warped by the rotations since its
+// frame, and with a lagged patch (solver.contact_patch around a grasp row:
+// column by column, in place as the contact stage calls it).
 TEST(SolverPolicies, MultiColumnFactorInverseMatchesOneColumnAtATime) {
-  std::vector<SolverSettings> settings(4);
+  std::vector<SolverSettings> settings(5);
   settings[1].policy = SolverPolicy::Lagged;
   settings[1].refresh_every = 5;
   settings[1].warp = true;
   settings[2].policy = SolverPolicy::Warped;
   settings[3].policy = SolverPolicy::WarpedCG;
+  settings[4] = settings[1];
+  settings[4].contact_patch = 1;
   for (const SolverSettings& solver : settings) {
     const Mesh mesh = make_beam(2.0, 0.4, 0.4, 6, 1, 1, 1);
     const Model m = build_model(mesh, swing_scene(solver));
     State st; Workspace ws;
     init_state(m, st, ws);
-    for (int k = 0; k < 8; ++k) step(m, st, ws);  // the beam has turned since the lagged factor's frame
+    const int held = m.ndof() - 1;  // a grasp row on the last DOF, holding it where it is
+    for (int k = 0; k < 8; ++k) {  // the beam has turned since the lagged factor's frame
+      ws.contacts.clear();
+      const double p[3] = {0, 0, 0}, d[3] = {0, 0, 1};
+      ws.contacts.begin_row(RowKind::Grasp, 0.0, 0, p, d, 0.0, -1);
+      ws.contacts.add(held, 1.0);
+      step(m, st, ws);
+    }
+    EXPECT_EQ(ws.work.patch_dof.empty(), solver.contact_patch == 0) << policy_name(solver.policy);
     const int n = m.ndof(), k = 3;
     const std::vector<double> B = test::random_vector(n * k, 5);
-    std::vector<double> X(B.size()), one(n);
+    std::vector<double> X(B.size()), one(n), inplace = B;
     apply_factor_inverse_multi(m, ws, k, B.data(), X.data());
+    apply_factor_inverse_multi(m, ws, k, inplace.data(), inplace.data());
+    EXPECT_EQ(inplace, X) << policy_name(solver.policy) << ": in place";
     for (int c = 0; c < k; ++c) {
       apply_factor_inverse(m, ws, B.data() + static_cast<size_t>(c) * n, one.data());
       std::vector<double> col(X.begin() + static_cast<size_t>(c) * n, X.begin() + static_cast<size_t>(c + 1) * n);
