@@ -45,6 +45,27 @@ void add_dof_row(ContactRows& rows, RowKind kind, int dof, double target, double
   rows.add(dof, sign);
 }
 
+// The corotated cantilever under gravity as `exact` and as `lagged` with a
+// factor refreshed every 50 frames (so it is stale) and CG to 1e-12, for
+// the refinement's tests; newton > 0 fixes the Newton iterations per step
+// (no adaptive decisions to differ), contact_patch as solver.contact_patch.
+struct ExactAndLagged {
+  Model exact, lagged;
+};
+ExactAndLagged exact_and_lagged(int newton, int contact_patch = 0) {
+  Scene sc = cantilever({0, 0, -9.81});
+  sc.material.model = MaterialModel::Corotated;
+  if (newton > 0) sc.newton_iterations = sc.max_newton_iterations = newton;
+  ExactAndLagged out{build_model(beam(), sc), {}};
+  sc.solver.policy = SolverPolicy::Lagged;
+  sc.solver.refresh_every = 50;
+  sc.solver.tolerance = 1e-12;
+  sc.solver.max_iterations = 1000;
+  sc.solver.contact_patch = contact_patch;
+  out.lagged = build_model(beam(), sc);
+  return out;
+}
+
 TEST(ContactSolve, GraspRowsGiveThePrescribedDisplacementStep) {
   const Vec3 g{0, 0, -9.81};
   const Vec3 pull{0.0, 0.01, -0.05};
@@ -88,16 +109,9 @@ TEST(ContactSolve, GraspRowsGiveThePrescribedDisplacementStep) {
 // tolerance (1e-12 here).
 TEST(ContactSolve, RefinedCorrectionConvergesToExactUnderALaggedFactor) {
   const Vec3 pull{0.0, 0.2, -0.4};
-  Scene sc = cantilever({0, 0, -9.81});
-  sc.material.model = MaterialModel::Corotated;
-  const Model exact = build_model(beam(), sc);
-  sc.solver.policy = SolverPolicy::Lagged;
-  sc.solver.refresh_every = 50;
-  sc.solver.tolerance = 1e-12;
-  sc.solver.max_iterations = 1000;
-  const Model lagged = build_model(beam(), sc);
-  sc.solver.contact_patch = 1;
-  const Model patched = build_model(beam(), sc);
+  const ExactAndLagged models = exact_and_lagged(0);
+  const Model &exact = models.exact, &lagged = models.lagged;
+  const Model patched = exact_and_lagged(0, 1).lagged;
   const std::vector<int> tip = tip_nodes(exact);
   // The tip pulled to `pull` over 5 frames by grasp rows, then held.
   const auto run = [&](const Model& m, int refine_rounds) {
@@ -135,15 +149,8 @@ TEST(ContactSolve, RefinedCorrectionConvergesToExactUnderALaggedFactor) {
 // rounds the lagged trajectory is exact's to the CG tolerance; the rows hold
 // in every case.
 TEST(ContactSolve, RefinedCorrectionFindsExactsContactsOnAFloor) {
-  Scene sc = cantilever({0, 0, -9.81});
-  sc.material.model = MaterialModel::Corotated;
-  sc.newton_iterations = sc.max_newton_iterations = 2;  // no adaptive decisions to differ
-  const Model exact = build_model(beam(), sc);
-  sc.solver.policy = SolverPolicy::Lagged;
-  sc.solver.refresh_every = 50;
-  sc.solver.tolerance = 1e-12;
-  sc.solver.max_iterations = 1000;
-  const Model lagged = build_model(beam(), sc);
+  const ExactAndLagged models = exact_and_lagged(2);
+  const Model &exact = models.exact, &lagged = models.lagged;
   const std::vector<int> tip = tip_nodes(exact);
   const auto floor_z = [&](const Model& m, int i) {  // Delta_z >= floor_z
     const double y = m.X[3 * i + 1], z = m.X[3 * i + 2];
@@ -190,15 +197,8 @@ TEST(ContactSolve, RefinedCorrectionFindsExactsContactsOnAFloor) {
 // is exact's (whose polish falls back to PGS's bounded answer).
 TEST(ContactSolve, RefinementHoldsRedundantRows) {
   const Vec3 pull{0.0, 0.1, -0.2};
-  Scene sc = cantilever({0, 0, -9.81});
-  sc.material.model = MaterialModel::Corotated;
-  sc.newton_iterations = sc.max_newton_iterations = 2;
-  const Model exact = build_model(beam(), sc);
-  sc.solver.policy = SolverPolicy::Lagged;
-  sc.solver.refresh_every = 50;
-  sc.solver.tolerance = 1e-12;
-  sc.solver.max_iterations = 1000;
-  const Model lagged = build_model(beam(), sc);
+  const ExactAndLagged models = exact_and_lagged(2);
+  const Model &exact = models.exact, &lagged = models.lagged;
   const int node = tip_nodes(exact).front(), other = tip_nodes(exact).back();
   double pushing = 0.0;
   const auto run = [&](const Model& m, int refine_rounds) {
@@ -238,15 +238,8 @@ TEST(ContactSolve, RefinementHoldsRedundantRows) {
 // tissue: the refinement carries the tool's displacement as unknowns, so the
 // lagged run follows exact's coupled solution too.
 TEST(ContactSolve, RefinementFollowsExactWithASpringCoupledTool) {
-  Scene sc = cantilever({0, 0, -9.81});
-  sc.material.model = MaterialModel::Corotated;
-  sc.newton_iterations = sc.max_newton_iterations = 2;
-  const Model exact = build_model(beam(), sc);
-  sc.solver.policy = SolverPolicy::Lagged;
-  sc.solver.refresh_every = 50;
-  sc.solver.tolerance = 1e-12;
-  sc.solver.max_iterations = 1000;
-  const Model lagged = build_model(beam(), sc);
+  const ExactAndLagged models = exact_and_lagged(2);
+  const Model &exact = models.exact, &lagged = models.lagged;
   const std::vector<int> tip = tip_nodes(exact);
   constexpr double kCompliance = 0.3;  // m/N: the spring yields about as much as the tissue
   const auto run = [&](const Model& m, int refine_rounds, double* force) {
