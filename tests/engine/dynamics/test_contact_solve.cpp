@@ -66,6 +66,26 @@ ExactAndLagged exact_and_lagged(int newton, int contact_patch = 0) {
   return out;
 }
 
+// Steps m from rest for `frames` frames with contact.refine_rounds; before
+// each, rows(frame, state, ws.contacts) fills the cleared rows, after it
+// after(frame, state, ws) checks. Returns the last displacement.
+template <class Rows, class After>
+std::vector<double> run_with_rows(const Model& m, int frames, int refine_rounds, Rows rows, After after) {
+  State s;
+  Workspace ws;
+  init_state(m, s, ws);
+  for (int frame = 0; frame < frames; ++frame) {
+    ws.contacts.clear();
+    ws.contacts.refine_rounds = refine_rounds;
+    ws.contacts.max_sweeps = 10000;
+    rows(frame, s, ws.contacts);
+    step(m, s, ws);
+    after(frame, s, ws);
+  }
+  return s.u;
+}
+const auto kNoCheck = [](int, const State&, const Workspace&) {};
+
 TEST(ContactSolve, GraspRowsGiveThePrescribedDisplacementStep) {
   const Vec3 g{0, 0, -9.81};
   const Vec3 pull{0.0, 0.01, -0.05};
@@ -114,20 +134,12 @@ TEST(ContactSolve, RefinedCorrectionConvergesToExactUnderALaggedFactor) {
   const Model patched = exact_and_lagged(0, 1).lagged;
   const std::vector<int> tip = tip_nodes(exact);
   // The tip pulled to `pull` over 5 frames by grasp rows, then held.
-  const auto run = [&](const Model& m, int refine_rounds) {
-    State s;
-    Workspace ws;
-    init_state(m, s, ws);
-    for (int frame = 0; frame < 8; ++frame) {
-      ws.contacts.clear();
-      ws.contacts.refine_rounds = refine_rounds;
-      const double f = std::min(1.0, (frame + 1) / 5.0);
-      for (int i : tip)
-        for (int c = 0; c < 3; ++c) add_dof_row(ws.contacts, RowKind::Grasp, 3 * i + c, f * pull[c] - s.u[3 * i + c]);
-      step(m, s, ws);
-    }
-    return s.u;
+  const auto grasp = [&](int frame, const State& s, ContactRows& rows) {
+    const double f = std::min(1.0, (frame + 1) / 5.0);
+    for (int i : tip)
+      for (int c = 0; c < 3; ++c) add_dof_row(rows, RowKind::Grasp, 3 * i + c, f * pull[c] - s.u[3 * i + c]);
   };
+  const auto run = [&](const Model& m, int refine_rounds) { return run_with_rows(m, 8, refine_rounds, grasp, kNoCheck); };
   const std::vector<double> ref = run(exact, 0);
   const double plain = test::rel_diff(run(lagged, 0), ref), refined = test::rel_diff(run(lagged, 1), ref);
   const double patch = test::rel_diff(run(patched, 0), ref), patch_refined = test::rel_diff(run(patched, 1), ref);
@@ -157,15 +169,10 @@ TEST(ContactSolve, RefinedCorrectionFindsExactsContactsOnAFloor) {
     return -0.02 + 0.1 * y + (z - 0.25) * (z - 0.25) - z;
   };
   const auto run = [&](const Model& m, int refine_rounds, std::vector<int>* pushing) {
-    State s;
-    Workspace ws;
-    init_state(m, s, ws);
-    for (int frame = 0; frame < 10; ++frame) {
-      ws.contacts.clear();
-      ws.contacts.refine_rounds = refine_rounds;
-      ws.contacts.max_sweeps = 10000;
-      for (int i : tip) add_dof_row(ws.contacts, RowKind::Contact, 3 * i + 2, floor_z(m, i) - s.u[3 * i + 2]);
-      step(m, s, ws);
+    const auto floor = [&](int, const State& s, ContactRows& rows) {
+      for (int i : tip) add_dof_row(rows, RowKind::Contact, 3 * i + 2, floor_z(m, i) - s.u[3 * i + 2]);
+    };
+    return run_with_rows(m, 10, refine_rounds, floor, [&](int frame, const State& s, const Workspace& ws) {
       int active = 0;
       for (size_t k = 0; k < tip.size(); ++k) {
         EXPECT_GE(s.u[3 * tip[k] + 2], floor_z(m, tip[k]) - 1e-12) << "frame " << frame;
@@ -173,8 +180,7 @@ TEST(ContactSolve, RefinedCorrectionFindsExactsContactsOnAFloor) {
         EXPECT_GE(ws.contacts.lambda[k], 0.0);
       }
       if (pushing) pushing->push_back(active);
-    }
-    return s.u;
+    });
   };
   std::vector<int> pushing;
   const std::vector<double> ref = run(exact, 0, &pushing);
@@ -201,30 +207,23 @@ TEST(ContactSolve, RefinementHoldsRedundantRows) {
   const Model &exact = models.exact, &lagged = models.lagged;
   const int node = tip_nodes(exact).front(), other = tip_nodes(exact).back();
   double pushing = 0.0;
-  const auto run = [&](const Model& m, int refine_rounds) {
-    State s;
-    Workspace ws;
-    init_state(m, s, ws);
-    for (int frame = 0; frame < 6; ++frame) {
-      ws.contacts.clear();
-      ws.contacts.refine_rounds = refine_rounds;
-      ws.contacts.max_sweeps = 10000;
-      const double f = std::min(1.0, (frame + 1) / 3.0);
-      for (int copy = 0; copy < 2; ++copy)  // the same grasp twice
-        for (int c = 0; c < 3; ++c) add_dof_row(ws.contacts, RowKind::Grasp, 3 * node + c, f * pull[c] - s.u[3 * node + c]);
-      // and a floor at z = -0.05 under a neighbour the grasp drags down, twice, the second 1e-14 lower
-      const double floor = -0.05 - s.u[3 * other + 2];
-      add_dof_row(ws.contacts, RowKind::Contact, 3 * other + 2, floor);
-      add_dof_row(ws.contacts, RowKind::Contact, 3 * other + 2, floor - 1e-14);
-      step(m, s, ws);
-      for (int c = 0; c < 3; ++c) EXPECT_NEAR(s.u[3 * node + c], f * pull[c], 1e-10) << "frame " << frame;
-      EXPECT_GE(s.u[3 * other + 2], -0.05 - 1e-10) << "frame " << frame;
-      pushing = std::max(pushing, ws.contacts.lambda[6] + ws.contacts.lambda[7]);
-      for (double l : ws.contacts.lambda) EXPECT_TRUE(std::isfinite(l));
-      EXPECT_TRUE(std::all_of(s.u.begin(), s.u.end(), [](double x) { return std::isfinite(x); }));
-    }
-    return s.u;
+  const auto pulled = [&](int frame) { return std::min(1.0, (frame + 1) / 3.0); };
+  const auto rows = [&](int frame, const State& s, ContactRows& c) {
+    for (int copy = 0; copy < 2; ++copy)  // the same grasp twice
+      for (int d = 0; d < 3; ++d) add_dof_row(c, RowKind::Grasp, 3 * node + d, pulled(frame) * pull[d] - s.u[3 * node + d]);
+    // and a floor at z = -0.05 under a neighbour the grasp drags down, twice, the second 1e-14 lower
+    const double floor = -0.05 - s.u[3 * other + 2];
+    add_dof_row(c, RowKind::Contact, 3 * other + 2, floor);
+    add_dof_row(c, RowKind::Contact, 3 * other + 2, floor - 1e-14);
   };
+  const auto check = [&](int frame, const State& s, const Workspace& ws) {
+    for (int d = 0; d < 3; ++d) EXPECT_NEAR(s.u[3 * node + d], pulled(frame) * pull[d], 1e-10) << "frame " << frame;
+    EXPECT_GE(s.u[3 * other + 2], -0.05 - 1e-10) << "frame " << frame;
+    pushing = std::max(pushing, ws.contacts.lambda[6] + ws.contacts.lambda[7]);
+    for (double l : ws.contacts.lambda) EXPECT_TRUE(std::isfinite(l));
+    EXPECT_TRUE(std::all_of(s.u.begin(), s.u.end(), [](double x) { return std::isfinite(x); }));
+  };
+  const auto run = [&](const Model& m, int refine_rounds) { return run_with_rows(m, 6, refine_rounds, rows, check); };
   const std::vector<double> ref = run(exact, 0);
   const double plain = test::rel_diff(run(lagged, 0), ref), refined = test::rel_diff(run(lagged, 2), ref);
   std::printf("[ redundant rows, lagged against exact: %.2e with Y dlambda, %.2e refined ]\n", plain, refined);
@@ -242,23 +241,16 @@ TEST(ContactSolve, RefinementFollowsExactWithASpringCoupledTool) {
   const Model &exact = models.exact, &lagged = models.lagged;
   const std::vector<int> tip = tip_nodes(exact);
   constexpr double kCompliance = 0.3;  // m/N: the spring yields about as much as the tissue
+  const auto press = [&](int frame, const State& s, ContactRows& rows) {
+    rows.compliance.assign(1, kCompliance);
+    // The tool's face comes down to z = -0.3 f on the tip's nodes (rows along -z: u_z <= -0.3 f),
+    // past where gravity alone would take them (about -0.1 to -0.2).
+    const double f = std::min(1.0, (frame + 1) / 4.0);
+    for (int i : tip) add_dof_row(rows, RowKind::Contact, 3 * i + 2, 0.3 * f + s.u[3 * i + 2], -1.0);
+  };
   const auto run = [&](const Model& m, int refine_rounds, double* force) {
-    State s;
-    Workspace ws;
-    init_state(m, s, ws);
-    for (int frame = 0; frame < 8; ++frame) {
-      ws.contacts.clear();
-      ws.contacts.refine_rounds = refine_rounds;
-      ws.contacts.max_sweeps = 10000;
-      ws.contacts.compliance.assign(1, kCompliance);
-      // The tool's face comes down to z = -0.3 f on the tip's nodes (rows along -z: u_z <= -0.3 f),
-      // past where gravity alone would take them (about -0.1 to -0.2).
-      const double f = std::min(1.0, (frame + 1) / 4.0);
-      for (int i : tip) add_dof_row(ws.contacts, RowKind::Contact, 3 * i + 2, 0.3 * f + s.u[3 * i + 2], -1.0);
-      step(m, s, ws);
-      *force = ws.timing.contact_force;
-    }
-    return s.u;
+    return run_with_rows(m, 8, refine_rounds, press,
+                         [&](int, const State&, const Workspace& ws) { *force = ws.timing.contact_force; });
   };
   double f_exact = 0.0, f_plain = 0.0, f_refined = 0.0;
   const std::vector<double> ref = run(exact, 0, &f_exact);
