@@ -287,7 +287,9 @@ bool refine_on_active_rows(const Model& m, Workspace& ws, const std::vector<doub
   }
   for (int d = 0; d < n; ++d) x[d] = ws.delta[d] - base[d];
   ActiveRowProjection proj(m, c, ws.contact_work.data(), act, blk, Winv);
-  if (!constrained_refine(m, ws, b.data(), x.data(), proj, k_extra) || !proj.mu.allFinite()) return false;
+  if (!constrained_refine(m, ws, b.data(), x.data(), proj, k_extra) || !proj.mu.allFinite() ||
+      !std::all_of(x.begin(), x.begin() + nt, [](double v) { return std::isfinite(v); }))
+    return false;  // a breakdown: the LCP's Y dlambda stands
   for (int d = 0; d < n; ++d)
     if (!m.constrained[d]) ws.delta[d] = base[d] + x[d];
   // b - A~ x = H~_A^T mu: the rows' forces are lambda - mu.

@@ -96,8 +96,9 @@ struct ConstraintProjection {
 // x = argmin of 1/2 x^T A x - b^T x over x0 + null(H_A), from the feasible x0
 // given in x, for the iterative policies (lagged, warped_cg): projected
 // preconditioned CG (Gould, Hribar & Nocedal, SIAM J. Sci. Comput. 23(4),
-// 2001, Algorithm II with the residual re-projected every iteration) with
-// the constraint preconditioner z = Pi P^-1 Pi^T r, Pi = I - Y W^-1 H_A:
+// 2001; the residual re-projected every iteration, as their residual
+// update strategy does) with the constraint preconditioner
+// z = Pi P^-1 Pi^T r, Pi = I - Y W^-1 H_A:
 // every iterate meets the rows exactly, and at convergence b - A x =
 // H_A^T mu (the multipliers dual() removed). Stops when |Pi^T r| <= tol |b|,
 // or after solver.max_iterations (and what is left of
