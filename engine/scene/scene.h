@@ -184,7 +184,7 @@ struct SolverSettings {
   // iteration; CG solves the rest (0 = none; engine/solve/condensed_dofs.h).
   double condense_below = 0.05;
   bool coarse = false;         // lagged: solver.coarse "corners" (two-level, engine/solve/coarse_space.h) or "none"
-  // lagged: the DOF nodes within this many element rings of the contact
+  // lagged: the DOF nodes within this many element rings of the grasp
   // rows' nodes form a patch factored exactly every frame and combined with
   // the lagged factor like a cut's patch (0 = none; linear_solve.cpp
   // lagged_patch).

@@ -456,7 +456,7 @@ bool budget_ran_out(const Model& m, Workspace& ws, int left, int cap) {
 
 // The patch's DOF nodes: unknown = a DOF node with a DOF the front map does
 // not carry, node_in = a node of an element touching an unknown one; and
-// (solver.contact_patch) the DOF nodes of the contact rows, grown by that
+// (solver.contact_patch) the DOF nodes of the grasp rows, grown by that
 // many element rings (contact_nodes: those seeds, sorted).
 void patch_nodes(const Model& m, const std::vector<int>& map, const std::vector<int>& contact_nodes,
                  std::vector<char>& node_in, std::vector<char>& unknown) {
@@ -484,14 +484,17 @@ void patch_nodes(const Model& m, const std::vector<int>& map, const std::vector<
   for (int i = 0; i < m.ndofnode; ++i) node_in[i] = node_in[i] || ring[i];
 }
 
-// solver.contact_patch: the DOF nodes the contact rows act on, sorted (empty: none).
+// solver.contact_patch: the DOF nodes the grasp rows act on, sorted (empty:
+// none). Grasps only: with a probe's contact rows in it (they change every
+// frame) the combination stalled CG into rescues (docs/benchmarks.md).
 void contact_patch_seeds(const Model& m, const Workspace& ws, std::vector<int>& out) {
   out.clear();
   if (m.solver.contact_patch <= 0) return;
   const ContactRows& c = ws.contacts;
   for (int i = 0; i < c.nrow(); ++i)
-    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
-      if (!m.constrained[c.dof[k]]) out.push_back(c.dof[k] / 3);
+    if (c.kind[i] == RowKind::Grasp)
+      for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
+        if (!m.constrained[c.dof[k]]) out.push_back(c.dof[k] / 3);
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
 }
