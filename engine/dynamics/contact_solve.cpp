@@ -233,7 +233,7 @@ class ActiveRowProjection final : public ConstraintProjection {
 };
 
 // One refinement (solve_contacts, contact.refine_rounds): the active rows of
-// lambda held, the Newton increment du = Delta - base (and the coupled
+// c.lambda held, the Newton increment du = Delta - base (and the coupled
 // tools' spring displacements w) minimised by constrained_refine on
 //   A du = rhs0 + H^T lambda,  k_t w_t = sum_i d_i lambda_i
 // (rhs0: the Newton residual without the contact force), lambda_A taking
@@ -241,9 +241,9 @@ class ActiveRowProjection final : public ConstraintProjection {
 // result leaves the LCP's feasible set (a contact pulling, friction off its
 // cone, an inactive contact pressed in by more than tol_move): the LCP then
 // runs again from it. False when feasible, or when there was nothing to do.
-bool refine_on_active_rows(const Model& m, Workspace& ws, const std::vector<double>& Wsolve,
-                           std::vector<double>& lambda, double tol_move) {
+bool refine_on_active_rows(const Model& m, Workspace& ws, const std::vector<double>& Wsolve, double tol_move) {
   ContactRows& c = ws.contacts;
+  std::vector<double>& lambda = c.lambda;
   const std::vector<double>& W = ws.contact_W;
   const std::vector<double>& rhs0 = ws.contact_rhs;
   const std::vector<double>& base = ws.contact_base;
@@ -294,7 +294,6 @@ bool refine_on_active_rows(const Model& m, Workspace& ws, const std::vector<doub
     if (!m.constrained[d]) ws.delta[d] = base[d] + x[d];
   // b - A~ x = H~_A^T mu: the rows' forces are lambda - mu.
   for (int a = 0; a < k; ++a) lambda[act[a]] -= proj.mu[a];
-  c.lambda = lambda;
   for (int i = 0; i < r; ++i) {
     if (!(W[static_cast<size_t>(i) * r + i] > 0.0)) continue;
     switch (c.kind[i]) {
@@ -320,8 +319,10 @@ bool refine_on_active_rows(const Model& m, Workspace& ws, const std::vector<doub
 // One solve of the LCP from the rows' state after the increment so far
 // (b = target - H Delta + W lambda_old, W: the compliance PGS and the polish
 // use, with the tools' springs), then Delta += Y dlambda and lambda taken.
-// Returns the PGS sweeps.
-int lcp_round(const Model& m, Workspace& ws, const std::vector<double>& Wsolve) {
+// first: the iteration's first round, whose largest |b_i| (a displacement)
+// scales the tolerances of its later rounds (ws.contact_scale). Returns the
+// PGS sweeps.
+int lcp_round(const Model& m, Workspace& ws, const std::vector<double>& Wsolve, bool first) {
   ContactRows& c = ws.contacts;
   const int r = c.nrow(), n = m.ndof();
   const std::vector<double>& W = ws.contact_W;  // the tissue's: it is the tissue that moved by W lambda_old
@@ -331,6 +332,10 @@ int lcp_round(const Model& m, Workspace& ws, const std::vector<double>& Wsolve) 
     for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) hd += c.coef[k] * ws.delta[c.dof[k]];
     for (int j = 0; j < r; ++j) wl += W[static_cast<size_t>(i) * r + j] * c.lambda[j];
     b[i] = c.target[i] - hd + wl;
+  }
+  if (first) {
+    ws.contact_scale = 0.0;
+    for (double bi : b) ws.contact_scale = std::max(ws.contact_scale, std::abs(bi));
   }
   const int sweeps = projected_gauss_seidel(c, Wsolve, b, lambda, c.max_sweeps, 1e-12 * ws.contact_scale);
   polish_active_set(c, Wsolve, b, lambda);
@@ -438,16 +443,6 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
     }
     Wsolve = &Wc;
   }
-  // The scale (a displacement) of the tolerances of this iteration's LCP
-  // rounds: the largest |b_i| of the first.
-  double bmax = 0.0;
-  for (int i = 0; i < r; ++i) {
-    double hd = 0.0, wl = 0.0;
-    for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) hd += c.coef[k] * ws.delta[c.dof[k]];
-    for (int j = 0; j < r; ++j) wl += W[static_cast<size_t>(i) * r + j] * c.lambda[j];
-    bmax = std::max(bmax, std::abs(c.target[i] - hd + wl));
-  }
-  ws.contact_scale = bmax;
   // The refinement's starting point: the Newton increment du = Delta - base
   // and the residual without the contact force.
   if (refinable(m, c)) {
@@ -461,15 +456,12 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
       for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
         if (!m.constrained[c.dof[k]]) ws.contact_rhs[c.dof[k]] -= c.coef[k] * c.lambda[i];
   }
-  ws.timing.contact_sweeps += lcp_round(m, ws, *Wsolve);
-  if (refinable(m, c)) {  // contact_solve.h
-    std::vector<double> lambda = c.lambda;
+  ws.timing.contact_sweeps += lcp_round(m, ws, *Wsolve, /*first=*/true);
+  if (refinable(m, c))  // contact_solve.h
     for (int round = 0; round < c.refine_rounds; ++round) {
-      if (!refine_on_active_rows(m, ws, *Wsolve, lambda, m.solver.tolerance * ws.contact_scale)) break;
-      ws.timing.contact_sweeps += lcp_round(m, ws, *Wsolve);
-      lambda = c.lambda;
+      if (!refine_on_active_rows(m, ws, *Wsolve, m.solver.tolerance * ws.contact_scale)) break;
+      ws.timing.contact_sweeps += lcp_round(m, ws, *Wsolve, /*first=*/false);
     }
-  }
   record_contact_force(m, ws);
 }
 
