@@ -61,6 +61,32 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
   return R;
 }
 
+// Whether layout L would move or close an enriched front of model m inside
+// the elements it passes through: an element with m's front through it
+// (one piece, split into sub-tetrahedra for the branch functions) that L
+// neither cuts through (two pieces or more) nor fronts with the same level
+// sets. The old opening there ends at a line L's space cannot place: faces
+// close it, another front line opens it differently; the projection of such
+// a field changed the energy by 15-30x the gravity work when a scalpel went
+// on from where it had rested (FrontEnrichment.AScalpelThatStops...). So an
+// enriched front stays until its elements are cut through.
+bool moves_front_inside_elements(const Model& m, const CutLayout& L) {
+  if (!m.cuts.has_branch()) return false;
+  const CutLayout& O = m.cuts;
+  const int npe = m.mesh.npe();
+  const auto pieces = [](const CutLayout& c, int e) { return c.elem_piece_ptr[e + 1] - c.elem_piece_ptr[e]; };
+  for (int e = 0; e < m.nelem; ++e) {
+    if (pieces(O, e) != 1 || !O.elem_split[e] || pieces(L, e) >= 2) continue;
+    bool same = L.has_branch() && L.elem_split[e];
+    for (int c = 0; same && c < 4; ++c) {
+      const int i = m.mesh.tet[static_cast<size_t>(e) * npe + c];
+      same = L.node_branch[i] >= 0 && L.front_phi[i] == O.front_phi[i] && L.front_psi[i] == O.front_psi[i];
+    }
+    if (!same) return true;
+  }
+  return false;
+}
+
 bool same_layout(const Model& m, const CutLayout& L) {
   const CutLayout& O = m.cuts;
   return m.has_cuts() && O.n_enriched == L.n_enriched && O.elem_piece_ptr == L.elem_piece_ptr &&
@@ -85,11 +111,20 @@ struct PreparedCut {
   double layout_ms = 0.0, model_ms = 0.0;
 };
 
-// swept, swept_tool: the instruments' swept triangles the update includes
-// (State::swept, swept_tool; the cut-ahead helper passes its own copy: it
-// must not read the State the stages change).
+// Whether scalpel `tool` sweeps nothing in frame `frame` (its last band is
+// older): its incision's front is at rest.
+bool at_rest(const std::vector<double>& swept_tool, const std::vector<double>& swept_frame, int tool, int frame) {
+  for (size_t t = swept_tool.size(); t-- > 0;)
+    if (static_cast<int>(swept_tool[t]) == tool) return static_cast<int>(swept_frame[t]) < frame;
+  return true;
+}
+
+// swept, swept_tool, swept_frame: the instruments' swept triangles the update
+// includes (State::swept...; the cut-ahead helper passes its own copy: it
+// must not read the State the stages change); frame: the frame it is for.
 PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progress, double t_sweep,
-                        const std::vector<double>& swept, const std::vector<double>& swept_tool) {
+                        const std::vector<double>& swept, const std::vector<double>& swept_tool,
+                        const std::vector<double>& swept_frame, int frame) {
   PreparedCut p;
   p.progress = progress;
   p.swept = swept_tool.size();
@@ -104,9 +139,10 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   // the new space), while the face-snapped model is a subspace of the
   // enriched one at the same front, so enriching a front that stops is
   // exact (FrontEnrichment.AGrowingFrontStaysOnFacesAndIsEnrichedOnceItStops).
-  // The scalpels' incisions keep their fronts on faces: a blade that
-  // stops and goes on would take an enriched front back to faces, and
-  // carrying the state there is not solved (docs/cutting.md).
+  // A scalpel's incision likewise: on faces while the blade sweeps,
+  // enriched in the frames it sweeps nothing (stopped, or out of the
+  // tissue); when it goes on, the state is carried from the enriched front
+  // by project_near_fronts.
   std::vector<char> branch;
   for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
     if (progress[k] <= 0.0) continue;
@@ -121,13 +157,14 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     if (!s) continue;
     surfaces.push_back(s.get());
     owned.push_back(std::move(s));
-    branch.push_back(0);
+    branch.push_back(sim.scene.front_enrichment && at_rest(swept_tool, swept_frame, static_cast<int>(i), frame));
   }
   if (surfaces.empty()) return p;
   Stopwatch part;
   CutLayout layout = compute_cut_layout(sim.model, surfaces, &p.report, branch);
   p.layout_ms = part.lap();
-  if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && p.report.cut_elements == 0))
+  if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && p.report.cut_elements == 0) ||
+      moves_front_inside_elements(sim.model, layout))
     return p;
   p.next = std::make_unique<Model>(build_model(sim.mesh, sim.scene, &layout, &sim.model));
   for (int e = 0; e < p.next->nelem; ++e)
@@ -180,10 +217,11 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
 struct CutAhead {
   PreparedCut result;
   std::exception_ptr error;
-  std::vector<double> swept, swept_tool;  // copies of the State's, for the helper
+  std::vector<double> swept, swept_tool, swept_frame;  // copies of the State's, for the helper
   std::vector<double> progress;
   double t_sweep = 0.0;
   int base_version = -1;
+  int frame = 0;  // the frame it is prepared for
 };
 
 // Progress of every cut for a frame at time t whose swept cuts reach t_sweep;
@@ -233,6 +271,8 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   auto ahead = std::make_shared<CutAhead>();
   ahead->swept = sim.state.swept;
   ahead->swept_tool = sim.state.swept_tool;
+  ahead->swept_frame = sim.state.swept_frame;
+  ahead->frame = sim.state.frame + 1;
   ahead->progress = progress;
   ahead->t_sweep = t_sweep;
   ahead->base_version = sim.model_version;
@@ -245,7 +285,7 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   sim.cut_helper->run([ahead, a, s, retired]() mutable {  // (ahead: the task keeps its result alive)
     retired.reset();  // the model the last cut replaced (0.2-0.4 ms of frees)
     try {
-      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept, a->swept_tool);
+      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept, a->swept_tool, a->swept_frame, a->frame);
     } catch (...) {
       a->error = std::current_exception();
     }
@@ -278,94 +318,236 @@ std::vector<int> dofnode_map(const Model& from, const Model& to) {
   return map;
 }
 
-// Front enrichment: the new model's branch DOFs b (the other DOFs already
-// carried) by least squares over the elements that hold a branch node,
-//   min int |u_new(b) - u_old|^2  =>  A b = r,  A_ij = int phi_i phi_j,
-// r_i = int phi_i (u_old - u_new(0)), phi_j = N_a (F_k - F_k(x_a)) of the new
-// model (one scalar system for all components and fields). Where the front
-// did not move this gives back the old branch values; where it moved, the
-// best fit of the old opening. A moving front would change the energy at
-// the rebuild (8.4% of the gravity work on a swept beam; copying b by node:
-// 13.5%; fitting u's b in the energy norm: 6.3%): the old field's sqrt(r)
-// at the old front is not in the new space, so a growing front stays on
-// element faces (prepare_cut) and only fronts at rest are enriched.
-// Points: the 4-point rule on every sub-tetrahedron of the new pieces. A is
-// sparse (branch DOF nodes sharing an element), factored by Eigen's
-// simplicial LDL^T.
-void project_branch_dofs(const Model& from, const State& os, const Model& to, int nf, Kinematics& ns) {
-  const CutLayout& L = to.cuts;
-  const int npe = to.mesh.npe();
-  std::vector<int> col(to.ndofnode, -1), node_of;  // branch DOF node -> unknown index
-  for (int i = 0; i < to.nnode; ++i)
-    for (int k = 0; L.node_branch[i] >= 0 && k < kBranchFunctions; ++k) {
-      col[L.node_branch[i] + k] = static_cast<int>(node_of.size());
-      node_of.push_back(L.node_branch[i] + k);
+// The DOF nodes of model m carrying the field at local point rst of piece P
+// of element e (corner coordinates Xe), with their weights and gradients
+// (g: n x 3): N_a on node a's standard DOF and on its enriched DOF node in
+// P, N_a (F_k - F_k(x_a)) on its branch DOF nodes (side: of the front's
+// plane, as for_each_branch_weight), whose gradient is grad N_a (F_k -
+// F_k(x_a)) + N_a (dF_k/dphi grad phi + dF_k/dpsi grad psi) as the model's
+// own points have it (model_build.cpp add_branch_gradients). Returns the
+// count (<= 2 npe + npe kBranchFunctions) and the Jacobian determinant in *detJ.
+constexpr int kMaxWeights = 2 * 10 + 10 * kBranchFunctions;
+int field_basis(const Model& m, int e, int P, const double rst[3], int side, const double* Xe, int* dof, double* w,
+                double* g, double* detJ) {
+  const int npe = m.mesh.npe();
+  const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * npe];
+  double N[10], dN[30];
+  shape_values(npe, rst, N);
+  *detJ = shape_global_gradients(npe, Xe, rst, dN);
+  int n = 0;
+  const auto put = [&](int j, double wt, const double* gr) {
+    dof[n] = j, w[n] = wt;
+    for (int d = 0; d < 3; ++d) g[3 * n + d] = gr[d];
+    ++n;
+  };
+  for (int a = 0; a < npe; ++a) {
+    put(nodes[a], N[a], &dN[3 * a]);
+    const int q = P >= 0 && m.has_cuts() ? m.cuts.piece_enr[static_cast<size_t>(P) * npe + a] : -1;
+    if (q >= 0) put(q, N[a], &dN[3 * a]);
+  }
+  if (!element_has_branch(m, e)) return n;
+  double phi[10], psi[10], ph = 0, ps = 0, gph[3] = {0, 0, 0}, gps[3] = {0, 0, 0};
+  front_node_values(m, e, phi, psi);
+  for (int a = 0; a < npe; ++a) {
+    ph += N[a] * phi[a], ps += N[a] * psi[a];
+    for (int d = 0; d < 3; ++d) gph[d] += dN[3 * a + d] * phi[a], gps[d] += dN[3 * a + d] * psi[a];
+  }
+  const BranchValue F = side != 0 ? branch_function(side * std::abs(ph), ps, side) : branch_function(ph, ps);
+  for (int a = 0; a < npe; ++a) {
+    const int b = m.cuts.node_branch[nodes[a]];
+    if (b < 0) continue;
+    const BranchValue Fa = branch_function(phi[a], psi[a]);
+    for (int k = 0; k < kBranchFunctions; ++k) {
+      double gr[3];
+      for (int d = 0; d < 3; ++d)
+        gr[d] = dN[3 * a + d] * (F.F[k] - Fa.F[k]) + N[a] * (F.dphi[k] * gph[d] + F.dpsi[k] * gps[d]);
+      put(b + k, N[a] * (F.F[k] - Fa.F[k]), gr);
     }
-  const int nb = static_cast<int>(node_of.size());
+  }
+  return n;
+}
+
+// Near enriched fronts, old or new, the new model's DOFs by a local
+// projection of the old field (after the nodal transfer, which is exact
+// elsewhere), over the elements S holding a branch DOF node in either model,
+// for the DOF nodes (standard, enriched, branch) of the mesh nodes whose
+// elements all lie in S; the nodes on S's boundary keep their nodal values,
+// which the old field takes there exactly (its branch part vanishes outside
+// S), so the field stays continuous:
+//   v, a, du:  min int_S |f_new - f_old|^2                    (L2: kinetic energy)
+//   u:         min int_S |grad(u_new - u_old)|^2 + beta |u_new - u_old|^2
+// (H1, beta = 1e-2 / h^2, h the cube root of S's mean element volume: the
+// gradient term keeps the strain energy; an L2 fit of u put 15% of the
+// gravity work into a scalpel's beam when the blade went on from an
+// enriched rest, this 0.x%: FrontEnrichment.AScalpelThatStops...). Each is
+// a scalar system shared by the three components.
+// Where the front did not move the old field is in the new space and comes
+// back exactly; face-snapped -> enriched at the same front likewise (the new
+// space contains the old). Otherwise (an enriched front taken to faces or
+// moved) the old sqrt(r) is not in the new space and this is its best fit.
+// Points: the 4-point rule on each of 8 children of every sub-tetrahedron
+// of the new pieces (a tet10 product is of degree 4; the 4-point rule alone
+// makes the L2 matrix singular on a whole element); the old piece is looked
+// up once per sub-tetrahedron (new pieces lie inside old ones: cuts only
+// grow).
+void project_near_fronts(const Model& from, const State& os, const Model& to, int nf, Kinematics& ns) {
+  if (!from.cuts.has_branch() && !to.cuts.has_branch()) return;
+  const int npe = to.mesh.npe(), nnode = to.nnode;
+  std::vector<char> in_s(to.nelem, 0), fixed(nnode, 0);
+  double vol = 0;
+  int ns_elem = 0;
+  for (int e = 0; e < to.nelem; ++e) in_s[e] = element_has_branch(from, e) || element_has_branch(to, e);
+  for (int e = 0; e < to.nelem; ++e) {
+    if (in_s[e]) vol += to.elem_volume[e], ++ns_elem;
+    if (!in_s[e])
+      for (int a = 0; a < npe; ++a) fixed[to.mesh.tet[static_cast<size_t>(e) * npe + a]] = 1;
+  }
+  if (ns_elem == 0) return;
+  const double beta = 1e-2 / std::pow(vol / ns_elem, 2.0 / 3.0);
+  std::vector<int> col(to.ndofnode, -1), node_of;  // free DOF node -> unknown index
+  for (int e = 0; e < to.nelem; ++e)
+    for (int k = to.elem_dof_ptr[e]; in_s[e] && k < to.elem_dof_ptr[e + 1]; ++k) {
+      const int j = to.elem_dof_node[k], i = j < nnode ? j : to.cuts.enr_node[j - nnode];
+      if (fixed[i] || col[j] >= 0) continue;
+      col[j] = static_cast<int>(node_of.size());
+      node_of.push_back(j);
+    }
+  const int nu = static_cast<int>(node_of.size());
+  if (nu == 0) return;
   const std::vector<double>* oldf[4] = {&os.u, &os.v, &os.a, &os.du};
   std::vector<double>* newf[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
-  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(nb, 3 * nf);
-  std::vector<Eigen::Triplet<double>> A;  // (nb, nb), sparse: branch DOF nodes sharing an element
-  const Cubature& cub = cubature_tet4();
-  double Xe[30], grad[30], N[10];
-  std::vector<int> owner, fk;
-  constexpr int kM = 10 * kBranchFunctions;  // branch DOF nodes of one element at most
+  Eigen::MatrixXd Ru = Eigen::MatrixXd::Zero(3 * nu, 1), Rm = Eigen::MatrixXd::Zero(nu, 3 * (nf - 1));
+  std::vector<Eigen::Triplet<double>> Mt, Kt;  // (nu, nu) L2, (3 nu, 3 nu) elastic matrices
+  const double stiff = to.lambda + 2 * to.mu;
+  const Cubature& cub = branch_cubature();
+  const CutLayout& L = to.cuts;
+  double Xe[30];
+  std::vector<double> Me, Ke;
+  std::vector<int> loc(to.ndofnode, -1);
   for (int e = 0; e < to.nelem; ++e) {
-    if (!element_has_branch(to, e)) continue;
+    if (!in_s[e]) continue;
     const int* nodes = &to.mesh.tet[static_cast<size_t>(e) * npe];
     for (int a = 0; a < npe; ++a)
       for (int d = 0; d < 3; ++d) Xe[3 * a + d] = to.mesh.X[3 * nodes[a] + d];
-    const int b0 = to.elem_dof_ptr[e], n = to.elem_dof_ptr[e + 1] - b0;
-    branch_owners(to, &to.elem_dof_node[b0], n, owner, fk);
-    double phi[10], psi[10];
-    front_node_values(to, e, phi, psi);
-    std::vector<double> F0(n);  // F_k at each branch DOF node's own node
-    for (int j = 0; j < n; ++j)
-      F0[j] = owner[j] >= 0 ? branch_function(phi[owner[j]], psi[owner[j]]).F[fk[j]] : 0.0;
-    double Ae[kM * kM] = {0};
-    int idx[kM], m = 0;
-    for (int j = 0; j < n; ++j)
-      if (owner[j] >= 0) idx[m++] = col[to.elem_dof_node[b0 + j]];
+    // Local matrices over the element's DOF nodes (loc: DOF node -> local index).
+    const int d0 = to.elem_dof_ptr[e], nl = to.elem_dof_ptr[e + 1] - d0;
+    for (int i = 0; i < nl; ++i) loc[to.elem_dof_node[d0 + i]] = i;
+    Me.assign(static_cast<size_t>(nl) * nl, 0.0);
+    Ke.assign(9 * static_cast<size_t>(nl) * nl, 0.0);
     for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P)
       for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
         const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
-        const double vol6 = 6.0 * std::abs(subtet_ref_volume(v));
-        for (int q = 0; q < cub.npoint(); ++q) {
-          ProbeHit hit;
-          hit.elem = e;
-          hit.piece = P;
-          map_to_element(v, &cub.rst[3 * q], hit.rst);
-          const double w = cub.weight[q] * vol6 * shape_global_gradients(npe, Xe, hit.rst, grad);
-          shape_values(npe, hit.rst, N);
-          double ph = 0, ps = 0;
-          for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
-          const BranchValue F = branch_function(ph, ps);
-          double basis[kM];  // the element's branch DOF nodes' functions, in idx's order
-          for (int j = 0, i = 0; j < n; ++j)
-            if (owner[j] >= 0) basis[i++] = N[owner[j]] * (F.F[fk[j]] - F0[j]);
-          ProbeHit old = hit;
-          old.piece = from.has_cuts() ? piece_containing(from, e, hit.rst) : -1;
-          for (int k = 0; k < nf; ++k) {  // (the branch DOFs of newf are still 0)
-            const auto uo = interpolate_displacement(from, oldf[k]->data(), old);
-            const auto un = interpolate_displacement(to, newf[k]->data(), hit);
-            for (int i = 0; i < m; ++i)
-              for (int c = 0; c < 3; ++c) R(idx[i], 3 * k + c) += w * basis[i] * (uo[c] - un[c]);
+        const int side_new =
+            L.has_branch() ? subtet_front_side(npe, nodes, L.node_branch.data(), L.front_phi.data(), v) : 0;
+        double c[3] = {0, 0, 0};
+        for (int k = 0; k < 4; ++k)
+          for (int d = 0; d < 3; ++d) c[d] += 0.25 * v[3 * k + d];
+        const int old_piece = from.has_cuts() ? piece_containing(from, e, c) : -1;
+        const int side_old = front_side(from, e, c);
+        {
+          const double* sub = v;
+          const double vol6 = 6.0 * std::abs(subtet_ref_volume(sub));
+          for (int q = 0; q < cub.npoint(); ++q) {
+            double rst[3], detJ = 0, det_old = 0;
+            map_to_element(sub, &cub.rst[3 * q], rst);
+            int dof[kMaxWeights], dof_old[kMaxWeights];
+            double w[kMaxWeights], g[3 * kMaxWeights], w_old[kMaxWeights], g_old[3 * kMaxWeights];
+            const int n = field_basis(to, e, P, rst, side_new, Xe, dof, w, g, &detJ);
+            const int n_old = field_basis(from, e, old_piece, rst, side_old, Xe, dof_old, w_old, g_old, &det_old);
+            const double wq = cub.weight[q] * vol6 * detJ;
+            for (int k = 0; k < nf; ++k) {
+              // The old field less the new one with the nodal values: value
+              // (3) and gradient (3 x 3); the systems solve for the change.
+              double r[3] = {0, 0, 0}, gr[9] = {0};
+              const double* f = oldf[k]->data();
+              for (int j = 0; j < n_old; ++j)
+                for (int d = 0; d < 3; ++d) {
+                  r[d] += w_old[j] * f[3 * dof_old[j] + d];
+                  for (int x = 0; x < 3; ++x) gr[3 * d + x] += g_old[3 * j + x] * f[3 * dof_old[j] + d];
+                }
+              const double* fn = newf[k]->data();
+              for (int j = 0; j < n; ++j)
+                for (int d = 0; d < 3; ++d) {
+                  r[d] -= w[j] * fn[3 * dof[j] + d];
+                  for (int x = 0; x < 3; ++x) gr[3 * d + x] -= g[3 * j + x] * fn[3 * dof[j] + d];
+                }
+              // u: the stress of the residual, sigma = lambda tr(G) I + mu (G + G^T).
+              double sig[9];
+              if (k == 0) {
+                const double tr = gr[0] + gr[4] + gr[8];
+                for (int d = 0; d < 3; ++d)
+                  for (int x = 0; x < 3; ++x)
+                    sig[3 * d + x] = to.mu * (gr[3 * d + x] + gr[3 * x + d]) + (d == x ? to.lambda * tr : 0.0);
+              }
+              for (int j = 0; j < n; ++j) {
+                const int i = col[dof[j]];
+                if (i < 0) continue;
+                for (int d = 0; d < 3; ++d) {
+                  if (k == 0) {
+                    double h1 = beta * stiff * w[j] * r[d];
+                    for (int x = 0; x < 3; ++x) h1 += g[3 * j + x] * sig[3 * d + x];
+                    Ru(3 * i + d, 0) += wq * h1;
+                  } else {
+                    Rm(i, 3 * (k - 1) + d) += wq * w[j] * r[d];
+                  }
+                }
+              }
+            }
+            for (int a = 0; a < n; ++a) {
+              const int i = loc[dof[a]];
+              if (col[dof[a]] < 0) continue;
+              for (int b = 0; b < n; ++b) {
+                const int j = loc[dof[b]];
+                if (col[dof[b]] < 0) continue;
+                Me[i * nl + j] += wq * w[a] * w[b];
+                // the elasticity block of (a, b): lambda g_a g_b^T + mu (g_b g_a^T + (g_a . g_b) I)
+                const double* ga = &g[3 * a];
+                const double* gb = &g[3 * b];
+                const double dot = ga[0] * gb[0] + ga[1] * gb[1] + ga[2] * gb[2];
+                for (int c = 0; c < 3; ++c)
+                  for (int d = 0; d < 3; ++d)
+                    Ke[(3 * i + c) * 3 * nl + 3 * j + d] +=
+                        wq * (to.lambda * ga[c] * gb[d] + to.mu * (ga[d] * gb[c] + (c == d ? dot : 0.0)) +
+                              (c == d ? beta * stiff * w[a] * w[b] : 0.0));
+              }
+            }
           }
-          for (int i = 0; i < m; ++i)
-            for (int j = 0; j < m; ++j) Ae[i * kM + j] += w * basis[i] * basis[j];
         }
       }
-    for (int i = 0; i < m; ++i)
-      for (int j = 0; j < m; ++j) A.emplace_back(idx[i], idx[j], Ae[i * kM + j]);
+    for (int i = 0; i < nl; ++i)
+      for (int j = 0; j < nl; ++j) {
+        const int ci = col[to.elem_dof_node[d0 + i]], cj = col[to.elem_dof_node[d0 + j]];
+        if (ci < 0 || cj < 0) continue;
+        Mt.emplace_back(ci, cj, Me[i * nl + j]);
+        for (int c = 0; c < 3; ++c)
+          for (int d = 0; d < 3; ++d) Kt.emplace_back(3 * ci + c, 3 * cj + d, Ke[(3 * i + c) * 3 * nl + 3 * j + d]);
+      }
+    for (int i = 0; i < nl; ++i) loc[to.elem_dof_node[d0 + i]] = -1;
   }
-  Eigen::SparseMatrix<double> As(nb, nb);
-  As.setFromTriplets(A.begin(), A.end());
-  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(As);
-  if (ldlt.info() != Eigen::Success) return;  // (no branch DOF with any support: they stay 0)
-  const Eigen::MatrixXd B = ldlt.solve(R);
-  for (int j = 0; j < nb; ++j)
-    for (int k = 0; k < nf; ++k)
-      for (int c = 0; c < 3; ++c) (*newf[k])[3 * node_of[j] + c] = std::isfinite(B(j, 3 * k + c)) ? B(j, 3 * k + c) : 0.0;
+  Eigen::SparseMatrix<double> M(nu, nu), H(3 * nu, 3 * nu);
+  M.setFromTriplets(Mt.begin(), Mt.end());
+  H.setFromTriplets(Kt.begin(), Kt.end());
+  // Each solved for the change from the nodal values, with a 1e-10 relative diagonal shift (a DOF of a
+  // sliver piece, a near-null combination of branch functions stays near
+  // its nodal value) and two refinement steps on the unshifted system.
+  const auto solve = [&](const Eigen::SparseMatrix<double>& A, const Eigen::MatrixXd& R, Eigen::MatrixXd* D) {
+    Eigen::SparseMatrix<double> As = A;
+    double dmax = 0;
+    for (int i = 0; i < A.rows(); ++i) dmax = std::max(dmax, A.coeff(i, i));
+    for (int i = 0; i < A.rows(); ++i) As.coeffRef(i, i) += 1e-10 * A.coeff(i, i) + 1e-14 * dmax;
+    const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(As);
+    if (ldlt.info() != Eigen::Success) return false;
+    *D = ldlt.solve(R);
+    for (int it = 0; it < 2; ++it) *D += ldlt.solve(R - A * *D);
+    return D->allFinite();
+  };
+  Eigen::MatrixXd Du, Dm;
+  const bool ok_u = solve(H, Ru, &Du), ok_m = nf < 2 || solve(M, Rm, &Dm);
+  for (int j = 0; j < nu; ++j)
+    for (int d = 0; d < 3; ++d) {
+      if (ok_u) (*newf[0])[3 * node_of[j] + d] += Du(3 * j + d, 0);
+      for (int k = 1; ok_m && k < nf; ++k) (*newf[k])[3 * node_of[j] + d] += Dm(j, 3 * (k - 1) + d);
+    }
 }
 
 Kinematics transfer_kinematics(const Model& from, const State& os, const Model& to) {
@@ -417,7 +599,7 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
         }
       }
     }
-  if (L.has_branch()) project_branch_dofs(from, os, to, nf, ns);
+  project_near_fronts(from, os, to, nf, ns);
   return ns;
 }
 
@@ -427,8 +609,15 @@ CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_chan
   const std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
   PreparedCut p;
   const bool ahead = take_ahead(sim, progress, t_sweep, sim.state.swept_tool.size(), &p);
-  if (!changed && !swept_changed) return {};
-  if (!ahead) p = prepare_cut(sim, progress, t_sweep, sim.state.swept, sim.state.swept_tool);
+  // cut_front "enriched": a scalpel that swept in the last frame and sweeps
+  // nothing in this one stops, and its incision's front is enriched now.
+  bool stopped = false;
+  for (size_t i = 0; sim.scene.front_enrichment && i < sim.scene.instruments.size(); ++i)
+    stopped = stopped || (at_rest(sim.state.swept_tool, sim.state.swept_frame, static_cast<int>(i), sim.state.frame) &&
+                          !at_rest(sim.state.swept_tool, sim.state.swept_frame, static_cast<int>(i), sim.state.frame - 1));
+  if (!changed && !swept_changed && !stopped) return {};
+  if (!ahead)
+    p = prepare_cut(sim, progress, t_sweep, sim.state.swept, sim.state.swept_tool, sim.state.swept_frame, sim.state.frame);
   CutUpdate up = commit_cut(sim, std::move(p), clock);
   up.ahead = ahead;
   return up;
@@ -442,7 +631,9 @@ CutUpdate apply_all_cuts(Simulation& sim) {
   PreparedCut dropped;
   take_ahead(sim, {}, 0.0, 0, &dropped);
   Stopwatch clock;
-  return commit_cut(sim, prepare_cut(sim, progress, t_end, sim.state.swept, sim.state.swept_tool), clock);
+  return commit_cut(sim, prepare_cut(sim, progress, t_end, sim.state.swept, sim.state.swept_tool, sim.state.swept_frame,
+                                     sim.state.frame + 1),
+                    clock);
 }
 
 }  // namespace incise

@@ -80,6 +80,16 @@ Facet triangle_facet(const V& a, const V& b, const V& c) {
 // edge)^2 = 2 area / edge^2, i.e. its smallest angle is below about 1e-12 rad.
 constexpr double kMinFacetShape = 1e-12;
 
+}  // namespace
+
+bool degenerate_triangle(const double* a, const double* b, const double* c) {
+  double rel = 0;
+  scaled_normal(V(a[0], a[1], a[2]), V(b[0], b[1], b[2]), V(c[0], c[1], c[2]), &rel);
+  return !(rel > kMinFacetShape);
+}
+
+namespace {
+
 // A planar polygon validated as a cut (simple, convex, planar, positive area):
 // its centroid and unit normal. Computed in scaled coordinates so a tiny or a
 // huge polygon gives the same answer as one of unit size. fail(k, what)
@@ -406,6 +416,9 @@ std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept,
   for (size_t t = 0; t < swept_tool.size(); ++t) {
     if (static_cast<int>(swept_tool[t]) != tool) continue;
     const double* v = &swept[9 * t];
+    // A band's triangle of no area (an edge moved by roundoff, or along
+    // itself) has no plane: its level set would be noise.
+    if (degenerate_triangle(v, v + 3, v + 6)) continue;
     facets.push_back(triangle_facet(V(v[0], v[1], v[2]), V(v[3], v[4], v[5]), V(v[6], v[7], v[8])));
   }
   auto surf = std::make_unique<CutSurface>(std::move(facets), name);

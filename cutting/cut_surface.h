@@ -72,6 +72,11 @@ std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& spec, double t);
 std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept, const std::vector<double>& swept_tool,
                                                int tool, const std::string& name);
 
+// Whether triangle (a, b, c) (3 coordinates each) has no usable plane: twice
+// its area over its longest edge squared is <= 1e-12 (an angle below about
+// 1e-12 rad), in scaled coordinates.
+bool degenerate_triangle(const double* a, const double* b, const double* c);
+
 // Reads a triangle surface (.obj or ASCII .stl) as facets.
 std::vector<Facet> read_triangle_surface(const std::string& path);
 

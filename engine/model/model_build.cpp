@@ -227,12 +227,25 @@ void add_branch_gradients(int npe, const double* r, ElementWork& w) {
   }
 }
 
+}  // namespace
+
+const Cubature& branch_cubature() {
+  static const Cubature c = cubature_duffy(3);
+  return c;
+}
+
+namespace {
+
 // Piece P's cubature points over its sub-tetrahedra (sub-element integration,
 // [preprint] eq. (52)): weights, gradients, the element's volume, and the
 // rotation slot of each point: its own (point_rot) or `slot`.
-void add_piece_points(Model& m, const Cubature& cub, int e, const PieceView& P, bool point_rot, int slot,
+void add_piece_points(Model& m, const Cubature& cub0, int e, const PieceView& P, bool point_rot, int slot,
                       ElementWork& w, std::vector<int>& slot_src) {
   const int npe = m.mesh.npe();
+  // Elements with branch DOF nodes: the branch functions are not
+  // polynomial (gradients as r^-1/2 toward the front line), see
+  // branch_cubature (front_enrichment.h).
+  const Cubature& cub = w.branch_j.empty() ? cub0 : branch_cubature();
   for (int sidx = 0; sidx < P.nsub; ++sidx) {
     const double* sub = P.rst ? P.rst + 12 * sidx : kRefTet;
     const double jac = 6.0 * subtet_ref_volume(sub);  // reference tet -> sub-tet

@@ -9,6 +9,8 @@
 #include <cstdio>
 
 #include "cutting/conforming_slit.h"
+#include "cutting/blade_sweep.h"
+#include "cutting/cut_stage.h"
 #include "engine/dynamics/static_solve.h"
 #include "engine/dynamics/step.h"
 #include "engine/model/front_enrichment.h"
@@ -139,11 +141,15 @@ TEST(FrontEnrichment, OpeningEndsAtTheFrontInsideAnElementAndClosesAsSqrtR) {
 TEST(FrontEnrichment, FrontsWithin1e12hOfANodeLayerGiveTheSameSolution) {
   // The front 1e-12 h above and below the node layer z = 1/3, and on it:
   // the solves converge (slit_beam checks), and moving the front by 1e-12 h
-  // moves the displacements at probes by less than 1e-3 (measured 2e-13
-  // above, 3.6e-4 below: below, the layer's elements become front elements
+  // moves the displacements at probes by less than 1e-2 (measured 5e-13
+  // above, 5.2e-3 below: below, the layer's elements become front elements
   // and the enrichment ring moves down a layer, a different discretisation
   // of the same slit; the slit study's error at this size is 4e-3-1e-2,
-  // docs/benchmarks.md).
+  // docs/benchmarks.md). Below, the difference is mostly the two
+  // discretisations' quadrature error of the branch functions: 1.2e-2,
+  // 5.2e-3, 2.9e-3, 1.9e-3, 1.3e-3 with the 8-, 27- (branch_cubature),
+  // 64-, 125- and 216-point product rules; 3.6e-4 with the 4-point rule,
+  // which under-integrated both alike.
   const Mesh mesh = make_beam(4, 1, 1, 7, 3, 3, 1);
   const double h = 1.0 / 3;
   const auto on = slit_beam(mesh, true, true, 1.0 / 3);
@@ -156,7 +162,7 @@ TEST(FrontEnrichment, FrontsWithin1e12hOfANodeLayerGiveTheSameSolution) {
         for (int k = 0; k < 3; ++k) e += std::pow(u[k] - r[k], 2), n += r[k] * r[k];
       }
     std::printf("front %+.0e h off the node layer: relative difference %.3e\n", off / h, std::sqrt(e / n));
-    EXPECT_LT(std::sqrt(e / n), 1e-3);
+    EXPECT_LT(std::sqrt(e / n), 1e-2);
   }
 }
 
@@ -405,6 +411,121 @@ TEST(FrontEnrichment, AGrowingFrontStaysOnFacesAndIsEnrichedOnceItStops) {
     EXPECT_GE(after_first, 3) << "the second blade's rebuilds carry the first, enriched front over";
     EXPECT_LT(jump / scale, 1e-9);
   }
+}
+
+// A scalpel whose edge spans the beam's width goes down into it at x = 2,
+// stops with its edge inside a layer of elements, rests, goes on and stops
+// twice more (once inside the same layer). With cut_front "enriched" its
+// incision's front is enriched in the frames it rests (opening to the
+// blade's line) and on faces while it moves; each change is a rebuild that
+// carries the state (transfer_kinematics, project_near_fronts). Linear and
+// undamped, E = T + U - f.u changes only at those rebuilds (measured around
+// the cutting stage): face-snapped -> enriched at the same front is exact;
+// enriched -> faces at a moved front is the projection of a field not in
+// the new space (bounded below). Also: a blade at rest to roundoff
+// (0.55 - 0.25 != 0.3) sweeps nothing (it made a sliver band across the
+// incision, and the face-snapped run's energy grew 1e6-fold).
+TEST(FrontEnrichment, AScalpelThatStopsHasItsFrontEnrichedAndGoesOnFromIt) {
+  // z of the blade's edge at frame f: down 1.2 -> 0.55 in frames 0-5, rest
+  // to 10, down to 0.45 by 12 (the same layer of elements), rest to 16, down
+  // to 0.2 (0.6 of the lower layer's height 1/3, 0.2 h below it in the
+  // reference configuration) by 19, rest.
+  const auto z_at = [](int f) {
+    if (f <= 5) return 1.2 - 0.65 * f / 5.0;
+    if (f <= 10) return 0.55;
+    if (f <= 12) return 0.55 - 0.1 * (f - 10) / 2.0;
+    if (f <= 16) return 0.45;
+    if (f <= 19) return 0.45 - 0.25 * (f - 16) / 3.0;
+    return 0.2;
+  };
+  double jumps[2] = {0, 0}, open_above[2] = {0, 0}, shut_below[2] = {0, 0};
+  for (const bool enriched : {false, true}) {
+    Scene s = test::block_scene(2);
+    s.material.model = MaterialModel::Linear;
+    s.material.young = 1e5;
+    s.front_enrichment = enriched;
+    s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+    InstrumentSpec scalpel;
+    scalpel.kind = InstrumentSpec::Kind::Scalpel;
+    scalpel.blade = {0.2, 0.01, 0.1};
+    scalpel.edge = {Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}};
+    scalpel.contact = false;
+    scalpel.json_path = "instruments[0]";
+    s.instruments.push_back(scalpel);
+    auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
+    sim->pipeline.set(kStageToolPoses, [&](Simulation& q) {
+      q.tools.resize(1);
+      q.tools[0].before.p = std::array<double, 3>{2.0, 0.0, z_at(q.state.frame)};
+      q.tools[0].after.p = std::array<double, 3>{2.0, 0.0, z_at(q.state.frame + 1)};
+    });
+    // The cutting stage, with the energy before and after it.
+    double biggest = 0;
+    sim->pipeline.set(kStageCutting, [&](Simulation& q) {
+      const double e0 = total_energy(q.model, q.state);
+      cutting_stage(q);
+      biggest = std::max(biggest, std::abs(total_energy(q.model, q.state) - e0));
+    });
+    double scale = 0;
+    int branch_frames = 0, kept = 0, faces = 0;
+    for (int k = 0; k < 28; ++k) {
+      advance_frame(*sim);
+      // Frame k sweeps the edge from z_at(k) to z_at(k + 1): at rest in
+      // 5-9, 12-15 and 19 on, where the front is enriched; moving, the
+      // rested front is kept while the blade moves inside its elements
+      // (moves_front_inside_elements), then the model goes to faces.
+      const bool resting = std::abs(z_at(k) - z_at(k + 1)) < 1e-12 && k >= 5;  // (frame 5: 0.55 - 1e-16)
+      branch_frames += sim->model.cuts.has_branch();
+      if (enriched && resting) {
+        EXPECT_TRUE(sim->model.cuts.has_branch()) << "frame " << k;
+      }
+      if (enriched && !resting && k >= 5) (sim->model.cuts.has_branch() ? kept : faces) += 1;
+      double work = 0;
+      for (int d = 0; d < sim->model.ndof(); ++d) work += sim->model.f_gravity[d] * sim->state.u[d];
+      scale = std::max(scale, std::abs(work));
+    }
+    for (double v : sim->state.u) ASSERT_TRUE(std::isfinite(v));
+    jumps[enriched] = biggest / scale;
+    std::printf("%s: %d frames with an enriched front (moving: %d kept, %d on faces); largest energy change in a "
+                "rebuild %.3e of the largest gravity work\n",
+                enriched ? "enriched" : "face-snapped", branch_frames, kept, faces, biggest / scale);
+    if (enriched) {
+      EXPECT_GE(kept, 1);
+      EXPECT_GE(faces, 1);
+    }
+    // At rest at the end, the opening reaches the blade's line inside the
+    // lower layer of elements: its middle point P (the last band's lower
+    // row, in reference coordinates; the plane about x = 2 there, within
+    // 1e-3 h). 0.1 h above P (still in the layer) the enriched incision is
+    // open, the face-snapped one shut; 0.1 h below P both are shut (1e-2 h
+    // across the plane: only the smooth field's gradient).
+    const std::vector<double>& tri = sim->state.swept;
+    const double* P = &tri[tri.size() - 9 * 2 * kSweepSegments + 6];  // b1 of the last band's first triangle
+    const double h = 1.0 / 3;
+    const auto opening = [&](double dz) {
+      const auto a = at(*sim, P[0] - 1e-2 * h, P[1], P[2] + dz), b = at(*sim, P[0] + 1e-2 * h, P[1], P[2] + dz);
+      return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    };
+    ASSERT_LT(P[2] + 0.1 * h, 1.0 / 3);
+    open_above[enriched] = opening(0.1 * h);
+    shut_below[enriched] = opening(-0.1 * h);
+    std::printf("at the blade's line (%.3f %.3f %.3f): opening 0.1 h above %.3e, 0.1 h below %.3e\n", P[0], P[1], P[2],
+                open_above[enriched], shut_below[enriched]);
+  }
+  EXPECT_GT(open_above[1], 10 * shut_below[1]);
+  EXPECT_GT(open_above[1], 10 * open_above[0]);
+  // Face-snapped, each band's triangles are mapped through the tissue as
+  // it is in that frame, so a new band moves the nearest-facet level set
+  // of nodes near the last one by up to 1e-2 h: the old pieces are not
+  // exactly nested in the new ones (measured 3.5e-4). Enriched, the rested
+  // front's sqrt(r) is not in the faces model the blade goes on with:
+  // measured 6.3e-2, where the blade leaves the second rest's elements
+  // (the first rest's: -5e-3). In a first version of this test (rests at
+  // 0.55 and 0.3, bands not joined across a rest): 6.9e-3 here; 0.84 with
+  // the 4-point rule over branch elements, 0.18 with the front moved
+  // inside its elements at a rest, 0.15 with an L2 instead of the energy
+  // projection of u, 3.2 by node (docs/numerics.md).
+  EXPECT_LT(jumps[0], 1e-3);
+  EXPECT_LT(jumps[1], 0.1);
 }
 
 }  // namespace
