@@ -101,8 +101,8 @@ int sweep_blades(Simulation& sim) {
     // joined to the last band's row, mapped through the tissue before it
     // moved, it would make a sliver across the incision whose plane is that
     // motion's, and the level set near the blade would take it (the layout
-    // lost the incision's enriched nodes, 1e6 the energy: test
-    // FrontEnrichment.AScalpelThatStops...).
+    // lost the incision's enriched nodes and the energy grew 1e6-fold; test
+    // BladeSweep.AScalpelThatStopsAndGoesOnCutsAsIfItHadNot).
     if (!(moved > 1e-9 * std::sqrt(length))) continue;
     bool any_inside = false;
     for (int r = 0; r < 2; ++r)
@@ -117,8 +117,8 @@ int sweep_blades(Simulation& sim) {
     // swept one; after frames at rest (or out of the tissue) when the edge
     // comes back within half an element of it. A blade held still while the
     // tissue moves under it would otherwise leave a gap of that motion in
-    // the incision (material left uncut between the two bands; 7% of an
-    // element in FrontEnrichment.AScalpelThatStops...), or an overlap.
+    // the incision (7% of an element in BladeSweep.AScalpelThatStops...), or
+    // an overlap.
     std::array<std::array<double, 3>, kSweepSegments + 1> prev;
     const int prev_frame = last_edge(st, static_cast<int>(i), prev);
     bool join = prev_frame == st.frame - 1;
@@ -133,8 +133,7 @@ int sweep_blades(Simulation& sim) {
     }
     if (join) row[0] = prev;
     // A band of no area (the edge moved by roundoff, or along itself) cuts
-    // nothing: the blade is at rest (an incision's front is enriched then,
-    // cut_apply.cpp prepare_cut).
+    // nothing.
     bool flat = true;
     for (int j = 0; j < kSweepSegments; ++j)
       flat = flat && degenerate_triangle(row[0][j].data(), row[0][j + 1].data(), row[1][j + 1].data()) &&

@@ -61,32 +61,6 @@ std::vector<double> carried_rotations(const Model& from, const std::vector<doubl
   return R;
 }
 
-// Whether layout L would move or close an enriched front of model m inside
-// the elements it passes through: an element with m's front through it
-// (one piece, split into sub-tetrahedra for the branch functions) that L
-// neither cuts through (two pieces or more) nor fronts with the same level
-// sets. The old opening there ends at a line L's space cannot place: faces
-// close it, another front line opens it differently; the projection of such
-// a field changed the energy by 15-30x the gravity work when a scalpel went
-// on from where it had rested (FrontEnrichment.AScalpelThatStops...). So an
-// enriched front stays until its elements are cut through.
-bool moves_front_inside_elements(const Model& m, const CutLayout& L) {
-  if (!m.cuts.has_branch()) return false;
-  const CutLayout& O = m.cuts;
-  const int npe = m.mesh.npe();
-  const auto pieces = [](const CutLayout& c, int e) { return c.elem_piece_ptr[e + 1] - c.elem_piece_ptr[e]; };
-  for (int e = 0; e < m.nelem; ++e) {
-    if (pieces(O, e) != 1 || !O.elem_split[e] || pieces(L, e) >= 2) continue;
-    bool same = L.has_branch() && L.elem_split[e];
-    for (int c = 0; same && c < 4; ++c) {
-      const int i = m.mesh.tet[static_cast<size_t>(e) * npe + c];
-      same = L.node_branch[i] >= 0 && L.front_phi[i] == O.front_phi[i] && L.front_psi[i] == O.front_psi[i];
-    }
-    if (!same) return true;
-  }
-  return false;
-}
-
 bool same_layout(const Model& m, const CutLayout& L) {
   const CutLayout& O = m.cuts;
   return m.has_cuts() && O.n_enriched == L.n_enriched && O.elem_piece_ptr == L.elem_piece_ptr &&
@@ -111,20 +85,11 @@ struct PreparedCut {
   double layout_ms = 0.0, model_ms = 0.0;
 };
 
-// Whether scalpel `tool` sweeps nothing in frame `frame` (its last band is
-// older): its incision's front is at rest.
-bool at_rest(const std::vector<double>& swept_tool, const std::vector<double>& swept_frame, int tool, int frame) {
-  for (size_t t = swept_tool.size(); t-- > 0;)
-    if (static_cast<int>(swept_tool[t]) == tool) return static_cast<int>(swept_frame[t]) < frame;
-  return true;
-}
-
-// swept, swept_tool, swept_frame: the instruments' swept triangles the update
-// includes (State::swept...; the cut-ahead helper passes its own copy: it
-// must not read the State the stages change); frame: the frame it is for.
+// swept, swept_tool: the instruments' swept triangles the update includes
+// (State::swept, swept_tool; the cut-ahead helper passes its own copy: it
+// must not read the State the stages change).
 PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progress, double t_sweep,
-                        const std::vector<double>& swept, const std::vector<double>& swept_tool,
-                        const std::vector<double>& swept_frame, int frame) {
+                        const std::vector<double>& swept, const std::vector<double>& swept_tool) {
   PreparedCut p;
   p.progress = progress;
   p.swept = swept_tool.size();
@@ -139,10 +104,12 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   // the new space), while the face-snapped model is a subspace of the
   // enriched one at the same front, so enriching a front that stops is
   // exact (FrontEnrichment.AGrowingFrontStaysOnFacesAndIsEnrichedOnceItStops).
-  // A scalpel's incision likewise: on faces while the blade sweeps,
-  // enriched in the frames it sweeps nothing (stopped, or out of the
-  // tissue); when it goes on, the state is carried from the enriched front
-  // by project_near_fronts.
+  // The scalpels' incisions keep their fronts on faces. Enriched while the
+  // blade rests (twenty-first session, measured and withdrawn): on an
+  // incision the bottom front line stays in the same elements while the
+  // blade cuts on, so the rested front either froze there or had to be
+  // carried to faces through the whole incision's ring at every rebuild
+  // (docs/cutting.md, "The element at the cut front").
   std::vector<char> branch;
   for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
     if (progress[k] <= 0.0) continue;
@@ -157,14 +124,13 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     if (!s) continue;
     surfaces.push_back(s.get());
     owned.push_back(std::move(s));
-    branch.push_back(sim.scene.front_enrichment && at_rest(swept_tool, swept_frame, static_cast<int>(i), frame));
+    branch.push_back(0);
   }
   if (surfaces.empty()) return p;
   Stopwatch part;
   CutLayout layout = compute_cut_layout(sim.model, surfaces, &p.report, branch);
   p.layout_ms = part.lap();
-  if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && p.report.cut_elements == 0) ||
-      moves_front_inside_elements(sim.model, layout))
+  if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && p.report.cut_elements == 0))
     return p;
   p.next = std::make_unique<Model>(build_model(sim.mesh, sim.scene, &layout, &sim.model));
   for (int e = 0; e < p.next->nelem; ++e)
@@ -217,11 +183,10 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
 struct CutAhead {
   PreparedCut result;
   std::exception_ptr error;
-  std::vector<double> swept, swept_tool, swept_frame;  // copies of the State's, for the helper
+  std::vector<double> swept, swept_tool;  // copies of the State's, for the helper
   std::vector<double> progress;
   double t_sweep = 0.0;
   int base_version = -1;
-  int frame = 0;  // the frame it is prepared for
 };
 
 // Progress of every cut for a frame at time t whose swept cuts reach t_sweep;
@@ -271,8 +236,6 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   auto ahead = std::make_shared<CutAhead>();
   ahead->swept = sim.state.swept;
   ahead->swept_tool = sim.state.swept_tool;
-  ahead->swept_frame = sim.state.swept_frame;
-  ahead->frame = sim.state.frame + 1;
   ahead->progress = progress;
   ahead->t_sweep = t_sweep;
   ahead->base_version = sim.model_version;
@@ -285,7 +248,7 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
   sim.cut_helper->run([ahead, a, s, retired]() mutable {  // (ahead: the task keeps its result alive)
     retired.reset();  // the model the last cut replaced (0.2-0.4 ms of frees)
     try {
-      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept, a->swept_tool, a->swept_frame, a->frame);
+      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept, a->swept_tool);
     } catch (...) {
       a->error = std::current_exception();
     }
@@ -367,6 +330,47 @@ int field_basis(const Model& m, int e, int P, const double rst[3], int side, con
   return n;
 }
 
+// Whether element e is split into the same sub-tetrahedra, piece by piece,
+// in both models (enriched DOF node ids may differ).
+bool same_subtets(const Model& a, const Model& b, int e) {
+  const auto pieces = [](const Model& m, int e) {
+    return m.has_cuts() ? m.cuts.elem_piece_ptr[e + 1] - m.cuts.elem_piece_ptr[e] : 1;
+  };
+  if (!a.has_cuts() || !b.has_cuts()) return pieces(a, e) == 1 && pieces(b, e) == 1 && !(a.has_cuts() && a.cuts.elem_split[e]) &&
+                                              !(b.has_cuts() && b.cuts.elem_split[e]);
+  const CutLayout &A = a.cuts, &B = b.cuts;
+  if (pieces(a, e) != pieces(b, e)) return false;
+  for (int k = 0; k < pieces(a, e); ++k) {
+    const int P = A.elem_piece_ptr[e] + k, Q = B.elem_piece_ptr[e] + k;
+    const int n = A.piece_subtet_ptr[P + 1] - A.piece_subtet_ptr[P];
+    if (n != B.piece_subtet_ptr[Q + 1] - B.piece_subtet_ptr[Q]) return false;
+    if (!std::equal(A.subtet_rst.begin() + 12 * static_cast<size_t>(A.piece_subtet_ptr[P]),
+                    A.subtet_rst.begin() + 12 * static_cast<size_t>(A.piece_subtet_ptr[P + 1]),
+                    B.subtet_rst.begin() + 12 * static_cast<size_t>(B.piece_subtet_ptr[Q])))
+      return false;
+  }
+  return true;
+}
+
+// Whether the elements S (in_s) have the same pieces and the same fronts
+// (branch DOF nodes and level sets at their nodes) in both models: then the
+// old field is the new one with the same nodal and branch values.
+bool same_fronts(const Model& from, const Model& to, const std::vector<char>& in_s) {
+  if (!from.cuts.has_branch() || !to.cuts.has_branch()) return false;
+  const int npe = to.mesh.npe();
+  for (int e = 0; e < to.nelem; ++e) {
+    if (!in_s[e]) continue;
+    if (!same_subtets(from, to, e)) return false;
+    for (int a = 0; a < npe; ++a) {
+      const int i = to.mesh.tet[static_cast<size_t>(e) * npe + a];
+      if ((from.cuts.node_branch[i] >= 0) != (to.cuts.node_branch[i] >= 0) ||
+          from.cuts.front_phi[i] != to.cuts.front_phi[i] || from.cuts.front_psi[i] != to.cuts.front_psi[i])
+        return false;
+    }
+  }
+  return true;
+}
+
 // Near enriched fronts, old or new, the new model's DOFs by a local
 // projection of the old field (after the nodal transfer, which is exact
 // elsewhere), over the elements S holding a branch DOF node in either model,
@@ -374,22 +378,24 @@ int field_basis(const Model& m, int e, int P, const double rst[3], int side, con
 // elements all lie in S; the nodes on S's boundary keep their nodal values,
 // which the old field takes there exactly (its branch part vanishes outside
 // S), so the field stays continuous:
-//   v, a, du:  min int_S |f_new - f_old|^2                    (L2: kinetic energy)
-//   u:         min int_S |grad(u_new - u_old)|^2 + beta |u_new - u_old|^2
-// (H1, beta = 1e-2 / h^2, h the cube root of S's mean element volume: the
-// gradient term keeps the strain energy; an L2 fit of u put 15% of the
-// gravity work into a scalpel's beam when the blade went on from an
-// enriched rest, this 0.x%: FrontEnrichment.AScalpelThatStops...). Each is
-// a scalar system shared by the three components.
-// Where the front did not move the old field is in the new space and comes
-// back exactly; face-snapped -> enriched at the same front likewise (the new
-// space contains the old). Otherwise (an enriched front taken to faces or
-// moved) the old sqrt(r) is not in the new space and this is its best fit.
-// Points: the 4-point rule on each of 8 children of every sub-tetrahedron
-// of the new pieces (a tet10 product is of degree 4; the 4-point rule alone
-// makes the L2 matrix singular on a whole element); the old piece is looked
-// up once per sub-tetrahedron (new pieces lie inside old ones: cuts only
-// grow).
+//   u:         min 1/2 int_S eps(e) : C : eps(e) + beta (lambda + 2 mu) |e|^2,
+//              e = u_new - u_old  (the energy norm: 3 x 3 blocks)
+//   v, a, du:  min int_S |f_new - f_old|^2  (L2, one scalar system)
+// beta = 1e-2 / h^2 (h: the cube root of S's mean element volume) makes the
+// problem definite where S holds a whole free piece.
+// Where S keeps its sub-tetrahedra and fronts (another cut's rebuild) the
+// DOFs copy over one by one, exactly (same_fronts); face-snapped ->
+// enriched at the same front comes back exactly too (the new space contains
+// the old). Otherwise the old sqrt(r) is not in the new space and this is
+// its best fit: a second cut through an enriched slit's front elements
+// (which takes that front to faces) changed the energy by 0.21 of the
+// gravity work, against 2.6 before (branch DOFs dropped by node, 4-point
+// rule; 1.7 by node with the 27-point rule; FrontEnrichment.ASecondCut...).
+// Points: branch_cubature on every sub-tetrahedron of the new pieces; the
+// old piece is looked up once per sub-tetrahedron (new pieces lie inside
+// old ones: cuts only grow); the branch functions take the sign of phi at
+// each point, as the model's gradients do (a sub-tetrahedron ahead of the
+// front may straddle the plane: 18 of 861 in the slit of the tests).
 void project_near_fronts(const Model& from, const State& os, const Model& to, int nf, Kinematics& ns) {
   if (!from.cuts.has_branch() && !to.cuts.has_branch()) return;
   const int npe = to.mesh.npe(), nnode = to.nnode;
@@ -403,6 +409,24 @@ void project_near_fronts(const Model& from, const State& os, const Model& to, in
       for (int a = 0; a < npe; ++a) fixed[to.mesh.tet[static_cast<size_t>(e) * npe + a]] = 1;
   }
   if (ns_elem == 0) return;
+  if (same_fronts(from, to, in_s)) {
+    // Another cut's rebuild: S's DOFs copy over one by one (mesh nodes to
+    // themselves, enriched ones by dofnode_map, branch ones by node), exact.
+    const std::vector<int> map = dofnode_map(from, to);
+    const std::vector<double>* oldf[4] = {&os.u, &os.v, &os.a, &os.du};
+    std::vector<double>* newf[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
+    for (int e = 0; e < to.nelem; ++e)
+      for (int k = to.elem_dof_ptr[e]; in_s[e] && k < to.elem_dof_ptr[e + 1]; ++k) {
+        const int j = to.elem_dof_node[k], i = j < nnode ? j : to.cuts.enr_node[j - nnode];
+        const int b = to.cuts.node_branch[i], o = b >= 0 && j >= b && j < b + kBranchFunctions
+                                                     ? from.cuts.node_branch[i] + (j - b)
+                                                     : map[j];
+        if (o < 0) continue;
+        for (int f = 0; f < nf; ++f)
+          for (int d = 0; d < 3; ++d) (*newf[f])[3 * j + d] = (*oldf[f])[3 * o + d];
+      }
+    return;
+  }
   const double beta = 1e-2 / std::pow(vol / ns_elem, 2.0 / 3.0);
   std::vector<int> col(to.ndofnode, -1), node_of;  // free DOF node -> unknown index
   for (int e = 0; e < to.nelem; ++e)
@@ -437,13 +461,10 @@ void project_near_fronts(const Model& from, const State& os, const Model& to, in
     for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P)
       for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
         const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
-        const int side_new =
-            L.has_branch() ? subtet_front_side(npe, nodes, L.node_branch.data(), L.front_phi.data(), v) : 0;
         double c[3] = {0, 0, 0};
         for (int k = 0; k < 4; ++k)
           for (int d = 0; d < 3; ++d) c[d] += 0.25 * v[3 * k + d];
         const int old_piece = from.has_cuts() ? piece_containing(from, e, c) : -1;
-        const int side_old = front_side(from, e, c);
         {
           const double* sub = v;
           const double vol6 = 6.0 * std::abs(subtet_ref_volume(sub));
@@ -452,8 +473,10 @@ void project_near_fronts(const Model& from, const State& os, const Model& to, in
             map_to_element(sub, &cub.rst[3 * q], rst);
             int dof[kMaxWeights], dof_old[kMaxWeights];
             double w[kMaxWeights], g[3 * kMaxWeights], w_old[kMaxWeights], g_old[3 * kMaxWeights];
-            const int n = field_basis(to, e, P, rst, side_new, Xe, dof, w, g, &detJ);
-            const int n_old = field_basis(from, e, old_piece, rst, side_old, Xe, dof_old, w_old, g_old, &det_old);
+            // (side 0: the sign of phi at the point, as the model's own
+            // gradients take it, model_build.cpp add_branch_gradients)
+            const int n = field_basis(to, e, P, rst, 0, Xe, dof, w, g, &detJ);
+            const int n_old = field_basis(from, e, old_piece, rst, 0, Xe, dof_old, w_old, g_old, &det_old);
             const double wq = cub.weight[q] * vol6 * detJ;
             for (int k = 0; k < nf; ++k) {
               // The old field less the new one with the nodal values: value
@@ -609,15 +632,8 @@ CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_chan
   const std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
   PreparedCut p;
   const bool ahead = take_ahead(sim, progress, t_sweep, sim.state.swept_tool.size(), &p);
-  // cut_front "enriched": a scalpel that swept in the last frame and sweeps
-  // nothing in this one stops, and its incision's front is enriched now.
-  bool stopped = false;
-  for (size_t i = 0; sim.scene.front_enrichment && i < sim.scene.instruments.size(); ++i)
-    stopped = stopped || (at_rest(sim.state.swept_tool, sim.state.swept_frame, static_cast<int>(i), sim.state.frame) &&
-                          !at_rest(sim.state.swept_tool, sim.state.swept_frame, static_cast<int>(i), sim.state.frame - 1));
-  if (!changed && !swept_changed && !stopped) return {};
-  if (!ahead)
-    p = prepare_cut(sim, progress, t_sweep, sim.state.swept, sim.state.swept_tool, sim.state.swept_frame, sim.state.frame);
+  if (!changed && !swept_changed) return {};
+  if (!ahead) p = prepare_cut(sim, progress, t_sweep, sim.state.swept, sim.state.swept_tool);
   CutUpdate up = commit_cut(sim, std::move(p), clock);
   up.ahead = ahead;
   return up;
@@ -631,9 +647,7 @@ CutUpdate apply_all_cuts(Simulation& sim) {
   PreparedCut dropped;
   take_ahead(sim, {}, 0.0, 0, &dropped);
   Stopwatch clock;
-  return commit_cut(sim, prepare_cut(sim, progress, t_end, sim.state.swept, sim.state.swept_tool, sim.state.swept_frame,
-                                     sim.state.frame + 1),
-                    clock);
+  return commit_cut(sim, prepare_cut(sim, progress, t_end, sim.state.swept, sim.state.swept_tool), clock);
 }
 
 }  // namespace incise

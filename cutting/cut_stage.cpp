@@ -1,5 +1,7 @@
 #include "cutting/cut_stage.h"
 
+#include <cstdio>
+
 #include "cutting/blade_sweep.h"
 #include "cutting/cut_apply.h"
 
@@ -26,6 +28,11 @@ void install_cutting_stage(Simulation& sim) {
   for (const InstrumentSpec& i : sim.scene.instruments) scalpel = scalpel || i.kind == InstrumentSpec::Kind::Scalpel;
   if (!sim.scene.cuts.empty() || scalpel) sim.pipeline.set(kStageCutting, cutting_stage);
   warn_cuts_that_cut_nothing(sim);
+  if (scalpel && sim.scene.front_enrichment)
+    std::fprintf(stderr,
+                 "warning: %s: cut_front \"enriched\" enriches the fronts of the scene's cuts once they are "
+                 "complete; the scalpels' incisions keep theirs on element faces (docs/cutting.md)\n",
+                 sim.scene.path.c_str());
 }
 
 }  // namespace incise

@@ -44,13 +44,16 @@ inline constexpr int kTipFunctions = 4;
 // 27-point collapsed Gauss-Legendre product rule (cubature_duffy(3)), not
 // the 4-point rule of the other elements. The branch functions are not
 // polynomial (their gradients grow as r^-1/2 toward the front line, on the
-// faces and edges of these elements): under the 4-point rule the model's
-// strain energy of the opening near a scalpel's rested front was 9% low,
-// the branch DOFs took large, nearly cancelling values, and a rebuild
-// without them (the blade going on) found 1.3x the model's strain energy in
-// them, an energy jump of 84% of the gravity work. With this rule: 0.9%
-// (8 children with the 4-point rule each: 5.9%; 64: 1.2%; the 64- and
-// 125-point product rules: 2.9%, 0.75%); FrontEnrichment.AScalpelThatStops...
+// faces and edges of these elements): under the 4-point rule the branch
+// DOFs took large, nearly cancelling values whose energy the rule did not
+// see. A scalpel's incision enriched while the blade rested (tried in the
+// twenty-first session, docs/cutting.md): a rebuild without the branch DOFs
+// when the blade went on found 1.3x the model's strain energy in them, an
+// energy jump of 84% of the gravity work; 0.9% with this rule (each
+// sub-tetrahedron's 8 children with the 4-point rule: 5.9%, 64 children:
+// 1.2%; the 64- and 125-point product rules: 2.9%, 0.75%). A second cut
+// taking an enriched front to faces: 0.24 -> 0.21 of the gravity work
+// (FrontEnrichment.ASecondCutThroughTheFrontTakesItToFaces...).
 const Cubature& branch_cubature();
 inline constexpr int kBranchFunctions = 1;
 struct BranchValue {
