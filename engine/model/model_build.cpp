@@ -242,10 +242,22 @@ namespace {
 void add_piece_points(Model& m, const Cubature& cub0, int e, const PieceView& P, bool point_rot, int slot,
                       ElementWork& w, std::vector<int>& slot_src) {
   const int npe = m.mesh.npe();
-  // Elements with branch DOF nodes: the branch functions are not
-  // polynomial (gradients as r^-1/2 toward the front line), see
-  // branch_cubature (front_enrichment.h).
-  const Cubature& cub = w.branch_j.empty() ? cub0 : branch_cubature();
+  // Elements with branch DOF nodes near the front line (a corner within
+  // kBranchCubatureReach of the element's diameter): the branch functions
+  // are not polynomial there (gradients as r^-1/2), see branch_cubature
+  // (front_enrichment.h).
+  bool near = false;
+  if (!w.branch_j.empty()) {
+    double rmin = 1e300, diam = 0;
+    for (int a = 0; a < 4; ++a) {
+      rmin = std::min(rmin, std::hypot(w.node_phi[a], w.node_psi[a]));
+      for (int b = a + 1; b < 4; ++b)
+        diam = std::max(diam, std::hypot(w.Xe[3 * a] - w.Xe[3 * b], w.Xe[3 * a + 1] - w.Xe[3 * b + 1],
+                                         w.Xe[3 * a + 2] - w.Xe[3 * b + 2]));
+    }
+    near = rmin < kBranchCubatureReach * diam;
+  }
+  const Cubature& cub = near ? branch_cubature() : cub0;
   for (int sidx = 0; sidx < P.nsub; ++sidx) {
     const double* sub = P.rst ? P.rst + 12 * sidx : kRefTet;
     const double jac = 6.0 * subtet_ref_volume(sub);  // reference tet -> sub-tet
