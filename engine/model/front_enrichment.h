@@ -121,17 +121,23 @@ inline bool nodes_have_branch(int npe, const int* nodes, const int* node_branch)
 // The branch part of the field at a point with shape values N of an element
 // with these nodes: f(b, w) for each branch DOF node b and its weight
 // w = N_a (F_k(x) - F_k(x_a)). side: +1 or -1, the side of the cut's plane
-// the point belongs to (a sub-tetrahedron's, where the caller knows it: a
-// corner on the plane has a phi of either sign in roundoff); 0: the sign of
-// phi there (+ when exactly 0). Nothing when no node has branch DOF nodes.
+// a point on it belongs to (a sub-tetrahedron's, where the caller knows it:
+// a corner on the plane has a phi of either sign in roundoff; taken where
+// |phi| <= 1e-9 of the element's largest, elsewhere phi's sign); 0: the
+// sign of phi there (+ when exactly 0). Nothing when no node has branch
+// DOF nodes.
 template <class Fn>
 void for_each_branch_weight(int npe, const int* nodes, const int* node_branch, const double* front_phi,
                             const double* front_psi, const double* N, int side, Fn&& f) {
   if (!nodes_have_branch(npe, nodes, node_branch)) return;
-  double phi[10], psi[10], ph = 0, ps = 0;
+  double phi[10], psi[10], ph = 0, ps = 0, scale = 0;
   front_node_values(npe, nodes, front_phi, front_psi, phi, psi);
-  for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a];
-  const BranchValue F = side != 0 ? branch_function(side * std::abs(ph), ps, side) : branch_function(ph, ps);
+  for (int a = 0; a < npe; ++a) ph += N[a] * phi[a], ps += N[a] * psi[a], scale = std::max(scale, std::abs(phi[a]));
+  // The caller's side only where phi is 0 to roundoff: elsewhere phi's own
+  // sign, as the model's gradients take it (a sub-tetrahedron ahead of the
+  // front may straddle the plane, and its side would mirror F there).
+  const bool on_plane = std::abs(ph) <= 1e-9 * scale;
+  const BranchValue F = side != 0 && on_plane ? branch_function(side * std::abs(ph), ps, side) : branch_function(ph, ps);
   for (int a = 0; a < npe; ++a) {
     const int b = node_branch[nodes[a]];
     if (b < 0) continue;
