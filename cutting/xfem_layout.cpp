@@ -537,8 +537,8 @@ std::vector<int> front_elements(const Model& base, const LevelSets& ls, const st
   // with one get branch DOFs (a ring one element wide). Enriching the front
   // elements' nodes alone left the sqrt(r) field to a support about h wide
   // and the slit study 1.0-1.2x the conforming mesh's error with the front
-  // inside elements; with the ring it is 0.02-0.2x (docs/benchmarks.md,
-  // "Issue 21: the enrichment ring").
+  // inside elements; with the ring 0.16-0.48x (docs/benchmarks.md, "Issue
+  // 21: branch elements integrated with 27 points").
   std::vector<int> enr_cut = tip;  // (nelem): the cut whose branch functions enrich the element's nodes, -1 none
   for (int e = 0; e < ls.nt; ++e)
     for (int a = 0; tip[e] >= 0 && a < 4; ++a) {

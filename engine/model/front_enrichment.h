@@ -29,9 +29,9 @@ namespace incise {
 // nodes of the front elements and of the ring of elements around them
 // (cutting/xfem_layout.cpp). With all four (front elements only) the slit
 // study (tools/study_slit_fronts.cpp) stopped converging (errors of 1-4% at
-// every level; F0 and F1: erratic); with F0 and the ring it converges at
-// order 0.9-1.4 with 0.02-0.2x the conforming mesh's error (docs/benchmarks.md,
-// "Issue 21: the enrichment ring"). Likely cause, not verified: where F1..F3
+// every level; F0 and F1: erratic); with F0, the ring and branch_cubature it
+// converges at order 1.3-2.3 with 0.16-0.48x the conforming mesh's error
+// (docs/benchmarks.md, "Issue 21: branch elements integrated with 27 points"). Likely cause, not verified: where F1..F3
 // are smooth over a node's support, N_a (F_k - F_k(x_a)) summed over the
 // nodes is F_k minus its interpolant, almost zero: a near-null direction
 // of the stiffness (F0 jumps across the cut, so it has none there). With
