@@ -65,11 +65,8 @@ int field_basis(const Model& m, int e, int P, const double rst[3], const double*
 // Whether element e is split into the same sub-tetrahedra, piece by piece,
 // in both models (enriched DOF node ids may differ).
 bool same_subtets(const Model& a, const Model& b, int e) {
-  const auto pieces = [](const Model& m, int e) {
-    return m.has_cuts() ? m.cuts.elem_piece_ptr[e + 1] - m.cuts.elem_piece_ptr[e] : 1;
-  };
-  if (!a.has_cuts() || !b.has_cuts()) return pieces(a, e) == 1 && pieces(b, e) == 1 && !(a.has_cuts() && a.cuts.elem_split[e]) &&
-                                              !(b.has_cuts() && b.cuts.elem_split[e]);
+  const auto pieces = [](const Model& m, int e) { return m.cuts.elem_piece_ptr[e + 1] - m.cuts.elem_piece_ptr[e]; };
+  if (!a.has_cuts() || !b.has_cuts()) return false;  // (called where both have fronts)
   const CutLayout &A = a.cuts, &B = b.cuts;
   if (pieces(a, e) != pieces(b, e)) return false;
   for (int k = 0; k < pieces(a, e); ++k) {
@@ -119,14 +116,18 @@ void project_near_fronts(const Model& from, const State& os, const Model& to, in
   }
   if (ns_elem == 0) return;
   if (same_fronts(from, to, in_s)) {
-    // Another cut's rebuild: S's DOFs copy over one by one (mesh nodes to
-    // themselves, enriched ones by dofnode_map, branch ones by node), exact.
+    // Another cut's rebuild: the DOFs of S's inner nodes copy over one by
+    // one (mesh nodes to themselves, enriched ones by dofnode_map, branch
+    // ones by node), exact: their supports keep their pieces, so their
+    // regions and home regions too. The boundary nodes keep the nodal
+    // transfer (a cut beside S may change their home region).
     const std::vector<int> map = dofnode_map(from, to);
     const std::vector<double>* oldf[4] = {&os.u, &os.v, &os.a, &os.du};
     std::vector<double>* newf[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
     for (int e = 0; e < to.nelem; ++e)
       for (int k = to.elem_dof_ptr[e]; in_s[e] && k < to.elem_dof_ptr[e + 1]; ++k) {
         const int j = to.elem_dof_node[k], i = j < nnode ? j : to.cuts.enr_node[j - nnode];
+        if (fixed[i]) continue;
         const int b = to.cuts.node_branch[i], o = b >= 0 && j >= b && j < b + kBranchFunctions
                                                      ? from.cuts.node_branch[i] + (j - b)
                                                      : map[j];
