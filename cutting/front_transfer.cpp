@@ -20,7 +20,8 @@ namespace {
 // at the point, as the model's own gradients), whose gradient is grad N_a (F_k -
 // F_k(x_a)) + N_a (dF_k/dphi grad phi + dF_k/dpsi grad psi) as the model's
 // own points have it (model_build.cpp add_branch_gradients). Returns the
-// count (<= 2 npe + npe kBranchFunctions) and the Jacobian determinant in *detJ.
+// count (<= 2 npe + npe kBranchFunctions) and the Jacobian determinant in
+// *detJ (when not null).
 constexpr int kMaxWeights = 2 * 10 + 10 * kBranchFunctions;
 int field_basis(const Model& m, int e, int P, const double rst[3], const double* Xe, int* dof, double* w, double* g,
                 double* detJ) {
@@ -28,7 +29,8 @@ int field_basis(const Model& m, int e, int P, const double rst[3], const double*
   const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * npe];
   double N[10], dN[30];
   shape_values(npe, rst, N);
-  *detJ = shape_global_gradients(npe, Xe, rst, dN);
+  const double det = shape_global_gradients(npe, Xe, rst, dN);
+  if (detJ) *detJ = det;
   int n = 0;
   const auto put = [&](int j, double wt, const double* gr) {
     dof[n] = j, w[n] = wt;
@@ -177,12 +179,12 @@ void project_near_fronts(const Model& from, const State& os, const Model& to, in
         const int old_piece = from.has_cuts() ? piece_containing(from, e, c) : -1;
         const double vol6 = 6.0 * std::abs(subtet_ref_volume(v));
         for (int q = 0; q < cub.npoint(); ++q) {
-          double rst[3], detJ = 0, det_old = 0;
+          double rst[3], detJ = 0;
           map_to_element(v, &cub.rst[3 * q], rst);
           int dof[kMaxWeights], dof_old[kMaxWeights];
           double w[kMaxWeights], g[3 * kMaxWeights], w_old[kMaxWeights], g_old[3 * kMaxWeights];
           const int n = field_basis(to, e, P, rst, Xe, dof, w, g, &detJ);
-          const int n_old = field_basis(from, e, old_piece, rst, Xe, dof_old, w_old, g_old, &det_old);
+          const int n_old = field_basis(from, e, old_piece, rst, Xe, dof_old, w_old, g_old, nullptr);
           const double wq = cub.weight[q] * vol6 * detJ;
           for (int k = 0; k < nf; ++k) {
             // The old field less the new one with the nodal values: value
