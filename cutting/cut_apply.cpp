@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <map>
 #include <memory>
 #include <thread>
 
@@ -256,6 +257,23 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
 }
 
 
+bool same_subtets(const Model& a, const Model& b, int e) {
+  const auto pieces = [](const Model& m, int e) { return m.cuts.elem_piece_ptr[e + 1] - m.cuts.elem_piece_ptr[e]; };
+  if (!a.has_cuts() || !b.has_cuts()) return false;
+  const CutLayout &A = a.cuts, &B = b.cuts;
+  if (pieces(a, e) != pieces(b, e)) return false;
+  for (int k = 0; k < pieces(a, e); ++k) {
+    const int P = A.elem_piece_ptr[e] + k, Q = B.elem_piece_ptr[e] + k;
+    const int n = A.piece_subtet_ptr[P + 1] - A.piece_subtet_ptr[P];
+    if (n != B.piece_subtet_ptr[Q + 1] - B.piece_subtet_ptr[Q]) return false;
+    if (!std::equal(A.subtet_rst.begin() + 12 * static_cast<size_t>(A.piece_subtet_ptr[P]),
+                    A.subtet_rst.begin() + 12 * static_cast<size_t>(A.piece_subtet_ptr[P + 1]),
+                    B.subtet_rst.begin() + 12 * static_cast<size_t>(B.piece_subtet_ptr[Q])))
+      return false;
+  }
+  return true;
+}
+
 std::vector<int> dofnode_map(const Model& from, const Model& to) {
   std::vector<int> map(to.ndofnode, -1);
   for (int i = 0; i < to.nnode; ++i) map[i] = i;
@@ -292,43 +310,137 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
   if (nf == 4) ns.du.resize(n, 0.0);
   if (!to.has_cuts()) return ns;
   const CutLayout& L = to.cuts;
-  std::vector<int> old_piece(L.elem_piece_ptr.back(), -2);  // (pieces of `to`) -2: not looked up yet
   // Two passes: home values (standard DOFs) first, then enriched = old - home.
   // An element without enrichment in either model has the old nodal values,
   // copied above: only the elements near the cuts are visited.
-  for (int pass = 0; pass < 2; ++pass)
+  //
+  // Each old sub-tetrahedron lies in a new piece (the one holding its
+  // centroid) and brings its old region's value at each node of the element
+  // to that piece's DOF node there, weighted by its lumped mass at the node
+  // (volume fraction times the element's HRZ mass, as model_build.cpp lumps
+  // a piece); a DOF node takes the weighted mean: the lumped momentum
+  // sum_R m_R v_R of every node is kept where the new pieces are unions of
+  // old ones. Where the cuts only grew, all of a DOF node's values are one
+  // region's. They are not always: a scalpel's bands are mapped through the
+  // tissue frame by frame, so a separation of one frame can be gone in the
+  // next, joining two old regions, and the one that barely reaches a node
+  // holds a far extrapolation there (measured on the organ with a probe
+  // beside its incision: 1.1 cm at a node whose tissue had moved 0.2 mm, a
+  // region of 3.5e-4 of the node's mass). The old piece of one point of each
+  // new piece used to give the values, the last piece visited writing the
+  // node, and two frames later the organ blew up. A new region that no old
+  // sub-tetrahedron's centroid falls in (a sliver) takes the old piece
+  // holding its own sub-tetrahedra's centroids.
+  std::vector<double> hrz(npe);
+  const auto element_hrz = [&](int e) {  // HRZ lumped masses of e's nodes: rho V M_aa / tr M
+    const double* M = &from.elem_mass[static_cast<size_t>(e) * npe * npe];
+    double tr = 0.0, total = 0.0;
+    for (int a = 0; a < npe; ++a) {
+      tr += M[a * npe + a];
+      for (int b = 0; b < npe; ++b) total += M[a * npe + b];
+    }
+    for (int a = 0; a < npe; ++a) hrz[a] = M[a * npe + a] * total / tr;
+  };
+  static const double kWhole[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  struct Sum {  // mass-weighted values brought to one new DOF node
+    double mass = 0.0;
+    double v[12] = {0};
+  };
+  std::map<int, Sum> found;  // new DOF node -> its sum (ordered: the same sums every run)
+  // (old sub-tetrahedra) the new piece holding each, found once for both passes; -2: not yet
+  std::vector<int> new_piece(from.has_cuts() ? from.cuts.subtet_rst.size() / 12 : 0, -2);
+  std::vector<char> visited(to.nelem, 0);
+  struct Part {
+    int Q, P, side;
+    double frac;
+  };
+  std::vector<Part> parts;
+  std::vector<double>* f[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
+  // Adds old piece Q's value at node a of element e (side: the point's side
+  // of an old front) to the new DOF node of new piece P there, with weight w.
+  const auto bring = [&](int pass, int e, int P, int Q, int side, int a, double w) {
+    const int q = L.piece_enr[static_cast<size_t>(P) * npe + a];
+    if ((pass == 0) != (q < 0)) return;
+    const int i = to.mesh.tet[static_cast<size_t>(e) * npe + a];
+    // The old opening at a node that keeps branch DOFs stays in them (fitted
+    // below, project_near_fronts); at one that loses them it goes to u and q.
+    const bool keeps_branch = L.has_branch() && L.node_branch[i] >= 0;
+    double val[12];
+    old_piece_values(from, os, e, Q, a, nf, keeps_branch ? 0 : side, val);
+    Sum& sum = found[q < 0 ? i : q];
+    sum.mass += w;
+    for (int k = 0; k < nf; ++k)
+      for (int c = 0; c < 3; ++c) sum.v[3 * k + c] += w * (q < 0 ? val[3 * k + c] : val[3 * k + c] - (*f[k])[3 * i + c]);
+  };
+  const auto centroid = [](const double* v, double c[3]) {
+    for (int d = 0; d < 3; ++d) c[d] = 0.25 * (v[d] + v[3 + d] + v[6 + d] + v[9 + d]);
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    found.clear();
     for (int e = 0; e < to.nelem; ++e) {
       if (!enriched(to, e) && !enriched(from, e)) continue;
-      for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
-        // a point inside the piece: the centroid of its first sub-tetrahedron
-        const double* v = &L.subtet_rst[12 * static_cast<size_t>(L.piece_subtet_ptr[P])];
-        const double rst[3] = {0.25 * (v[0] + v[3] + v[6] + v[9]), 0.25 * (v[1] + v[4] + v[7] + v[10]),
-                               0.25 * (v[2] + v[5] + v[8] + v[11])};
-        // The old piece holding it, once per piece for both passes (a point
-        // location over the old sub-tetrahedra; looked up per node and pass
-        // it took 1.8 ms of a 10k incision's cut frame).
-        if (old_piece[P] == -2) old_piece[P] = piece_containing(from, e, rst);
-        const int Q = old_piece[P];
-        const int side = front_side(from, e, rst);
-        for (int a = 0; a < npe; ++a) {
-          const int q = L.piece_enr[static_cast<size_t>(P) * npe + a];
-          if ((pass == 0) != (q < 0)) continue;
-          const int i = to.mesh.tet[static_cast<size_t>(e) * npe + a];
-          // The old opening at a node that keeps branch DOFs stays in them
-          // (fitted below, project_branch_dofs); at one that loses them it
-          // goes to u and q here.
-          const bool keeps_branch = L.has_branch() && L.node_branch[i] >= 0;
-          double val[12];
-          old_piece_values(from, os, e, Q, a, nf, keeps_branch ? 0 : side, val);
-          std::vector<double>* f[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
-          for (int k = 0; k < nf; ++k)
-            for (int c = 0; c < 3; ++c) {
-              if (q < 0) (*f[k])[3 * i + c] = val[3 * k + c];
-              else (*f[k])[3 * q + c] = val[3 * k + c] - (*f[k])[3 * i + c];
-            }
+      visited[e] = 1;
+      element_hrz(e);
+      const int q0 = from.has_cuts() ? from.cuts.elem_piece_ptr[e] : -1;
+      const bool same = same_subtets(from, to, e);  // (the usual element: no point location)
+      const int q1 = from.has_cuts() ? from.cuts.elem_piece_ptr[e + 1] : 0;
+      // The element's (old piece, new piece, side) parts and their volume
+      // fractions: the values are looked up once per part, not per
+      // sub-tetrahedron.
+      parts.clear();
+      for (int Q = q0; Q < q1 || (Q == -1 && q1 == 0); ++Q) {  // (-1: the old model had no cuts)
+        const int t0 = Q >= 0 ? from.cuts.piece_subtet_ptr[Q] : 0, t1 = Q >= 0 ? from.cuts.piece_subtet_ptr[Q + 1] : 1;
+        for (int t = t0; t < t1; ++t) {
+          const double* v = Q >= 0 ? &from.cuts.subtet_rst[12 * static_cast<size_t>(t)] : kWhole;
+          double c[3];
+          centroid(v, c);
+          int P = Q >= 0 ? new_piece[t] : -2;
+          if (P == -2) P = same ? L.elem_piece_ptr[e] + (Q - q0) : piece_containing(to, e, c);
+          if (Q >= 0) new_piece[t] = P;
+          const int side = front_side(from, e, c);
+          const double frac = std::max(6.0 * std::abs(subtet_ref_volume(v)), 1e-12);  // (a degenerate one still counts)
+          size_t k = 0;
+          while (k < parts.size() && !(parts[k].Q == Q && parts[k].P == P && parts[k].side == side)) ++k;
+          if (k == parts.size()) parts.push_back({Q, P, side, 0.0});
+          parts[k].frac += frac;
         }
+        if (Q == -1) break;
       }
+      for (const Part& part : parts)
+        for (int a = 0; a < npe; ++a) bring(pass, e, part.P, part.Q, part.side, a, part.frac * hrz[a]);
     }
+    if (pass == 0) {
+      // A node's elements that neither model enriches are whole, in its home
+      // region in both, with the values copied above.
+      for (auto& [i, sum] : found)
+        for (int k = to.node_elem_ptr[i]; k < to.node_elem_ptr[i + 1]; ++k) {
+          const int e = to.node_elem[k];
+          if (visited[e]) continue;
+          element_hrz(e);
+          const int* nodes = &to.mesh.tet[static_cast<size_t>(e) * npe];
+          const double w = hrz[std::find(nodes, nodes + npe, i) - nodes];
+          sum.mass += w;
+          for (int kf = 0; kf < nf; ++kf)
+            for (int c = 0; c < 3; ++c) sum.v[3 * kf + c] += w * (*f[kf])[3 * i + c];
+        }
+    } else {
+      for (int e = 0; e < to.nelem; ++e)  // enriched DOF nodes no old sub-tetrahedron reached
+        for (int P = visited[e] ? L.elem_piece_ptr[e] : 0; visited[e] && P < L.elem_piece_ptr[e + 1]; ++P)
+          for (int a = 0; a < npe; ++a) {
+            const int q = L.piece_enr[static_cast<size_t>(P) * npe + a];
+            if (q < 0 || found.count(q)) continue;
+            for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
+              double c[3];
+              centroid(&L.subtet_rst[12 * static_cast<size_t>(t)], c);
+              const int Q = from.has_cuts() ? piece_containing(from, e, c) : -1;
+              bring(1, e, P, Q, front_side(from, e, c), a, 1.0);
+            }
+          }
+    }
+    for (const auto& [node, sum] : found)
+      for (int k = 0; k < nf; ++k)
+        for (int c = 0; c < 3; ++c) (*f[k])[3 * node + c] = sum.v[3 * k + c] / sum.mass;
+  }
   project_near_fronts(from, os, to, nf, ns);
   return ns;
 }

@@ -61,7 +61,10 @@ struct Kinematics {
 // new model keeps the displacement, velocity, acceleration (and last increment) of the old piece
 // it lies in, so the field is unchanged by the cut itself: a piece's nodal
 // value is d_a = u_a + q_a ([preprint] eq. (66)), so u_a takes the home
-// piece's value and q_a = d_a(old piece) - u_a. Returns (to.ndof) arrays.
+// piece's value and q_a = d_a(old piece) - u_a. Where the new layout joins
+// old regions (a scalpel's bands are not nested), a DOF takes their values'
+// mean weighted by their lumped masses at the node, keeping its momentum.
+// Returns (to.ndof) arrays.
 Kinematics transfer_kinematics(const Model& from, const State& old, const Model& to);
 
 // For each DOF node of `to` (a model with more cuts, same mesh) the DOF node
@@ -69,5 +72,10 @@ Kinematics transfer_kinematics(const Model& from, const State& old, const Model&
 // enriched DOF node to the enriched DOF node of the old piece its piece lies
 // in (-1 where that old piece was the node's home, i.e. the DOF is new).
 std::vector<int> dofnode_map(const Model& from, const Model& to);
+
+// Whether element e is split into the same sub-tetrahedra, piece by piece,
+// in both models (enriched DOF node ids may differ); false where either has
+// no cuts.
+bool same_subtets(const Model& a, const Model& b, int e);
 
 }  // namespace incise

@@ -64,25 +64,6 @@ int field_basis(const Model& m, int e, int P, const double rst[3], const double*
   return n;
 }
 
-// Whether element e is split into the same sub-tetrahedra, piece by piece,
-// in both models (enriched DOF node ids may differ).
-bool same_subtets(const Model& a, const Model& b, int e) {
-  const auto pieces = [](const Model& m, int e) { return m.cuts.elem_piece_ptr[e + 1] - m.cuts.elem_piece_ptr[e]; };
-  if (!a.has_cuts() || !b.has_cuts()) return false;  // (called where both have fronts)
-  const CutLayout &A = a.cuts, &B = b.cuts;
-  if (pieces(a, e) != pieces(b, e)) return false;
-  for (int k = 0; k < pieces(a, e); ++k) {
-    const int P = A.elem_piece_ptr[e] + k, Q = B.elem_piece_ptr[e] + k;
-    const int n = A.piece_subtet_ptr[P + 1] - A.piece_subtet_ptr[P];
-    if (n != B.piece_subtet_ptr[Q + 1] - B.piece_subtet_ptr[Q]) return false;
-    if (!std::equal(A.subtet_rst.begin() + 12 * static_cast<size_t>(A.piece_subtet_ptr[P]),
-                    A.subtet_rst.begin() + 12 * static_cast<size_t>(A.piece_subtet_ptr[P + 1]),
-                    B.subtet_rst.begin() + 12 * static_cast<size_t>(B.piece_subtet_ptr[Q])))
-      return false;
-  }
-  return true;
-}
-
 // Whether the elements S (in_s) have the same pieces and the same fronts
 // (branch DOF nodes and level sets at their nodes) in both models: then the
 // old field is the new one with the same nodal and branch values.

@@ -416,6 +416,71 @@ TEST(Xfem, RebuildFromTheBaseModelEqualsAFreshBuild) {
   EXPECT_FALSE(rebuilt2.rot_K0.empty()) << "split elements carry their pieces' rest stiffness";
 }
 
+// A rebuild whose layout joins regions of the old one (a scalpel's bands are
+// mapped through the tissue frame by frame, so the pieces are not nested):
+// each joined DOF takes the lumped-mass-weighted mean of the old regions'
+// values, which keeps every node's lumped momentum sum_R m_R v_R = (M v)_u
+// (the regions' masses add up: the new layout is the old one less a plane).
+// Old: a slab 2.3 < x < 2.4 cut free between two planes, its DOFs far off
+// (a region that barely reaches its node has far-extrapolated nodal
+// values); new: the plane at 2.3 only, the slab joined to the beam beyond.
+// The last piece visited used to write each node: there, the slab's value.
+TEST(Xfem, ARebuildThatJoinsRegionsKeepsEachNodesMomentum) {
+  Scene s = test::block_scene(2);
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  const Mesh mesh = make_beam(4, 1, 1, 8, 2, 2, 1);
+  const Model uncut = build_model(mesh, s);
+  const auto at_23 = make_cut_surface(test::plane_cut({2.3, 0, 0}, {1, 0, 0}), 0.0);
+  const auto at_24 = make_cut_surface(test::plane_cut({2.4, 0, 0}, {1, 0, 0}, "cuts[1]"), 0.0);
+  const CutLayout slab_layout = compute_cut_layout(uncut, {at_23.get(), at_24.get()}, nullptr);
+  const CutLayout joined_layout = compute_cut_layout(uncut, {at_23.get()}, nullptr);
+  const Model from = build_model(mesh, s, &slab_layout, &uncut), to = build_model(mesh, s, &joined_layout, &uncut);
+  // A smooth velocity (and u = v / 2, a = 3 v); the slab's DOFs at 0.5.
+  const auto smooth = [](const double* X, int c) {
+    return 1e-3 * (c == 0 ? X[0] * X[2] : c == 1 ? X[1] - X[0] : -X[0] * X[0]);
+  };
+  State os;
+  size_state(from, os);
+  for (int i = 0; i < from.nnode; ++i)
+    for (int c = 0; c < 3; ++c) os.v[3 * i + c] = smooth(&from.X[3 * i], c);
+  int slab_dofs = 0;
+  for (double y = 0.05; y < 1.0; y += 0.1)
+    for (double z = 0.05; z < 1.0; z += 0.1) {
+      const double p[3] = {2.35, y, z};
+      const ProbeHit h = locate_point(from, p);
+      ASSERT_GE(h.piece, 0);
+      for (int a = 0; a < from.mesh.npe(); ++a) {
+        const int q = from.cuts.piece_enr[static_cast<size_t>(h.piece) * from.mesh.npe() + a];
+        ASSERT_GE(q, 0) << "the slab is no node's home region";
+        const int i = from.cuts.enr_node[q - from.nnode];
+        for (int c = 0; c < 3; ++c) os.v[3 * q + c] = 0.5 - smooth(&from.X[3 * i], c);
+        ++slab_dofs;
+      }
+    }
+  ASSERT_GT(slab_dofs, 0);
+  os.u = os.v;
+  for (double& x : os.u) x *= 0.5;
+  os.a = os.v;
+  for (double& x : os.a) x *= 3.0;
+  const Kinematics k = transfer_kinematics(from, os, to);
+  ASSERT_EQ(k.v.size(), static_cast<size_t>(to.ndof()));
+  std::vector<double> p_old(from.ndof()), p_new(to.ndof());
+  mass_matvec(from, os.v.data(), p_old.data());
+  mass_matvec(to, k.v.data(), p_new.data());
+  double pmax = 0.0;
+  for (int d = 0; d < 3 * to.nnode; ++d) pmax = std::max(pmax, std::abs(p_old[d]));
+  int joined = 0;
+  for (int d = 0; d < 3 * to.nnode; ++d) {
+    EXPECT_NEAR(p_new[d], p_old[d], 1e-12 * pmax) << "node " << d / 3 << " component " << d % 3;
+    joined += std::abs(k.v[d] - smooth(&to.X[3 * (d / 3)], d % 3)) > 1e-6;
+  }
+  for (int d = 0; d < to.ndof(); ++d) {
+    EXPECT_NEAR(k.u[d], 0.5 * k.v[d], 1e-15);
+    EXPECT_NEAR(k.a[d], 3.0 * k.v[d], 1e-14);
+  }
+  EXPECT_GT(joined, 0) << "no node's home region took the slab in: the test tests nothing";
+}
+
 // With lumped mass a rebuild copies the mesh nodes' masses, flags and
 // constrained entries from its base and visits only the enriched elements
 // and columns: bit for bit what a fresh build computes, through two cuts.
