@@ -14,7 +14,10 @@
 # second organ, from a real segmentation (assets/meshes/liver_19k.msh, 18,957
 # DOF): hang-liver19k (held at its posterior face, released from rest) and
 # demo-liver19k (assets/scenes/liver_demo.json on it: scalpel, grasper,
-# haptic probe). Each case runs
+# haptic probe); and a hard case, probe-incision-10k (organ_instruments.json
+# with the probe pressing 1.5 cm beside the incision:
+# assets/trajectories/organ_probe_beside_incision.csv; it diverged under
+# every policy before the twenty-second session). Each case runs
 #   incise compare  (exact reference, then the policy; error after 1, 30, FRAMES frames)
 #   incise bench    (frame, cut-frame and stage timings of the policy alone)
 # The policy: solver.preset "realtime" (docs/scene-format.md, "Presets"),
@@ -98,6 +101,7 @@ cases=(
   "haptics-20k organ_haptics 3"
   "hang-liver19k liver_19k 3"
   "demo-liver19k liver_demo 3"
+  "probe-incision-10k organ_instruments 2"
 )
 only="${BENCH_ONLY:-}"
 for c in "${cases[@]}"; do
@@ -158,20 +162,25 @@ JSON
                  "displacement": {"x": -0.12, "y": 0.1, "z": 0.08}, "ramp": 1.0}]}
 JSON
       ;;
-    incision-*|haptics-*|demo-*)
+    incision-*|haptics-*|demo-*|probe-*)
       # A bundled scene with its instruments; demo-liver19k is the liver demo
-      # (scalpel, grasper, haptic probe) on the 19k mesh instead of its own.
-      [ "${name%%-*}" != incision ] && bench_extra="--haptics"
+      # (scalpel, grasper, haptic probe) on the 19k mesh instead of its own;
+      # probe-incision-10k takes the probe's hard-case trajectory.
+      [ "${name%%-*}" = haptics ] || [ "${name%%-*}" = demo ] && bench_extra="--haptics"
       mesh_file=""
       [ "$name" = demo-liver19k ] && mesh_file="../meshes/liver_19k.msh"
-      python3 - "assets/scenes/$mesh.json" "$scene" "$mesh_file" <<'PY'
+      probe_traj=""
+      [ "$name" = probe-incision-10k ] && probe_traj="../trajectories/organ_probe_beside_incision.csv"
+      python3 - "assets/scenes/$mesh.json" "$scene" "$mesh_file" "$probe_traj" <<'PY'
 import json, os, sys
-src, dst, mesh = sys.argv[1], sys.argv[2], sys.argv[3]
+src, dst, mesh, probe = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
 d = json.load(open(src))
 d.pop("integrator", None)  # the preset's (a --set when REALTIME_TANGENT is given)
 rel = lambda f: os.path.relpath(os.path.join(os.path.dirname(src), f), os.path.dirname(dst))
 d["mesh"]["file"] = rel(mesh or d["mesh"]["file"])
 for ins in d.get("instruments", []):
+    if probe and ins.get("type") == "probe":
+        ins["trajectory"] = probe
     if "trajectory" in ins:
         ins["trajectory"] = rel(ins["trajectory"])
 for k in ("output", "render", "run", "solver"):
