@@ -941,6 +941,95 @@ void rotated_multi(const Model& m, Workspace& ws, CholmodSolver& f, const std::v
   if (Rn) rotate(X, false);
 }
 
+// factor_apply for k columns (ndof apart; Z must not alias R): the front
+// factor read once for all of them (solve_copy_multi).
+void factor_apply_multi(const Model& m, Workspace& ws, int k, const double* R, double* Z) {
+  auto& w = ws.work;
+  CholmodSolver& f = ws.slot(w.front);
+  const std::vector<int>& map = w.slot_map[w.front];
+  const size_t n = static_cast<size_t>(m.ndof());
+  const auto rotate = [&](double* V, bool transpose) {
+    for (int c = 0; c < k; ++c)
+      for (int node = 0; node < m.ndofnode; ++node) {
+        const Eigen::Map<const Mat3> Q(&w.Q[9 * static_cast<size_t>(node)]);
+        Eigen::Map<Eigen::Vector3d> v(V + c * n + 3 * node);
+        const Eigen::Vector3d t = v;
+        v = transpose ? Eigen::Vector3d(Q.transpose() * t) : Eigen::Vector3d(Q * t);
+      }
+  };
+  std::copy(R, R + n * k, Z);
+  if (m.solver.warp) rotate(Z, true);
+  Stopwatch clock;
+  if (map.empty()) {
+    f.solve_copy_multi(k, Z, Z);
+  } else {
+    const size_t nf = static_cast<size_t>(f.size());
+    w.multi_t.assign(nf * k, 0.0);
+    for (int c = 0; c < k; ++c)
+      for (size_t d = 0; d < n; ++d)
+        if (map[d] >= 0) w.multi_t[c * nf + map[d]] = Z[c * n + d];
+    f.solve_copy_multi(k, w.multi_t.data(), w.multi_t.data());
+    for (int c = 0; c < k; ++c)
+      for (size_t d = 0; d < n; ++d) Z[c * n + d] = map[d] >= 0 ? w.multi_t[c * nf + map[d]] : 0.0;
+  }
+  ws.timing.solves += k;
+  ws.timing.solve_kernel_ms += clock.ms();
+  if (m.solver.warp) rotate(Z, false);
+}
+
+// lagged_apply for k columns (ndof apart; Z must not alias R), with one
+// multi-column substitution where lagged_apply does k: after cuts the
+// contact stage's compliance (one column per contact row) went column by
+// column through the patch's combination, a substitution each, and with a
+// probe's 33 rows that was most of a cut frame's contact stage.
+void lagged_apply_multi(const Model& m, Workspace& ws, const double* A, int k, const double* R, double* Z) {
+  auto& w = ws.work;
+  const std::vector<int>& map = w.slot_map[w.front];
+  const size_t n = static_cast<size_t>(m.ndof());
+  const int np = static_cast<int>(w.patch_dof.size());
+  if (w.patch_dof.empty()) {
+    factor_apply_multi(m, ws, k, R, Z);
+    if (!map.empty())
+      for (int c = 0; c < k; ++c)
+        for (size_t d = 0; d < n; ++d)
+          if (map[d] < 0) Z[c * n + d] = R[c * n + d] / A[m.diag[d]];
+    return;
+  }
+  if (!m.solver.multiplicative_patch) {
+    factor_apply_multi(m, ws, k, R, Z);
+    for (int c = 0; c < k; ++c) patch_apply(ws, R + c * n, Z + c * n, /*add=*/true);
+    return;
+  }
+  // lagged_apply's multiplicative combination, its substitution batched.
+  w.multi_r.resize(n * k);
+  w.multi_z.resize(n * k);
+  for (int c = 0; c < k; ++c) {
+    const double* r = R + c * n;
+    double* z1 = &w.multi_z[c * n];
+    double* r1 = &w.multi_r[c * n];
+    patch_apply(ws, r, z1, /*add=*/false);
+    std::copy(r, r + n, r1);
+    for (int i = 0; i < np; ++i) {
+      const double zi = z1[w.patch_dof[i]];
+      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) r1[w.patch_rows.col[t]] -= A[w.patch_rows.k[t]] * zi;
+    }
+  }
+  factor_apply_multi(m, ws, k, w.multi_r.data(), Z);
+  for (int c = 0; c < k; ++c) {
+    const double* r = R + c * n;
+    double* z = Z + c * n;
+    const double* z1 = &w.multi_z[c * n];
+    double* r1 = &w.multi_r[c * n];
+    for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
+    for (int i = 0; i < np; ++i) {
+      double acc = r[w.patch_dof[i]];
+      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) acc -= A[w.patch_rows.k[t]] * z[w.patch_rows.col[t]];
+      r1[w.patch_dof[i]] = acc;
+    }
+    patch_apply(ws, r1, z, /*add=*/true);
+  }
+}
+
 // X = Q B + P^T M^-1 (B - A Q B) for k columns (ndof apart; X may alias B):
 // the lagged preconditioner made exact on the condensed DOFs
 // (engine/solve/condensed_dofs.h); apply_m(Y, Z) applies M^-1 to all k
@@ -981,22 +1070,18 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
         });
         return;
       }
-      break;
+      // After cuts: the DOF map and the patch, one substitution for all columns.
+      if (w.condensed.factored) {
+        condensed_inverse(m, ws, k, B, X, [&](const double* Y, double* Z) { lagged_apply_multi(m, ws, ws.A.data(), k, Y, Z); });
+      } else {
+        w.multi_y.assign(B, B + n * k);  // (X may alias B)
+        lagged_apply_multi(m, ws, ws.A.data(), k, w.multi_y.data(), X);
+      }
+      return;
     case SolverPolicy::Warped:
     case SolverPolicy::WarpedCG:
       rotated_multi(m, ws, ws.solver, &w.Rn, k, B, X);
       return;
-  }
-  // Column by column; lagged_apply reads its input after writing its output
-  // (the Jacobi of unknown DOFs, the multiplicative patch), so an aliased
-  // column goes through a copy.
-  for (int c = 0; c < k; ++c) {
-    const double* b = B + c * n;
-    if (b == X + c * n) {
-      w.alias_col.assign(b, b + n);
-      b = w.alias_col.data();
-    }
-    apply_factor_inverse(m, ws, b, X + c * n);
   }
 }
 

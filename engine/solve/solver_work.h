@@ -89,6 +89,7 @@ struct SolverWork {
   CondensedDofs condensed;
   std::vector<double> rhs_cg, x_s;
   std::vector<double> multi_y, multi_x;  // (ndof, k) the same for apply_factor_inverse's k columns
+  std::vector<double> multi_r, multi_z, multi_t;  // (ndof, k), (ndof, k), (front slot size, k): lagged_apply_multi
 
   // warped: DOF node -> its elements; each element's volume-weighted sum of
   // its slots' R (the slot's share of the element's volume) is summed once
@@ -99,7 +100,6 @@ struct SolverWork {
   std::vector<char> node_identity;   // (ndofnode) 1 where 1 or 2 components are constrained: R = I keeps the projection
 
   std::vector<double> r, z, p, q, t;  // (ndof) CG work
-  std::vector<double> alias_col;      // (ndof) apply_factor_inverse_multi's copy of an aliased column
   std::vector<double> cr, cz, cp, cq;  // (ndof + extra) constrained_refine's CG work (the contact stage's tools appended)
   // solver.coarse "corners": the two-level preconditioner's coarse level and
   // its work vectors (ndof each).
