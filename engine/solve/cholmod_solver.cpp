@@ -375,26 +375,48 @@ void substitute_group(const SnFactor<T>& F, int nsuper, double* Y, double* W) {
 // to 16. Y: n x 16, W: (largest supernode rows) x 16.
 constexpr int kMultiGroup = 16;  // 8 measured the same at 20k (BM_SubstitutionColumns)
 
-template <class T>
-void supernodal_substitute_multi(const cholmod_factor* L, const T* Lx, const double* inv_scale, int n, int k,
-                                 const double* B, double* X, double* Y, double* W) {
-  const SnFactor<T> F = sn_factor(L, Lx, inv_scale);
-  const int* Perm = static_cast<const int*>(L->Perm);
-  const int nsuper = static_cast<int>(L->nsuper);
-  for (int c0 = 0; c0 < k; c0 += kMultiGroup) {
-    const int kg = std::min(kMultiGroup, k - c0), nb = (kg + 3) / 4, kp = 4 * nb;
-    for (int r = 0; r < n; ++r)
-      for (int c = 0; c < kp; ++c)
-        Y[static_cast<size_t>(r) * kp + c] = c < kg ? B[static_cast<size_t>(c0 + c) * n + Perm[r]] : 0.0;
-    switch (nb) {
-      case 1: substitute_group<T, 1>(F, nsuper, Y, W); break;
-      case 2: substitute_group<T, 2>(F, nsuper, Y, W); break;
-      case 3: substitute_group<T, 3>(F, nsuper, Y, W); break;
-      default: substitute_group<T, 4>(F, nsuper, Y, W); break;
-    }
-    for (int r = 0; r < n; ++r)
-      for (int c = 0; c < kg; ++c) X[static_cast<size_t>(c0 + c) * n + Perm[r]] = Y[static_cast<size_t>(r) * kp + c];
+// Columns c0 .. c0 + kg of B (n each), permuted, into Y (n, kp) row-interleaved (zeros past kg).
+void load_group(const int* Perm, int n, int c0, int kg, int kp, const double* B, double* Y) {
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < kp; ++c) Y[static_cast<size_t>(r) * kp + c] = c < kg ? B[static_cast<size_t>(c0 + c) * n + Perm[r]] : 0.0;
+}
+
+void store_group(const int* Perm, int n, int c0, int kg, int kp, const double* Y, double* X) {
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < kg; ++c) X[static_cast<size_t>(c0 + c) * n + Perm[r]] = Y[static_cast<size_t>(r) * kp + c];
+}
+
+// A group's substitution with nb four-column blocks; progress (if any)
+// counts the supernodes done.
+template <class T, int NB>
+void substitute_group(const SnFactor<T>& F, int nsuper, double* Y, double* W, std::atomic<int>* progress) {
+  int done = 0;
+  for (int sn = 0; sn < nsuper; ++sn) {
+    forward_supernode_multi<T, NB>(F, sn, Y, W);
+    if (progress) progress->store(++done, std::memory_order_relaxed);
   }
+  for (int sn = nsuper - 1; sn >= 0; --sn) {
+    backward_supernode_multi<T, NB>(F, sn, Y, W);
+    if (progress) progress->store(++done, std::memory_order_relaxed);
+  }
+}
+
+template <class T>
+void substitute_group(const SnFactor<T>& F, int nsuper, int nb, double* Y, double* W, std::atomic<int>* progress = nullptr) {
+  switch (nb) {
+    case 1: substitute_group<T, 1>(F, nsuper, Y, W, progress); break;
+    case 2: substitute_group<T, 2>(F, nsuper, Y, W, progress); break;
+    case 3: substitute_group<T, 3>(F, nsuper, Y, W, progress); break;
+    default: substitute_group<T, 4>(F, nsuper, Y, W, progress); break;
+  }
+}
+
+// The worker's group of a multi-column substitution, on its own Y2 and W2.
+template <class T>
+void worker_multi(void* p) {
+  auto& j = *static_cast<MultiJob*>(p);
+  const SnFactor<T> F = sn_factor(j.L, static_cast<const T*>(j.Lx), j.inv_scale);
+  substitute_group<T>(F, static_cast<int>(j.L->nsuper), j.nb, j.Y2, j.W2, &j.progress);
 }
 
 #pragma GCC diagnostic pop
@@ -870,13 +892,69 @@ void CholmodSolver::solve_copy_multi(int k, const double* B, double* X) {
   prepare_workspace();
   resize_with_headroom(multi_y_, static_cast<size_t>(n_) * kMultiGroup);
   resize_with_headroom(multi_w_, work_w_.size() * kMultiGroup);
-  double *Y = multi_y_.data(), *W = multi_w_.data();
   if (copy_valid_ && copy_ == FactorCopy::Half)
-    supernodal_substitute_multi(L_, Lx_half_.data(), half_inv_scale_.data(), n_, k, B, X, Y, W);
+    substitute_multi(Lx_half_.data(), half_inv_scale_.data(), k, B, X);
   else if (copy_valid_ || single_current_)
-    supernodal_substitute_multi(L_, Lx_single_.data(), static_cast<const double*>(nullptr), n_, k, B, X, Y, W);
+    substitute_multi(Lx_single_.data(), static_cast<const double*>(nullptr), k, B, X);
   else
-    supernodal_substitute_multi(L_, static_cast<const double*>(L_->x), static_cast<const double*>(nullptr), n_, k, B, X, Y, W);
+    substitute_multi(static_cast<const double*>(L_->x), static_cast<const double*>(nullptr), k, B, X);
+}
+
+// The groups of up to 16 columns one after the other; with the substitution
+// worker (two substitution threads) the second group on the worker, as a
+// whole: with a probe's 33 contact rows the pass is compute-bound on one
+// core (perf: its kernels and row interleave 17% of organ_instruments'
+// run). The caller stores the worker's group into X only once await says
+// it finished, and does it itself when the worker makes no progress (a
+// group it gave up on may still run on Y2, W2: settle() before they or the
+// factor change).
+template <class T>
+void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k, const double* B, double* X) {
+  const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
+  const int* Perm = static_cast<const int*>(L_->Perm);
+  const int nsuper = static_cast<int>(L_->nsuper), groups = (k + kMultiGroup - 1) / kMultiGroup;
+  const auto width = [&](int g, int& c0, int& kg, int& nb) {
+    c0 = g * kMultiGroup;
+    kg = std::min(kMultiGroup, k - c0);
+    nb = (kg + 3) / 4;
+  };
+  int c0, kg, nb;
+  bool started = false;
+  const int wg = 1;  // the worker's group (the first is the caller's while the worker wakes)
+  if (groups > wg && substitutes_on_two_threads() && !worker_->busy()) {
+    left_running_ = false;
+    width(wg, c0, kg, nb);
+    resize_with_headroom(multi_y2_, multi_y_.size());
+    resize_with_headroom(multi_w2_, multi_w_.size());
+    load_group(Perm, n_, c0, kg, 4 * nb, B, multi_y2_.data());
+    multi_job_.L = L_;
+    multi_job_.Lx = Lx;
+    multi_job_.inv_scale = inv_scale;
+    multi_job_.nb = nb;
+    multi_job_.Y2 = multi_y2_.data();
+    multi_job_.W2 = multi_w2_.data();
+    multi_job_.progress.store(0, std::memory_order_relaxed);
+    started = worker_->try_start(&worker_multi<T>, &multi_job_);
+  }
+  double *Y = multi_y_.data(), *W = multi_w_.data();
+  for (int g = 0; g < groups; ++g) {
+    if (started && g == wg) continue;
+    width(g, c0, kg, nb);
+    load_group(Perm, n_, c0, kg, 4 * nb, B, Y);
+    substitute_group<T>(F, nsuper, nb, Y, W);
+    store_group(Perm, n_, c0, kg, 4 * nb, Y, X);
+  }
+  if (!started) return;
+  width(wg, c0, kg, nb);
+  if (worker_->await(multi_job_.progress, kWorkerStallMs)) {
+    store_group(Perm, n_, c0, kg, 4 * nb, multi_y2_.data(), X);
+    return;
+  }
+  ++stats_.takeovers;
+  left_running_ = worker_->busy();
+  load_group(Perm, n_, c0, kg, 4 * nb, B, Y);  // (B's columns of that group are not written yet)
+  substitute_group<T>(F, nsuper, nb, Y, W);
+  store_group(Perm, n_, c0, kg, 4 * nb, Y, X);
 }
 
 void CholmodSolver::solve_copy(const double* b, double* x) {

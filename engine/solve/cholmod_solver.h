@@ -133,10 +133,12 @@ class CholmodSolver {
   bool has_factor_copy() const { return factorized_ && copy_valid_; }
   // X = A^-1 B for k right-hand sides at once (B, X: n x k column-major, may
   // alias), through the copy when there is one (as solve_copy), else the
-  // factor. A supernodal factor is read once for all k columns (the contact
-  // compliance's columns: a substitution's time is reading L, so k columns
-  // cost far less than k substitutions); a simplicial one solves them one by
-  // one. On this thread only; allocates only when k or n grows.
+  // factor. A supernodal factor is read once per group of 16 columns (the
+  // contact compliance's columns: a substitution's time is reading L, so k
+  // columns cost far less than k substitutions); a simplicial one solves them
+  // one by one. With the substitution worker (set_substitution_worker) the
+  // second group runs on it, with the same bits. Allocates only when k or n
+  // grows.
   void solve_copy_multi(int k, const double* B, double* X);
 
   // Substitutions (solve, solve_copy) on two threads: this thread and the
@@ -178,6 +180,10 @@ class CholmodSolver {
   bool factorized_ = false;
   std::vector<double> work_y_, work_w_;  // own substitution: permuted vector, supernode gather
   std::vector<double> multi_y_, multi_w_;  // solve_copy_multi: (n, 16) and (largest supernode rows, 16), row-interleaved
+  std::vector<double> multi_y2_, multi_w2_;  // the same for the worker's group
+  MultiJob multi_job_;                       // what the worker's group reads (here: it may outlive the call)
+  template <class T>
+  void substitute_multi(const T* Lx, const double* inv_scale, int k, const double* B, double* X);
   SubstitutionWorker* worker_ = nullptr;   // set_substitution_worker
   SubstitutionSplit split_;                // of the current analysis
   std::vector<double> work_y2_, work_w2_, work_top_;  // the worker's y copy and gather, the top rows' start values

@@ -48,6 +48,17 @@ struct SplitJob {
   std::atomic<int> progress{0};         // supernodes done, for SubstitutionWorker::await
 };
 
+// The worker's part of a multi-column substitution (CholmodSolver::solve_copy_multi):
+// one group of up to 16 columns, whole, on its own row-interleaved Y2 and gather W2.
+struct MultiJob {
+  const cholmod_factor* L = nullptr;
+  const void* Lx = nullptr;  // float, double or binary16 entries, by the task's type
+  const double* inv_scale = nullptr;
+  int nb = 0;                           // four-column blocks in the group
+  double *Y2 = nullptr, *W2 = nullptr;  // (n, 4 nb), (largest supernode rows, 4 nb)
+  std::atomic<int> progress{0};         // supernodes done (forward and backward), for SubstitutionWorker::await
+};
+
 // One helper thread that runs a task on request, sleeping in between; no
 // allocation per task. The thread that starts a task need not wait for it
 // whatever happens on the other core: a substitution's caller waits only

@@ -3,6 +3,8 @@
 // the two-thread solve equals the one-thread solve (double, float and binary16
 // factors) to roundoff, in place too, over many repeated calls.
 #include <atomic>
+#include <chrono>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -262,6 +264,51 @@ TEST(SplitSubstitution, SolveTakesOverTheBinsOfAWorkerThatNeverStarts) {
   two.solve_copy(b.data(), xw.data());
   EXPECT_EQ(xw, x2);
   EXPECT_EQ(two.stats().split_substitutions, 2);
+}
+
+// A multi-column substitution of more than 16 columns (two groups and a
+// partial third) gives its second group to the worker: the same bits as on
+// one thread, whether the worker runs it, never starts (the caller takes it
+// over, counted) or is busy with another task; in place too.
+TEST(SplitSubstitution, MultiColumnSolveGivesAGroupToTheWorkerWithTheSameBits) {
+  const Model m = beam(12, 4);
+  const int n = m.ndof(), k = 35;
+  const std::vector<double> A = system_matrix(m);
+  SubstitutionWorker running, stalled(/*launch=*/false);
+  CholmodSolver one, two, late;
+  for (CholmodSolver* f : {&one, &two, &late}) {
+    f->set_factor_copy(FactorCopy::Float);
+    f->analyze(n, m.Ap, m.Ai);
+    f->factorize(A.data());
+  }
+  two.set_substitution_worker(&running);
+  late.set_substitution_worker(&stalled);
+  ASSERT_TRUE(two.substitutes_on_two_threads());
+  const std::vector<double> B = random_vector(n * k, 9);
+  std::vector<double> X1(B.size()), X2(B.size()), X3(B.size()), inplace = B;
+  one.solve_copy_multi(k, B.data(), X1.data());
+  for (int rep = 0; rep < 20; ++rep) {  // the worker's wake-up races the caller's groups
+    two.solve_copy_multi(k, B.data(), X2.data());
+    ASSERT_EQ(X2, X1) << "repeat " << rep;
+  }
+  two.solve_copy_multi(k, inplace.data(), inplace.data());
+  EXPECT_EQ(inplace, X1) << "in place";
+  late.solve_copy_multi(k, B.data(), X3.data());
+  EXPECT_EQ(X3, X1);
+  EXPECT_EQ(late.stats().takeovers, 1) << "the group the worker never started";
+  stalled.launch();
+  std::atomic<bool> release{false};
+  ASSERT_TRUE(running.try_start(
+      [](void* p) {
+        while (!static_cast<std::atomic<bool>*>(p)->load()) std::this_thread::sleep_for(std::chrono::microseconds(100));
+      },
+      &release));
+  const int takeovers = two.stats().takeovers;
+  two.solve_copy_multi(k, B.data(), X2.data());
+  EXPECT_EQ(X2, X1) << "busy worker: every group here";
+  EXPECT_EQ(two.stats().takeovers, takeovers);
+  release = true;
+  running.wait();
 }
 
 // While a bin given up on still runs on the worker (here: the worker is
