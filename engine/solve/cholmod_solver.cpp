@@ -902,7 +902,7 @@ void CholmodSolver::solve_copy_multi(int k, const double* B, double* X) {
 
 // The groups of up to 16 columns one after the other; with the substitution
 // worker (two substitution threads) the second group on the worker, as a
-// whole: with a probe's 33 contact rows the pass is compute-bound on one
+// whole: with a probe's 23-27 contact rows the pass is compute-bound on one
 // core (perf: its kernels and row interleave 17% of organ_instruments'
 // run). The caller stores the worker's group into X only once await says
 // it finished, and does it itself when the worker makes no progress (a

@@ -981,7 +981,7 @@ void factor_apply_multi(const Model& m, Workspace& ws, int k, const double* R, d
 // multi-column substitution where lagged_apply does k: after cuts the
 // contact stage's compliance (one column per contact row) went column by
 // column through the patch's combination, a substitution each, and with a
-// probe's 33 rows that was most of a cut frame's contact stage.
+// probe's 23-27 rows that was most of a cut frame's contact stage.
 void lagged_apply_multi(const Model& m, Workspace& ws, const double* A, int k, const double* R, double* Z) {
   auto& w = ws.work;
   const std::vector<int>& map = w.slot_map[w.front];
