@@ -379,6 +379,33 @@ void patch_apply(Workspace& ws, const double* r, double* z, bool add) {
   for (int j = 0; j < np; ++j) z[w.patch_dof[j]] = (add ? z[w.patch_dof[j]] : 0.0) + w.patch_r[j];
 }
 
+// The multiplicative combination's patch steps around the substitution
+// (lagged_apply, lagged_apply_multi): before, z1 = E A_p^-1 E^T r and
+// r1 = r - A z1 (z1 lives on the patch, so A z1 sums over the patch rows: A
+// symmetric); after (z = F^-1 r1), z += z1 and z += E A_p^-1 E^T (r - A z)
+// on the patch rows (r1 their scratch).
+void patch_before(const Model& m, Workspace& ws, const double* A, const double* r, double* z1, double* r1) {
+  auto& w = ws.work;
+  patch_apply(ws, r, z1, /*add=*/false);
+  std::copy(r, r + m.ndof(), r1);
+  for (size_t i = 0; i < w.patch_dof.size(); ++i) {
+    const double zi = z1[w.patch_dof[i]];
+    for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) r1[w.patch_rows.col[t]] -= A[w.patch_rows.k[t]] * zi;
+  }
+}
+
+void patch_after(Workspace& ws, const double* A, const double* r, const double* z1, double* r1, double* z) {
+  auto& w = ws.work;
+  const size_t np = w.patch_dof.size();
+  for (size_t j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
+  for (size_t i = 0; i < np; ++i) {
+    double acc = r[w.patch_dof[i]];
+    for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) acc -= A[w.patch_rows.k[t]] * z[w.patch_rows.col[t]];
+    r1[w.patch_dof[i]] = acc;
+  }
+  patch_apply(ws, r1, z, /*add=*/true);
+}
+
 // z = P r: the front factor (factor_apply); after cuts, with the patch of the
 // DOFs it does not know (Jacobi on them if there is no patch). Additive:
 // P = F^-1 + E A_p^-1 E^T. Multiplicative (symmetric, patch - factor -
@@ -397,25 +424,11 @@ void lagged_apply(const Model& m, Workspace& ws, const double* A, const double* 
     factor_apply(m, ws, r, z);
     patch_apply(ws, r, z, /*add=*/true);
   } else {
-    const int np = static_cast<int>(w.patch_dof.size());
     double* z1 = w.ms_z.data();  // patch-supported
     double* r1 = w.ms_r.data();
-    patch_apply(ws, r, z1, /*add=*/false);
-    // r1 = r - A z1: z1 lives on the patch, so A z1 = sum over the patch rows (A symmetric).
-    std::copy(r, r + m.ndof(), r1);
-    for (int i = 0; i < np; ++i) {
-      const double zi = z1[w.patch_dof[i]];
-      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) r1[w.patch_rows.col[t]] -= A[w.patch_rows.k[t]] * zi;
-    }
+    patch_before(m, ws, A, r, z1, r1);
     factor_apply(m, ws, r1, z);
-    for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
-    // r2 = r - A z on the patch rows, then z += E A_p^-1 r2.
-    for (int i = 0; i < np; ++i) {
-      double acc = r[w.patch_dof[i]];
-      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) acc -= A[w.patch_rows.k[t]] * z[w.patch_rows.col[t]];
-      r1[w.patch_dof[i]] = acc;
-    }
-    patch_apply(ws, r1, z, /*add=*/true);
+    patch_after(ws, A, r, z1, r1, z);
   }
 }
 
@@ -986,7 +999,6 @@ void lagged_apply_multi(const Model& m, Workspace& ws, const double* A, int k, c
   auto& w = ws.work;
   const std::vector<int>& map = w.slot_map[w.front];
   const size_t n = static_cast<size_t>(m.ndof());
-  const int np = static_cast<int>(w.patch_dof.size());
   if (w.patch_dof.empty()) {
     factor_apply_multi(m, ws, k, R, Z);
     if (!map.empty())
@@ -1003,31 +1015,9 @@ void lagged_apply_multi(const Model& m, Workspace& ws, const double* A, int k, c
   // lagged_apply's multiplicative combination, its substitution batched.
   w.multi_r.resize(n * k);
   w.multi_z.resize(n * k);
-  for (int c = 0; c < k; ++c) {
-    const double* r = R + c * n;
-    double* z1 = &w.multi_z[c * n];
-    double* r1 = &w.multi_r[c * n];
-    patch_apply(ws, r, z1, /*add=*/false);
-    std::copy(r, r + n, r1);
-    for (int i = 0; i < np; ++i) {
-      const double zi = z1[w.patch_dof[i]];
-      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) r1[w.patch_rows.col[t]] -= A[w.patch_rows.k[t]] * zi;
-    }
-  }
+  for (int c = 0; c < k; ++c) patch_before(m, ws, A, R + c * n, &w.multi_z[c * n], &w.multi_r[c * n]);
   factor_apply_multi(m, ws, k, w.multi_r.data(), Z);
-  for (int c = 0; c < k; ++c) {
-    const double* r = R + c * n;
-    double* z = Z + c * n;
-    const double* z1 = &w.multi_z[c * n];
-    double* r1 = &w.multi_r[c * n];
-    for (int j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
-    for (int i = 0; i < np; ++i) {
-      double acc = r[w.patch_dof[i]];
-      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) acc -= A[w.patch_rows.k[t]] * z[w.patch_rows.col[t]];
-      r1[w.patch_dof[i]] = acc;
-    }
-    patch_apply(ws, r1, z, /*add=*/true);
-  }
+  for (int c = 0; c < k; ++c) patch_after(ws, A, R + c * n, &w.multi_z[c * n], &w.multi_r[c * n], Z + c * n);
 }
 
 // X = Q B + P^T M^-1 (B - A Q B) for k columns (ndof apart; X may alias B):
