@@ -365,14 +365,8 @@ void backward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W
   std::memcpy(Y + static_cast<size_t>(k1) * kp, W, sizeof(double) * nscol * kp);
 }
 
-template <class T, int NB>
-void substitute_group(const SnFactor<T>& F, int nsuper, double* Y, double* W) {
-  for (int sn = 0; sn < nsuper; ++sn) forward_supernode_multi<T, NB>(F, sn, Y, W);
-  for (int sn = nsuper - 1; sn >= 0; --sn) backward_supernode_multi<T, NB>(F, sn, Y, W);
-}
-
-// X = A^-1 B, k columns (column-major, n each; may alias), in groups of up
-// to 16. Y: n x 16, W: (largest supernode rows) x 16.
+// Columns per pass of a multi-column substitution (CholmodSolver::substitute_multi):
+// Y is (n, 16), W (largest supernode rows, 16).
 constexpr int kMultiGroup = 16;  // 8 measured the same at 20k (BM_SubstitutionColumns)
 
 // Columns c0 .. c0 + kg of B (n each), permuted, into Y (n, kp) row-interleaved (zeros past kg).
