@@ -906,16 +906,21 @@ template <class T>
 void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k, const double* B, double* X) {
   const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
   const int* Perm = static_cast<const int*>(L_->Perm);
-  const int nsuper = static_cast<int>(L_->nsuper), groups = (k + kMultiGroup - 1) / kMultiGroup;
+  // With the worker free, 2-32 columns go in two groups of half each (a
+  // group's cost is its width: a grasp's 9 rows or a probe's 16 split too).
+  // A column's arithmetic does not depend on its group: the same bits.
+  const bool two = substitutes_on_two_threads() && !worker_->busy();
+  const int size = two && k > 1 && k <= 2 * kMultiGroup ? (k + 1) / 2 : kMultiGroup;
+  const int nsuper = static_cast<int>(L_->nsuper), groups = (k + size - 1) / size;
   const auto width = [&](int g, int& c0, int& kg, int& nb) {
-    c0 = g * kMultiGroup;
-    kg = std::min(kMultiGroup, k - c0);
+    c0 = g * size;
+    kg = std::min(size, k - c0);
     nb = (kg + 3) / 4;
   };
   int c0, kg, nb;
   bool started = false;
   const int wg = 1;  // the worker's group (the first is the caller's while the worker wakes)
-  if (groups > wg && substitutes_on_two_threads() && !worker_->busy()) {
+  if (groups > wg && two) {
     left_running_ = false;
     width(wg, c0, kg, nb);
     resize_with_headroom(multi_y2_, multi_y_.size());

@@ -266,10 +266,10 @@ TEST(SplitSubstitution, SolveTakesOverTheBinsOfAWorkerThatNeverStarts) {
   EXPECT_EQ(two.stats().split_substitutions, 2);
 }
 
-// A multi-column substitution of more than 16 columns (two groups and a
-// partial third) gives its second group to the worker: the same bits as on
-// one thread, whether the worker runs it, never starts (the caller takes it
-// over, counted) or is busy with another task; in place too.
+// A multi-column substitution gives its second group to the worker (35
+// columns: 16, 16, 3; 2-32: two halves): the same bits as on one thread,
+// whether the worker runs it, never starts (the caller takes it over,
+// counted) or is busy with another task; in place too.
 TEST(SplitSubstitution, MultiColumnSolveGivesAGroupToTheWorkerWithTheSameBits) {
   const Model m = beam(12, 4);
   const int n = m.ndof(), k = 35;
@@ -290,6 +290,12 @@ TEST(SplitSubstitution, MultiColumnSolveGivesAGroupToTheWorkerWithTheSameBits) {
   for (int rep = 0; rep < 20; ++rep) {  // the worker's wake-up races the caller's groups
     two.solve_copy_multi(k, B.data(), X2.data());
     ASSERT_EQ(X2, X1) << "repeat " << rep;
+  }
+  for (int kk : {2, 9, 16, 27}) {  // two groups of half each: the same bits as one group of 16 on one thread
+    std::vector<double> Y1(static_cast<size_t>(n) * kk), Y2(Y1.size());
+    one.solve_copy_multi(kk, B.data(), Y1.data());
+    two.solve_copy_multi(kk, B.data(), Y2.data());
+    ASSERT_EQ(Y2, Y1) << kk << " columns";
   }
   two.solve_copy_multi(k, inplace.data(), inplace.data());
   EXPECT_EQ(inplace, X1) << "in place";
