@@ -347,14 +347,6 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
     double v[12] = {0};
   };
   std::map<int, Sum> found;  // new DOF node -> its sum (ordered: the same sums every run)
-  // (old sub-tetrahedra) the new piece holding each, found once for both passes; -2: not yet
-  std::vector<int> new_piece(from.has_cuts() ? from.cuts.subtet_rst.size() / 12 : 0, -2);
-  std::vector<char> visited(to.nelem, 0);
-  struct Part {
-    int Q, P, side;
-    double frac;
-  };
-  std::vector<Part> parts;
   std::vector<double>* f[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
   // Adds old piece Q's value at node a of element e (side: the point's side
   // of an old front) to the new DOF node of new piece P there, with weight w.
@@ -375,39 +367,45 @@ Kinematics transfer_kinematics(const Model& from, const State& os, const Model& 
   const auto centroid = [](const double* v, double c[3]) {
     for (int d = 0; d < 3; ++d) c[d] = 0.25 * (v[d] + v[3 + d] + v[6 + d] + v[9 + d]);
   };
+  // The (old piece, new piece, side) parts of the elements either model
+  // enriches, with their volume fractions, found once for both passes: the
+  // values are looked up once per part, not per sub-tetrahedron.
+  struct Part {
+    int e, Q, P, side;
+    double frac;
+  };
+  std::vector<Part> parts;
+  std::vector<char> visited(to.nelem, 0);
+  for (int e = 0; e < to.nelem; ++e) {
+    if (!enriched(to, e) && !enriched(from, e)) continue;
+    visited[e] = 1;
+    const size_t first = parts.size();
+    const int q0 = from.has_cuts() ? from.cuts.elem_piece_ptr[e] : -1;
+    const int q1 = from.has_cuts() ? from.cuts.elem_piece_ptr[e + 1] : 0;
+    const bool same = same_subtets(from, to, e);  // (the usual element: no point location)
+    for (int Q = q0; Q < q1 || (Q == -1 && q1 == 0); ++Q) {  // (-1: the old model had no cuts)
+      const int t0 = Q >= 0 ? from.cuts.piece_subtet_ptr[Q] : 0, t1 = Q >= 0 ? from.cuts.piece_subtet_ptr[Q + 1] : 1;
+      for (int t = t0; t < t1; ++t) {
+        const double* v = Q >= 0 ? &from.cuts.subtet_rst[12 * static_cast<size_t>(t)] : kWhole;
+        double c[3];
+        centroid(v, c);
+        const int P = same ? L.elem_piece_ptr[e] + (Q - q0) : piece_containing(to, e, c);
+        const int side = front_side(from, e, c);
+        const double frac = std::max(6.0 * std::abs(subtet_ref_volume(v)), 1e-12);  // (a degenerate one still counts)
+        size_t k = first;
+        while (k < parts.size() && !(parts[k].Q == Q && parts[k].P == P && parts[k].side == side)) ++k;
+        if (k == parts.size()) parts.push_back({e, Q, P, side, 0.0});
+        parts[k].frac += frac;
+      }
+      if (Q == -1) break;
+    }
+  }
   for (int pass = 0; pass < 2; ++pass) {
     found.clear();
-    for (int e = 0; e < to.nelem; ++e) {
-      if (!enriched(to, e) && !enriched(from, e)) continue;
-      visited[e] = 1;
-      element_hrz(e);
-      const int q0 = from.has_cuts() ? from.cuts.elem_piece_ptr[e] : -1;
-      const bool same = same_subtets(from, to, e);  // (the usual element: no point location)
-      const int q1 = from.has_cuts() ? from.cuts.elem_piece_ptr[e + 1] : 0;
-      // The element's (old piece, new piece, side) parts and their volume
-      // fractions: the values are looked up once per part, not per
-      // sub-tetrahedron.
-      parts.clear();
-      for (int Q = q0; Q < q1 || (Q == -1 && q1 == 0); ++Q) {  // (-1: the old model had no cuts)
-        const int t0 = Q >= 0 ? from.cuts.piece_subtet_ptr[Q] : 0, t1 = Q >= 0 ? from.cuts.piece_subtet_ptr[Q + 1] : 1;
-        for (int t = t0; t < t1; ++t) {
-          const double* v = Q >= 0 ? &from.cuts.subtet_rst[12 * static_cast<size_t>(t)] : kWhole;
-          double c[3];
-          centroid(v, c);
-          int P = Q >= 0 ? new_piece[t] : -2;
-          if (P == -2) P = same ? L.elem_piece_ptr[e] + (Q - q0) : piece_containing(to, e, c);
-          if (Q >= 0) new_piece[t] = P;
-          const int side = front_side(from, e, c);
-          const double frac = std::max(6.0 * std::abs(subtet_ref_volume(v)), 1e-12);  // (a degenerate one still counts)
-          size_t k = 0;
-          while (k < parts.size() && !(parts[k].Q == Q && parts[k].P == P && parts[k].side == side)) ++k;
-          if (k == parts.size()) parts.push_back({Q, P, side, 0.0});
-          parts[k].frac += frac;
-        }
-        if (Q == -1) break;
-      }
-      for (const Part& part : parts)
-        for (int a = 0; a < npe; ++a) bring(pass, e, part.P, part.Q, part.side, a, part.frac * hrz[a]);
+    for (size_t k = 0; k < parts.size(); ++k) {
+      const Part& part = parts[k];
+      if (k == 0 || parts[k - 1].e != part.e) element_hrz(part.e);
+      for (int a = 0; a < npe; ++a) bring(pass, part.e, part.P, part.Q, part.side, a, part.frac * hrz[a]);
     }
     if (pass == 0) {
       // A node's elements that neither model enriches are whole, in its home

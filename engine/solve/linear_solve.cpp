@@ -931,9 +931,11 @@ void solve_for_policy(const Model& m, Workspace& ws) {
 namespace {
 
 // X = Rn F^-1 Rn^T B per column with the factor f (Rn: per-node rotations of
-// (ndofnode, 9), or none), all columns in one substitution.
-void rotated_multi(const Model& m, Workspace& ws, CholmodSolver& f, const std::vector<double>* Rn, int k,
-                   const double* B, double* X) {
+// (ndofnode, 9), or none), all columns in one substitution (X may alias B).
+// map (null or empty: f knows every DOF): the lagged front factor's DOF map
+// after cuts, factor_apply's; X is 0 on the DOFs it does not know.
+void rotated_multi(const Model& m, Workspace& ws, CholmodSolver& f, const std::vector<double>* Rn,
+                   const std::vector<int>* map, int k, const double* B, double* X) {
   const size_t n = static_cast<size_t>(m.ndof());
   const auto rotate = [&](double* V, bool transpose) {
     for (int c = 0; c < k; ++c)
@@ -948,49 +950,32 @@ void rotated_multi(const Model& m, Workspace& ws, CholmodSolver& f, const std::v
   if (X != B) std::copy(B, B + n * k, X);
   if (Rn) rotate(X, true);
   Stopwatch w;
-  f.solve_copy_multi(k, X, X);
+  if (!map || map->empty()) {
+    f.solve_copy_multi(k, X, X);
+  } else {
+    std::vector<double>& t = ws.work.multi_t;
+    const size_t nf = static_cast<size_t>(f.size());
+    t.assign(nf * k, 0.0);
+    for (int c = 0; c < k; ++c)
+      for (size_t d = 0; d < n; ++d)
+        if ((*map)[d] >= 0) t[c * nf + (*map)[d]] = X[c * n + d];
+    f.solve_copy_multi(k, t.data(), t.data());
+    for (int c = 0; c < k; ++c)
+      for (size_t d = 0; d < n; ++d) X[c * n + d] = (*map)[d] >= 0 ? t[c * nf + (*map)[d]] : 0.0;
+  }
   ws.timing.solves += k;
   ws.timing.solve_kernel_ms += w.ms();
   if (Rn) rotate(X, false);
 }
 
-// factor_apply for k columns (ndof apart; Z must not alias R): the front
-// factor read once for all of them (solve_copy_multi).
+// factor_apply for k columns (ndof apart; Z may alias R): the front factor read once for all of them.
 void factor_apply_multi(const Model& m, Workspace& ws, int k, const double* R, double* Z) {
   auto& w = ws.work;
-  CholmodSolver& f = ws.slot(w.front);
-  const std::vector<int>& map = w.slot_map[w.front];
-  const size_t n = static_cast<size_t>(m.ndof());
-  const auto rotate = [&](double* V, bool transpose) {
-    for (int c = 0; c < k; ++c)
-      for (int node = 0; node < m.ndofnode; ++node) {
-        const Eigen::Map<const Mat3> Q(&w.Q[9 * static_cast<size_t>(node)]);
-        Eigen::Map<Eigen::Vector3d> v(V + c * n + 3 * node);
-        const Eigen::Vector3d t = v;
-        v = transpose ? Eigen::Vector3d(Q.transpose() * t) : Eigen::Vector3d(Q * t);
-      }
-  };
-  std::copy(R, R + n * k, Z);
-  if (m.solver.warp) rotate(Z, true);
-  Stopwatch clock;
-  if (map.empty()) {
-    f.solve_copy_multi(k, Z, Z);
-  } else {
-    const size_t nf = static_cast<size_t>(f.size());
-    w.multi_t.assign(nf * k, 0.0);
-    for (int c = 0; c < k; ++c)
-      for (size_t d = 0; d < n; ++d)
-        if (map[d] >= 0) w.multi_t[c * nf + map[d]] = Z[c * n + d];
-    f.solve_copy_multi(k, w.multi_t.data(), w.multi_t.data());
-    for (int c = 0; c < k; ++c)
-      for (size_t d = 0; d < n; ++d) Z[c * n + d] = map[d] >= 0 ? w.multi_t[c * nf + map[d]] : 0.0;
-  }
-  ws.timing.solves += k;
-  ws.timing.solve_kernel_ms += clock.ms();
-  if (m.solver.warp) rotate(Z, false);
+  rotated_multi(m, ws, ws.slot(w.front), m.solver.warp ? &w.Q : nullptr, &w.slot_map[w.front], k, R, Z);
 }
 
-// lagged_apply for k columns (ndof apart; Z must not alias R), with one
+// lagged_apply for k columns (ndof apart; Z must not alias R unless the
+// front factor knows every DOF and there is no patch), with one
 // multi-column substitution where lagged_apply does k: after cuts the
 // contact stage's compliance (one column per contact row) went column by
 // column through the patch's combination, a substitution each, and with a
@@ -1046,23 +1031,16 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
   auto& w = ws.work;
   switch (m.solver.policy) {
     case SolverPolicy::Exact:
-      rotated_multi(m, ws, ws.solver, nullptr, k, B, X);
+      rotated_multi(m, ws, ws.solver, nullptr, nullptr, k, B, X);
       return;
     case SolverPolicy::Lagged:
-      if (w.slot_map[w.front].empty() && w.patch_dof.empty()) {  // the front factor knows every DOF: no patch
-        // warp: Q F^-1 Q^T (factor_apply), Q = the rotations since the factor's frame
-        if (!w.condensed.factored) {
-          rotated_multi(m, ws, ws.slot(w.front), m.solver.warp ? &w.Q : nullptr, k, B, X);
-          return;
-        }
-        condensed_inverse(m, ws, k, B, X, [&](const double* Y, double* Z) {  // one substitution for all columns
-          rotated_multi(m, ws, ws.slot(w.front), m.solver.warp ? &w.Q : nullptr, k, Y, Z);
-        });
-        return;
-      }
-      // After cuts: the DOF map and the patch, one substitution for all columns.
+      // lagged_apply's preconditioner (warp: Q F^-1 Q^T, Q the rotations since
+      // the factor's frame; after cuts its DOF map and patch), one
+      // substitution for all columns.
       if (w.condensed.factored) {
         condensed_inverse(m, ws, k, B, X, [&](const double* Y, double* Z) { lagged_apply_multi(m, ws, ws.A.data(), k, Y, Z); });
+      } else if (w.slot_map[w.front].empty() && w.patch_dof.empty()) {
+        factor_apply_multi(m, ws, k, B, X);  // (X may alias B)
       } else {
         w.multi_y.assign(B, B + n * k);  // (X may alias B)
         lagged_apply_multi(m, ws, ws.A.data(), k, w.multi_y.data(), X);
@@ -1070,7 +1048,7 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
       return;
     case SolverPolicy::Warped:
     case SolverPolicy::WarpedCG:
-      rotated_multi(m, ws, ws.solver, &w.Rn, k, B, X);
+      rotated_multi(m, ws, ws.solver, &w.Rn, nullptr, k, B, X);
       return;
   }
 }
