@@ -773,7 +773,6 @@ template <class T>
 void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x) {
   SubstitutionWorker& worker = *worker_;
   const bool worker_free = !worker.busy();  // else a bin given up on still runs on y2
-  if (worker_free) left_running_ = false;
   ++stats_.split_substitutions;
   const SubstitutionSplit& sp = split_;
   const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
@@ -782,7 +781,7 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   for (int k = 0; k < n_; ++k) y[k] = b[Perm[k]];
   const size_t ntop = sp.top_cols.size();
   for (size_t i = 0; i < ntop; ++i) y0_top[i] = y[sp.top_cols[i]];
-  bool started = false;
+  uint64_t started = 0;  // the worker's task's ticket
   if (worker_free) {
     std::memcpy(y2, y, sizeof(double) * n_);
     job_.L = L_;
@@ -799,7 +798,7 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   if (!(started && worker.await(job_.progress, kWorkerStallMs))) {
     if (started) {
       ++stats_.takeovers;
-      left_running_ = worker.busy();
+      left_running_ = started;
     }
     // Bin 1 on y3 from the worker's start values: its own columns (bin 0 left
     // them untouched in y) and the top rows as they were.
@@ -813,9 +812,8 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   for (size_t i = 0; i < ntop; ++i) y[sp.top_cols[i]] += y1[sp.top_cols[i]] - y0_top[i];
   for (int sn : sp.top) forward_supernode(F, sn, y, w);
   for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
-  started = false;
+  started = 0;
   if (!worker.busy()) {
-    left_running_ = false;
     std::memcpy(y2, y, sizeof(double) * n_);
     job_.progress.store(0, std::memory_order_relaxed);
     started = worker.try_start(&worker_backward<T>, &job_);
@@ -826,7 +824,7 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   } else {
     if (started) {
       ++stats_.takeovers;
-      left_running_ = worker.busy();
+      left_running_ = started;
     }
     backward_bin(F, sp, 1, y, w);
   }
@@ -849,8 +847,8 @@ void CholmodSolver::set_substitution_worker(SubstitutionWorker* worker) {
 }
 
 void CholmodSolver::settle() {
-  if (left_running_.load(std::memory_order_acquire) && worker_) worker_->wait();
-  left_running_ = false;
+  if (left_running_ && worker_) worker_->wait(left_running_);
+  left_running_ = 0;
 }
 
 void CholmodSolver::solve_cholmod(const double* b, double* x) {
@@ -918,10 +916,9 @@ void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k
     nb = (kg + 3) / 4;
   };
   int c0, kg, nb;
-  bool started = false;
+  uint64_t started = 0;  // the worker's group's ticket
   const int wg = 1;  // the worker's group (the first is the caller's while the worker wakes)
   if (groups > wg && two) {
-    left_running_ = false;
     width(wg, c0, kg, nb);
     resize_with_headroom(multi_y2_, multi_y_.size());
     resize_with_headroom(multi_w2_, multi_w_.size());
@@ -950,7 +947,7 @@ void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k
     return;
   }
   ++stats_.takeovers;
-  left_running_ = worker_->busy();
+  left_running_ = started;
   load_group(Perm, n_, c0, kg, 4 * nb, B, Y);  // (B's columns of that group are not written yet)
   substitute_group<T>(F, nsuper, nb, Y, W);
   store_group(Perm, n_, c0, kg, 4 * nb, Y, X);

@@ -191,8 +191,8 @@ class CholmodSolver {
   // What the worker's bin reads (here, not on the caller's stack: a bin
   // given up on may run after the call returned).
   SplitJob job_;
-  std::atomic<bool> left_running_{false};  // a bin given up on may still run on worker_
-  void settle();  // waits for such a bin: before the factor, the copies or the buffers change
+  uint64_t left_running_ = 0;  // the ticket of a bin or group given up on, which may still run on worker_ (0: none)
+  void settle();  // waits for that task only: before the factor, the copies or the buffers change
   FactorCopy copy_ = FactorCopy::None;  // set_factor_copy
   bool copy_valid_ = false;              // the copy holds the current factor's values
   std::vector<float> Lx_single_;         // (L->xsize) Float: float copy of a supernodal L->x

@@ -104,16 +104,18 @@ SubstitutionWorker::~SubstitutionWorker() {
   if (thread_.joinable()) thread_.join();
 }
 
-bool SubstitutionWorker::try_start(void (*fn)(void*), void* arg) {
+uint64_t SubstitutionWorker::try_start(void (*fn)(void*), void* arg) {
+  uint64_t ticket;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (state_.load(std::memory_order_acquire) != kIdle) return false;
+    if (state_.load(std::memory_order_acquire) != kIdle) return 0;
     fn_ = fn;
     arg_ = arg;
+    ticket = ++started_;
     state_.store(kPending, std::memory_order_release);
   }
   wake_.notify_one();
-  return true;
+  return ticket;
 }
 
 bool SubstitutionWorker::await(const std::atomic<int>& progress, double stall_ms) {
@@ -141,6 +143,7 @@ bool SubstitutionWorker::await(const std::atomic<int>& progress, double stall_ms
     std::lock_guard<std::mutex> lock(mutex_);
     int expected = kPending;
     withdrawn = state_.compare_exchange_strong(expected, kIdle, std::memory_order_acq_rel);
+    if (withdrawn) ended_ = started_;
   }
   if (withdrawn) {
     done_.notify_all();
@@ -152,6 +155,11 @@ bool SubstitutionWorker::await(const std::atomic<int>& progress, double stall_ms
 void SubstitutionWorker::wait() {
   std::unique_lock<std::mutex> lock(mutex_);
   done_.wait(lock, [this] { return state_.load(std::memory_order_acquire) == kIdle; });
+}
+
+void SubstitutionWorker::wait(uint64_t ticket) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  done_.wait(lock, [&] { return ended_ >= ticket; });
 }
 
 void SubstitutionWorker::loop() {
@@ -170,6 +178,7 @@ void SubstitutionWorker::loop() {
     helper_if_split();  // (the stepping thread may have been pinned since this thread started)
     fn(arg);
     lock.lock();
+    ended_ = started_;
     state_.store(kIdle, std::memory_order_release);
     done_.notify_all();
   }

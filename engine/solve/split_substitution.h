@@ -10,6 +10,7 @@
 // factorization, which runs at idle priority, it is.
 #include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <mutex>
 #include <thread>
 #include <utility>
@@ -66,7 +67,9 @@ struct MultiJob {
 // itself. A task that had not begun is withdrawn (it never runs); one that
 // stalled part-way (its thread preempted) is left to finish on its own, and
 // busy() stays true until it does, so what it reads and writes must stay
-// alive and untouched until then (wait()).
+// alive and untouched until then (wait(ticket)). Tasks are numbered from 1
+// in the order they start (their tickets), so a caller waits for its own
+// task only, not for one another caller started since.
 class SubstitutionWorker {
  public:
   SubstitutionWorker();
@@ -77,8 +80,9 @@ class SubstitutionWorker {
   SubstitutionWorker(const SubstitutionWorker&) = delete;
   SubstitutionWorker& operator=(const SubstitutionWorker&) = delete;
   void launch();
-  // Starts fn(arg); false (nothing started) while an earlier task still runs.
-  bool try_start(void (*fn)(void*), void* arg);
+  // Starts fn(arg) and returns its ticket; 0 (nothing started) while an
+  // earlier task still runs.
+  uint64_t try_start(void (*fn)(void*), void* arg);
   // Waits for the task started last while it makes progress: returns true
   // once it ran to the end (its writes are visible to the caller). Returns
   // false when `progress` (the task's own counter, bumped as it works) has not
@@ -88,6 +92,9 @@ class SubstitutionWorker {
   bool busy() const { return state_.load(std::memory_order_acquire) != kIdle; }
   // Blocks until no task is pending or running.
   void wait();
+  // Blocks until the task with this ticket ended or was withdrawn (at once
+  // for 0 or an ended one), whatever task runs after it.
+  void wait(uint64_t ticket);
 
  private:
   enum { kIdle, kPending, kRunning };
@@ -97,6 +104,7 @@ class SubstitutionWorker {
   void (*fn_)(void*) = nullptr;
   void* arg_ = nullptr;
   std::atomic<int> state_{kIdle};
+  uint64_t started_ = 0, ended_ = 0;  // tickets: of the task started last, of the last that ended or was withdrawn (under mutex_)
   bool stop_ = false;
   std::thread thread_;
 };

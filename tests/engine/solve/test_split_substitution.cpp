@@ -210,29 +210,50 @@ TEST(SplitSubstitution, AwaitWithdrawsATaskThatNeverBegan) {
 }
 
 // A task that stops making progress part-way is left running: await returns
-// false, busy() stays true until it ends, wait() blocks until then.
+// false, busy() stays true until it ends, wait() and wait(its ticket) block
+// until then. Waiting for an ended task's ticket returns at once even while
+// a later task holds the worker (a solver that gave up on its task must not
+// wait for another caller's: that deadlocked a test whose caller released
+// the later task only after its solve).
 TEST(SplitSubstitution, AwaitLeavesAStalledTaskRunning) {
   SubstitutionWorker worker;
   struct Ctx {
     std::atomic<int> progress{0};
     std::atomic<bool> release{false}, ended{false};
-  } c;
-  ASSERT_TRUE(worker.try_start(
-      [](void* p) {
-        auto& c = *static_cast<Ctx*>(p);
-        c.progress = 1;
-        while (!c.release) std::this_thread::sleep_for(std::chrono::microseconds(100));
-        c.ended = true;
-      },
-      &c));
+  };
+  auto hold = [](void* p) {
+    auto& c = *static_cast<Ctx*>(p);
+    c.progress = 1;
+    while (!c.release) std::this_thread::sleep_for(std::chrono::microseconds(100));
+    c.ended = true;
+  };
+  Ctx c, later;
+  const uint64_t ticket = worker.try_start(hold, &c);
+  ASSERT_GT(ticket, 0u);
+  EXPECT_EQ(worker.try_start(hold, &later), 0u) << "busy: nothing started";
   while (c.progress.load() == 0) std::this_thread::yield();
   EXPECT_FALSE(worker.await(c.progress, 2.0));
   EXPECT_TRUE(worker.busy());
   EXPECT_FALSE(c.ended.load());
-  c.release = true;
+  std::thread releaser([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    c.release = true;
+  });
+  worker.wait(ticket);
+  EXPECT_TRUE(c.ended.load()) << "wait(ticket) returned before its task ended";
+  releaser.join();
   worker.wait();
   EXPECT_FALSE(worker.busy());
-  EXPECT_TRUE(c.ended.load());
+  const uint64_t next = worker.try_start(hold, &later);
+  EXPECT_EQ(next, ticket + 1);
+  while (later.progress.load() == 0) std::this_thread::yield();
+  worker.wait(ticket);  // the ended one: at once, though `later` holds the worker
+  worker.wait(0);
+  EXPECT_TRUE(worker.busy());
+  EXPECT_FALSE(later.ended.load());
+  later.release = true;
+  worker.wait(next);
+  EXPECT_TRUE(later.ended.load());
 }
 
 // A solve whose worker never starts does the worker's bins itself, each bin
