@@ -27,6 +27,7 @@ struct CompareOptions {
   std::string scene, frames = "1,30,300", json;
   std::vector<std::string> policies;
   std::vector<ScenePatch> patches;  // --set and the solver flags, in order; each policy run gets them
+  std::vector<ScenePatch> reference_patches;  // --reference-set: the reference's alone, applied last
 };
 
 // The patches of one policy's run: the command line's, less those of solver
@@ -65,10 +66,13 @@ struct Reference {
 
 // The same scene and patches, then the whole solver object replaced by
 // solver.preset "reference" (exact), no tangent reuse, the runs'
-// integrator.tangent: no preset or solver flag reaches it.
+// integrator.tangent: no preset or solver flag reaches it. Then
+// --reference-set (e.g. a converged reference: more Newton iterations, a
+// tighter rotation_tolerance, integrator.line_search).
 Reference run_reference(const CompareOptions& o, const Scene& first_run, const std::vector<int>& checkpoints) {
   std::vector<ScenePatch> reference = o.patches;
   for (ScenePatch& p : exact_reference_patches(first_run)) reference.push_back(std::move(p));
+  for (const ScenePatch& p : o.reference_patches) reference.push_back(p);
   auto ref = load_checked_simulation(o.scene, reference);
   print_model_summary(*ref);
   Reference r;
@@ -192,6 +196,24 @@ void add_compare_command(CLI::App& app) {
                   "after its preset and --set)")
       ->delimiter(',');
   add_set_option(*cmd, opts->patches);
+  cmd->add_option_function<std::string>(
+         "--reference-set",
+         [opts](const std::string& text) {
+           ScenePatch p;
+           try {
+             p = parse_scene_patch(text);
+           } catch (const Error& e) {  // its messages start "--set TEXT: "
+             const std::string what = e.what();
+             throw Error("--reference-set" + (what.rfind("--set", 0) == 0 ? what.substr(5) : ": " + what));
+           }
+           p.given = "--reference-set " + text;
+           opts->reference_patches.push_back(std::move(p));
+         },
+         "Override a scene key for the exact reference only, after everything else, e.g. for a converged reference: "
+         "--reference-set integrator.max_newton_iterations=20 --reference-set integrator.rotation_tolerance=0.01 "
+         "--reference-set integrator.line_search=true (repeatable)")
+      ->trigger_on_parse()
+      ->type_name("KEY=VALUE");
   add_solver_aliases(*cmd, opts->patches, /*with_policy=*/false);
   cmd->callback([opts] { compare(*opts); });
 }

@@ -175,6 +175,41 @@ void step_stages(const Model& m, State& s, Workspace& ws) {
   ws.timing.newton = ws.newton_iterations_done;
 }
 
+namespace {
+// integrator.line_search. Under a grasp or a probe the corotated tangent
+// (its rotation term projected, the Rayleigh term's derivative left out) can
+// send Newton round a cycle: drag15mm-20k under `exact`, 12 iterations a
+// frame, the residual alternating 0.2 <-> 0.47 and the largest rotation
+// change 0.6 <-> 1.1 rad to the cap in every grasp frame. Here an iterate
+// whose residual norm is larger than the last accepted one's is taken back
+// halfway toward it (Delta, and the contact multipliers with their force,
+// which enter the residual: the rows are the frame's, so a mean of two
+// iterates that meet them meets them too), up to kMaxHalvings times; the
+// last try is kept. Returns whether Delta changed (assemble again).
+bool line_search_step_back(const Model& m, Workspace& ws, double rnorm, int halvings) {
+  constexpr int kMaxHalvings = 3;
+  const int n = m.ndof();
+  auto halfway = [](std::vector<double>& v, const std::vector<double>& to, size_t count) {
+    for (size_t i = 0; i < count; ++i) v[i] = 0.5 * (v[i] + to[i]);
+  };
+  if (ws.newton_iterations_done > 0 && rnorm > ws.accepted_rnorm && halvings < kMaxHalvings &&
+      ws.accepted_delta.size() == static_cast<size_t>(n) && ws.accepted_lambda.size() == ws.contacts.lambda.size() &&
+      ws.accepted_contact_force.size() == ws.contact_force.size()) {
+    halfway(ws.delta, ws.accepted_delta, n);
+    halfway(ws.contacts.lambda, ws.accepted_lambda, ws.contacts.lambda.size());
+    halfway(ws.contact_force, ws.accepted_contact_force, ws.contact_force.size());
+    ++ws.timing.line_search_halvings;
+    return true;
+  }
+  ws.accepted_rnorm = rnorm;
+  ws.accepted_delta.assign(ws.delta.begin(), ws.delta.begin() + n);
+  ws.accepted_lambda.assign(ws.contacts.lambda.begin(), ws.contacts.lambda.end());
+  ws.accepted_contact_force.assign(ws.contact_force.begin(), ws.contact_force.end());
+  return false;
+}
+
+}  // namespace
+
 void assemble_system(const Model& m, State& s, Workspace& ws) {
   const int n = m.ndof();
   const double t1 = s.time + m.dt;
@@ -210,50 +245,54 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
     for (int d : m.fixed_dofs) ws.delta[d] = -s.u[d];
     for (const auto& p : m.prescribed) ws.delta[p.dof] = m.prescribed_value(p, t1) - s.u[p.dof];
   }
-  // x = u + Delta; internal forces and tangent there.
-  double* x = ws.tmp.data();
-  for (int d = 0; d < n; ++d) x[d] = s.u[d] + ws.delta[d];
-  const double* K = internal_forces(m, s, ws, x, policy_needs_tangent(m), /*reuse_tangent=*/true);
-  ws.timing.tangent_updates += ws.tangent_cache.updated;
+  for (int halvings = 0;; ++halvings) {
+    // x = u + Delta; internal forces and tangent there.
+    double* x = ws.tmp.data();
+    for (int d = 0; d < n; ++d) x[d] = s.u[d] + ws.delta[d];
+    const double* K = internal_forces(m, s, ws, x, policy_needs_tangent(m), /*reuse_tangent=*/true);
+    ws.timing.tangent_updates += ws.tangent_cache.updated;
 
-  // Newmark ([book] eq. (3.58); newmark_coefficients for general beta, gamma):
-  // a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v at beta = 1/4, gamma = 1/2.
-  // Residual r = f_ext - f_int(x) - M a1 - D v1 with D = a M + b K. For
-  // Delta = 0 this is eq. 3.60 with f_int the elastic force only (the book
-  // folds the t-level viscous force D v into f_int, hence its D (2 v)).
-  double* a1 = ws.du.data();
-  double* v1 = ws.tmp2.data();
-  for (int d = 0; d < n; ++d) {
-    a1[d] = nc.a_d * ws.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
-    v1[d] = nc.v_d * ws.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
+    // Newmark ([book] eq. (3.58); newmark_coefficients for general beta, gamma):
+    // a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v at beta = 1/4, gamma = 1/2.
+    // Residual r = f_ext - f_int(x) - M a1 - D v1 with D = a M + b K. For
+    // Delta = 0 this is eq. 3.60 with f_int the elastic force only (the book
+    // folds the t-level viscous force D v into f_int, hence its D (2 v)).
+    double* a1 = ws.du.data();
+    double* v1 = ws.tmp2.data();
+    for (int d = 0; d < n; ++d) {
+      a1[d] = nc.a_d * ws.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
+      v1[d] = nc.v_d * ws.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
+    }
+    // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
+    for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
+    if (m.mass_kind == MassKind::Lumped) {
+      mass_matvec(m, a1, ws.rhs.data());  // O(ndof), X-FEM couplings included
+    } else {  // consistent: a sparse product, on the workers
+      sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, m.mass_csc.data(), a1, ws.rhs.data());
+    }
+    for (int d = 0; d < n; ++d) ws.rhs[d] = m.f_gravity[d] - ws.f_int[d] - ws.rhs[d];
+    // The contact and grasp force found by the step's earlier iterations
+    // (engine/dynamics/contact_solve.h): an external force at t + dt.
+    if (ws.contact_force.size() == static_cast<size_t>(n))
+      for (int d = 0; d < n; ++d) ws.rhs[d] += ws.contact_force[d];
+    if (b_ray > 0.0) {
+      if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
+      else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), v1, a1);  // warped: frozen-R K v without K
+      for (int d = 0; d < n; ++d) ws.rhs[d] -= b_ray * a1[d];
+    }
+    double rnorm = 0.0, fnorm = 0.0;
+    for (int d = 0; d < n; ++d) {
+      if (m.constrained[d]) ws.rhs[d] = 0.0;
+      rnorm += ws.rhs[d] * ws.rhs[d];
+      fnorm += m.f_gravity[d] * m.f_gravity[d] + ws.f_int[d] * ws.f_int[d];
+    }
+    ws.last_residual = fnorm > 0 ? std::sqrt(rnorm / fnorm) : std::sqrt(rnorm);
+    check_finite(ws.rhs, "residual", s);
+    if (m.line_search && line_search_step_back(m, ws, std::sqrt(rnorm), halvings)) continue;
+    // A = 4/dt^2 M + 2/dt D + K ([book] eq. (3.59); cM M + cK K in general), projected.
+    form_dynamic_matrix(m, s, ws, K);
+    return;
   }
-  // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
-  for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
-  if (m.mass_kind == MassKind::Lumped) {
-    mass_matvec(m, a1, ws.rhs.data());  // O(ndof), X-FEM couplings included
-  } else {  // consistent: a sparse product, on the workers
-    sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, m.mass_csc.data(), a1, ws.rhs.data());
-  }
-  for (int d = 0; d < n; ++d) ws.rhs[d] = m.f_gravity[d] - ws.f_int[d] - ws.rhs[d];
-  // The contact and grasp force found by the step's earlier iterations
-  // (engine/dynamics/contact_solve.h): an external force at t + dt.
-  if (ws.contact_force.size() == static_cast<size_t>(n))
-    for (int d = 0; d < n; ++d) ws.rhs[d] += ws.contact_force[d];
-  if (b_ray > 0.0) {
-    if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
-    else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), v1, a1);  // warped: frozen-R K v without K
-    for (int d = 0; d < n; ++d) ws.rhs[d] -= b_ray * a1[d];
-  }
-  double rnorm = 0.0, fnorm = 0.0;
-  for (int d = 0; d < n; ++d) {
-    if (m.constrained[d]) ws.rhs[d] = 0.0;
-    rnorm += ws.rhs[d] * ws.rhs[d];
-    fnorm += m.f_gravity[d] * m.f_gravity[d] + ws.f_int[d] * ws.f_int[d];
-  }
-  ws.last_residual = fnorm > 0 ? std::sqrt(rnorm / fnorm) : std::sqrt(rnorm);
-  check_finite(ws.rhs, "residual", s);
-  // A = 4/dt^2 M + 2/dt D + K ([book] eq. (3.59); cM M + cK K in general), projected.
-  form_dynamic_matrix(m, s, ws, K);
 }
 
 void factorize_system(const Model& m, State& s, Workspace& ws) { factorize_for_policy(m, s, ws); }

@@ -31,6 +31,7 @@ struct Model {
   int newton_iterations = 1;
   int max_newton_iterations = 4;    // adaptive cap (scene integrator.max_newton_iterations)
   double rotation_tolerance = 0.1;  // radians; 0 = fixed iteration count
+  bool line_search = false;         // integrator.line_search: halve an iteration that raised the residual
   double newmark_gamma = 0.5, newmark_beta = 0.25;  // 1/2, 1/4: trapezoidal rule
   bool consistent_tangent = false;  // integrator.tangent: add the rotation term (engine/fem/rotation_stiffness.h)
   bool increment_predictor = false;  // integrator.predictor "increment": Newton starts from State::du, not dt v

@@ -249,6 +249,11 @@ struct Scene {
   // frozen at and the step's result; 0 turns the check off. See docs/numerics.md.
   int max_newton_iterations = 4;
   double rotation_tolerance = 0.1;
+  // integrator.line_search: an iteration whose configuration has a larger
+  // residual than the one before is taken back halfway, up to 3 times
+  // (engine/dynamics/step.cpp, assemble_system). Off by default: it costs an
+  // assembly per halving; for converged references of hard frames.
+  bool line_search = false;
   // Newmark parameters (integrator.newmark_gamma / newmark_beta): gamma = 1/2
   // with beta = 1/4 is the trapezoidal rule (no numerical damping); gamma > 1/2
   // damps the high frequencies (docs/numerics.md, "Numerical damping").

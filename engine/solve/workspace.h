@@ -71,6 +71,11 @@ struct Workspace {
   int refactorizations = 0;     // numeric factorizations so far
   int rotation_fallbacks = 0;   // SVD fallbacks in the last frame (inverted points)
   double last_residual = 0.0;      // relative residual of the last Newton iteration
+  // integrator.line_search: the last accepted iterate (Delta, the contact
+  // multipliers and force) and its residual norm |r|, to take the next one
+  // back halfway when its residual is larger.
+  double accepted_rnorm = 0.0;
+  std::vector<double> accepted_delta, accepted_lambda, accepted_contact_force;
 
   // Factor slot k of the lagged policy, 0 <= k < SolverWork::kSlots (0 is `solver`).
   CholmodSolver& slot(int k) { return k == 0 ? solver : k == 1 ? work.back : work.spare; }

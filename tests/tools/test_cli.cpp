@@ -606,6 +606,38 @@ TEST_F(Cli, CompareReferenceIsExactUnderARealtimePreset) {
   EXPECT_LT(err, 1e-2);
 }
 
+// --reference-set changes the reference alone: a converged reference (a
+// tight rotation tolerance, more iterations, the line search) against the
+// scene's own exact run, which stops at the default 0.1 rad and so differs
+// from it, while without it the two agree to roundoff.
+TEST_F(Cli, CompareReferenceSetChangesTheReferenceOnly) {
+  ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 8 2 2 --out " + path("beam.vtu")).code, 0);
+  write("scene.json", R"({"mesh": {"file": "beam.vtu", "order": 2},
+      "material": {"model": "corotated", "young": 1e4, "poisson": 0.3, "density": 100},
+      "gravity": [0, 0, -10], "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}]})");
+  const std::string base = "compare " + path("scene.json") + " --policy exact --frames 1,10";
+  const Result conv = incise(base + " --reference-set integrator.line_search=true --reference-set "
+                                    "integrator.rotation_tolerance=1e-6 --reference-set "
+                                    "integrator.max_newton_iterations=30 --json " + path("c.json"));
+  ASSERT_EQ(conv.code, 0) << conv.out;
+  const std::string ref = settings_block(conv.out, false);
+  EXPECT_NE(ref.find("rotation_tolerance 1e-06 [--reference-set]"), std::string::npos) << ref;
+  EXPECT_NE(ref.find("line_search true [--reference-set]"), std::string::npos) << ref;
+  const std::string pol = conv.out.substr(conv.out.find("--- exact"));
+  EXPECT_NE(pol.find("rotation_tolerance 0.1,"), std::string::npos) << pol;
+  EXPECT_NE(pol.find("line_search false"), std::string::npos) << pol;
+  std::ifstream cj(path("c.json"));
+  const auto jc = nlohmann::json::parse(cj);
+  EXPECT_GT(jc["policies"][0]["errors"][1]["rel_l2_error"].get<double>(), 1e-6) << "stopped at 0.1 rad";
+  ASSERT_EQ(incise(base + " --json " + path("s.json")).code, 0);
+  std::ifstream sj(path("s.json"));
+  const auto js = nlohmann::json::parse(sj);
+  EXPECT_LT(js["policies"][0]["errors"][1]["rel_l2_error"].get<double>(), 1e-12) << "the same settings";
+  const Result bad = incise(base + " --reference-set integrator.line_search");
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.out.find("--reference-set integrator.line_search: expected KEY=VALUE"), std::string::npos) << bad.out;
+}
+
 // One set of flags serves every compared policy: a lagged-only flag is left
 // out of the warped run (and says so) instead of failing it.
 TEST_F(Cli, CompareLeavesOutFlagsAPolicyDoesNotUse) {
