@@ -67,8 +67,8 @@ struct Reference {
 // The same scene and patches, then the whole solver object replaced by
 // solver.preset "reference" (exact), no tangent reuse, the runs'
 // integrator.tangent: no preset or solver flag reaches it. Then
-// --reference-set (e.g. a converged reference: more Newton iterations, a
-// tighter rotation_tolerance, integrator.line_search).
+// --reference-set (e.g. a converged reference: integrator.residual_tolerance,
+// more Newton iterations, integrator.line_search).
 Reference run_reference(const CompareOptions& o, const Scene& first_run, const std::vector<int>& checkpoints) {
   std::vector<ScenePatch> reference = o.patches;
   for (ScenePatch& p : exact_reference_patches(first_run)) reference.push_back(std::move(p));
@@ -210,7 +210,7 @@ void add_compare_command(CLI::App& app) {
            opts->reference_patches.push_back(std::move(p));
          },
          "Override a scene key for the exact reference only, after everything else, e.g. for a converged reference: "
-         "--reference-set integrator.max_newton_iterations=20 --reference-set integrator.rotation_tolerance=0.01 "
+         "--reference-set integrator.residual_tolerance=1e-8 --reference-set integrator.max_newton_iterations=40 "
          "--reference-set integrator.line_search=true (repeatable)")
       ->trigger_on_parse()
       ->type_name("KEY=VALUE");

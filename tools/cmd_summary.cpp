@@ -21,8 +21,10 @@ void print_model_summary(const Simulation& sim) {
                 3 * (m.ndofnode - m.nnode), 3 * m.nnode);
   std::printf("  constraints: %zu fixed DOF, %zu prescribed DOF; dt %.6g s, %d Newton iteration(s) per step%s\n",
               m.fixed_dofs.size(), m.prescribed.size(), m.dt, m.newton_iterations,
-              m.adaptive_newton() ? " (more, up to integrator.max_newton_iterations, while rotations move > rotation_tolerance)"
-                  : "");
+              !m.adaptive_newton()           ? ""
+              : m.residual_tolerance > 0 ? " (more, up to integrator.max_newton_iterations, while rotations move > "
+                                           "rotation_tolerance or the residual is above residual_tolerance)"
+                                         : " (more, up to integrator.max_newton_iterations, while rotations move > rotation_tolerance)");
   if (sim.scene.initial_static)
     std::printf("  initial: static equilibrium at t = 0 (solved at set-up, static.tolerance %g)\n", sim.scene.static_tolerance);
   if (m.material.model == MaterialModel::Corotated && m.material.rayleigh_stiffness == 0.0 &&

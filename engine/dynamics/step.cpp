@@ -331,7 +331,11 @@ void decide_newton(const Model& m, State& s, Workspace& ws) {
   double* x = ws.tmp.data();
   for (int d = 0; d < n; ++d) x[d] = s.u[d] + ws.delta[d];
   ws.timing.rotation_change = max_rotation_change(m, ws.work.plan, *ws.work.pool, x, s.R.data());
-  ws.newton_done = !(ws.timing.rotation_change > m.rotation_tolerance);
+  // integrator.residual_tolerance: the residual at this iteration's start
+  // (the one after the solve needs another assembly), so a step stops one
+  // iteration after its residual fell below it.
+  ws.newton_done = !(m.rotation_tolerance > 0 && ws.timing.rotation_change > m.rotation_tolerance) &&
+                   !(m.residual_tolerance > 0 && ws.last_residual > m.residual_tolerance);
 }
 
 void integrate(const Model& m, State& s, Workspace& ws) {

@@ -32,6 +32,7 @@ struct Model {
   int max_newton_iterations = 4;    // adaptive cap (scene integrator.max_newton_iterations)
   double rotation_tolerance = 0.1;  // radians; 0 = fixed iteration count
   bool line_search = false;         // integrator.line_search: halve an iteration that raised the residual
+  double residual_tolerance = 0.0;  // integrator.residual_tolerance: also iterate while the relative residual is above it
   double newmark_gamma = 0.5, newmark_beta = 0.25;  // 1/2, 1/4: trapezoidal rule
   bool consistent_tangent = false;  // integrator.tangent: add the rotation term (engine/fem/rotation_stiffness.h)
   bool increment_predictor = false;  // integrator.predictor "increment": Newton starts from State::du, not dt v
@@ -44,7 +45,8 @@ struct Model {
   // Newton iterates past newton_iterations while rotations move more than
   // rotation_tolerance (decide_newton, engine/dynamics/step.cpp).
   bool adaptive_newton() const {
-    return material.model == MaterialModel::Corotated && rotation_tolerance > 0 && max_newton_iterations > newton_iterations;
+    return material.model == MaterialModel::Corotated && (rotation_tolerance > 0 || residual_tolerance > 0) &&
+           max_newton_iterations > newton_iterations;
   }
   int ndof() const { return 3 * ndofnode; }
   std::vector<double> X;        // (ndofnode, 3) reference positions; 0 for enriched DOF nodes

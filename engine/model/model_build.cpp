@@ -1101,6 +1101,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.max_newton_iterations = std::max(scene.max_newton_iterations, scene.newton_iterations);
   m.rotation_tolerance = scene.rotation_tolerance;
   m.line_search = scene.line_search;
+  m.residual_tolerance = scene.residual_tolerance;
   m.newmark_gamma = scene.newmark_gamma;
   m.newmark_beta = scene.newmark_beta;
   m.consistent_tangent = scene.consistent_tangent;

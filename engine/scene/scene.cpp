@@ -401,7 +401,8 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
   const std::string at = "integrator";
   p.object(v, at);
   p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance", "newmark_gamma",
-                          "newmark_beta", "tangent", "tangent_reuse", "predictor", "line_search"});
+                          "newmark_beta", "tangent", "tangent_reuse", "predictor", "line_search",
+                          "residual_tolerance"});
   if (auto it = v.find("dt"); it != v.end()) {
     double dt = p.number(*it, at + ".dt");
     if (!(dt > 0.0 && dt <= 1.0))
@@ -417,6 +418,8 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
   if (auto it = v.find("tangent"); it != v.end())
     s.consistent_tangent = p.choice(*it, at + ".tangent", {"frozen_rotation", "consistent"}) == 1;
   if (auto it = v.find("line_search"); it != v.end()) s.line_search = p.boolean(*it, at + ".line_search");
+  if (auto it = v.find("residual_tolerance"); it != v.end())
+    s.residual_tolerance = p.nonnegative(*it, at + ".residual_tolerance");
   if (auto it = v.find("predictor"); it != v.end())
     s.increment_predictor = p.choice(*it, at + ".predictor", {"velocity", "increment"}) == 1;
   if (auto it = v.find("tangent_reuse"); it != v.end()) {
@@ -1021,6 +1024,7 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
   kv.push_back({"integrator.max_newton_iterations", std::to_string(s.max_newton_iterations)});
   kv.push_back({"integrator.rotation_tolerance", number_text(s.rotation_tolerance)});
   kv.push_back({"integrator.line_search", s.line_search ? "true" : "false"});
+  kv.push_back({"integrator.residual_tolerance", number_text(s.residual_tolerance)});
   kv.push_back({"integrator.tangent", quoted(s.consistent_tangent ? "consistent" : "frozen_rotation")});
   kv.push_back({"integrator.tangent_reuse", number_text(s.tangent_reuse)});
   kv.push_back({"integrator.predictor", quoted(s.increment_predictor ? "increment" : "velocity")});

@@ -254,6 +254,11 @@ struct Scene {
   // (engine/dynamics/step.cpp, assemble_system). Off by default: it costs an
   // assembly per halving; for converged references of hard frames.
   bool line_search = false;
+  // integrator.residual_tolerance (>= 0, 0 = off): also iterate while the
+  // relative residual at the last iteration's start (|r| / |(f_gravity,
+  // f_int)|) is above this; the rotation test alone stops at iterates the
+  // tangent approaches only linearly. For converged references.
+  double residual_tolerance = 0.0;
   // Newmark parameters (integrator.newmark_gamma / newmark_beta): gamma = 1/2
   // with beta = 1/4 is the trapezoidal rule (no numerical damping); gamma > 1/2
   // damps the high frequencies (docs/numerics.md, "Numerical damping").

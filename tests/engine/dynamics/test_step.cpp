@@ -330,3 +330,42 @@ TEST(Newmark, LineSearchConvergesAStepWhoseNewtonCycles) {
 
 }  // namespace
 }  // namespace incise
+
+namespace incise {
+namespace {
+
+// integrator.residual_tolerance: Newton goes on while the relative residual
+// at an iteration's start is above it (the rotation test off here), so each
+// step ends one iteration after its residual fell below the tolerance, and
+// the steps are the converged ones: those of a run to a 1e-12 rotation
+// change, to 1e-9.
+TEST(Newmark, ResidualToleranceIteratesToAConvergedStep) {
+  const Mesh mesh = make_beam(4.0, 0.5, 0.5, 8, 1, 1, 1);
+  auto run = [&](double rot_tol, double res_tol, std::vector<double>* last) {
+    Scene s = cantilever_scene(MaterialModel::Corotated);
+    s.material.young = 2e3;
+    s.material.rayleigh_stiffness = 0.01;
+    s.max_newton_iterations = 40;
+    s.rotation_tolerance = rot_tol;
+    s.residual_tolerance = res_tol;
+    const Model m = build_model(mesh, s);
+    State st;
+    Workspace ws;
+    init_state(m, st, ws);
+    for (int k = 0; k < 20; ++k) {
+      step(m, st, ws);
+      EXPECT_LT(ws.timing.newton, 40) << "step " << k;
+      if (last) last->push_back(ws.last_residual);
+    }
+    return st.u;
+  };
+  std::vector<double> residuals;
+  const std::vector<double> by_residual = run(0.0, 1e-10, &residuals), by_rotation = run(1e-12, 0.0, nullptr);
+  for (size_t k = 0; k < residuals.size(); ++k) EXPECT_LE(residuals[k], 1e-10) << "step " << k;
+  EXPECT_LT(test::rel_diff(by_residual, by_rotation), 1e-9);
+  const std::vector<double> loose = run(0.1, 0.0, nullptr);
+  EXPECT_GT(test::rel_diff(loose, by_rotation), 1e-6) << "the default stop is not the converged step";
+}
+
+}  // namespace
+}  // namespace incise
