@@ -847,8 +847,8 @@ void CholmodSolver::set_substitution_worker(SubstitutionWorker* worker) {
 }
 
 void CholmodSolver::settle() {
-  if (left_running_ && worker_) worker_->wait(left_running_);
-  left_running_ = 0;
+  if (const uint64_t t = left_running_.load(std::memory_order_acquire); t && worker_) worker_->wait(t);
+  left_running_.store(0, std::memory_order_release);
 }
 
 void CholmodSolver::solve_cholmod(const double* b, double* x) {

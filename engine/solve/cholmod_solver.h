@@ -4,6 +4,7 @@
 // ordering, elimination tree, supernodes) is done once per sparsity pattern;
 // numeric factorizations reuse it. Solves reuse their workspace
 // (cholmod_solve2), so a frame allocates nothing here.
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -191,7 +192,10 @@ class CholmodSolver {
   // What the worker's bin reads (here, not on the caller's stack: a bin
   // given up on may run after the call returned).
   SplitJob job_;
-  uint64_t left_running_ = 0;  // the ticket of a bin or group given up on, which may still run on worker_ (0: none)
+  // The ticket of a bin or group given up on, which may still run on worker_
+  // (0: none). Atomic: a background factorization settles the slot it takes
+  // over on its own thread.
+  std::atomic<uint64_t> left_running_{0};
   void settle();  // waits for that task only: before the factor, the copies or the buffers change
   FactorCopy copy_ = FactorCopy::None;  // set_factor_copy
   bool copy_valid_ = false;              // the copy holds the current factor's values
