@@ -2,6 +2,7 @@
 // monotone decay with Rayleigh damping, prescribed motion followed exactly.
 #include <cmath>
 #include <cstdio>
+#include <functional>
 
 #include <gtest/gtest.h>
 
@@ -281,6 +282,24 @@ TEST(Newmark, AdaptiveIterationsApproachTheConvergedStep) {
 namespace incise {
 namespace {
 
+// A soft cantilever (E = 2 kPa: large, fast rotations) with Rayleigh
+// stiffness damping b, stepped `steps` times; `each` sees every step's
+// Workspace. Returns the final displacement.
+std::vector<double> run_soft_cantilever(Scene s, double b, int steps, const std::function<void(const Workspace&)>& each) {
+  const Mesh mesh = make_beam(4.0, 0.5, 0.5, 8, 1, 1, 1);
+  s.material.young = 2e3;
+  s.material.rayleigh_stiffness = b;
+  const Model m = build_model(mesh, s);
+  State st;
+  Workspace ws;
+  init_state(m, st, ws);
+  for (int k = 0; k < steps; ++k) {
+    step(m, st, ws);
+    each(ws);
+  }
+  return st.u;
+}
+
 // integrator.line_search: on a soft corotated cantilever with Rayleigh
 // stiffness damping and the consistent tangent (whose rotation term is
 // projected and which leaves out the damping term's derivative) one step's
@@ -289,31 +308,22 @@ namespace {
 // residual, every step converges, in fewer iterations over the run, to the
 // same steps as a tighter tolerance gives.
 TEST(Newmark, LineSearchConvergesAStepWhoseNewtonCycles) {
-  const Mesh mesh = make_beam(4.0, 0.5, 0.5, 8, 1, 1, 1);
   struct Run {
     std::vector<double> u;
     int capped = 0, iterations = 0, halvings = 0;
   };
   auto run = [&](bool line_search, double tol, int cap) {
     Scene s = cantilever_scene(MaterialModel::Corotated);
-    s.material.young = 2e3;
-    s.material.rayleigh_stiffness = 0.05;
     s.consistent_tangent = true;
     s.max_newton_iterations = cap;
     s.rotation_tolerance = tol;
     s.line_search = line_search;
-    const Model m = build_model(mesh, s);
-    State st;
-    Workspace ws;
-    init_state(m, st, ws);
     Run r;
-    for (int k = 0; k < 30; ++k) {
-      step(m, st, ws);
+    r.u = run_soft_cantilever(s, 0.05, 30, [&](const Workspace& ws) {
       r.iterations += ws.timing.newton;
       r.capped += ws.timing.newton >= cap;
       r.halvings += ws.timing.line_search_halvings;
-    }
-    r.u = st.u;
+    });
     return r;
   };
   const Run plain = run(false, 1e-6, 30), searched = run(true, 1e-6, 30), tight = run(true, 1e-9, 60);
@@ -328,36 +338,22 @@ TEST(Newmark, LineSearchConvergesAStepWhoseNewtonCycles) {
               searched.iterations, searched.halvings, plain.capped, test::rel_diff(searched.u, tight.u));
 }
 
-}  // namespace
-}  // namespace incise
-
-namespace incise {
-namespace {
-
 // integrator.residual_tolerance: Newton goes on while the relative residual
 // at an iteration's start is above it (the rotation test off here), so each
 // step ends one iteration after its residual fell below the tolerance, and
 // the steps are the converged ones: those of a run to a 1e-12 rotation
 // change, to 1e-9.
 TEST(Newmark, ResidualToleranceIteratesToAConvergedStep) {
-  const Mesh mesh = make_beam(4.0, 0.5, 0.5, 8, 1, 1, 1);
   auto run = [&](double rot_tol, double res_tol, std::vector<double>* last) {
     Scene s = cantilever_scene(MaterialModel::Corotated);
-    s.material.young = 2e3;
-    s.material.rayleigh_stiffness = 0.01;
     s.max_newton_iterations = 40;
     s.rotation_tolerance = rot_tol;
     s.residual_tolerance = res_tol;
-    const Model m = build_model(mesh, s);
-    State st;
-    Workspace ws;
-    init_state(m, st, ws);
-    for (int k = 0; k < 20; ++k) {
-      step(m, st, ws);
-      EXPECT_LT(ws.timing.newton, 40) << "step " << k;
+    int k = 0;
+    return run_soft_cantilever(s, 0.01, 20, [&](const Workspace& ws) {
+      EXPECT_LT(ws.timing.newton, 40) << "step " << k++;
       if (last) last->push_back(ws.last_residual);
-    }
-    return st.u;
+    });
   };
   std::vector<double> residuals;
   const std::vector<double> by_residual = run(0.0, 1e-10, &residuals), by_rotation = run(1e-12, 0.0, nullptr);
