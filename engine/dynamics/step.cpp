@@ -275,9 +275,19 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
     // (engine/dynamics/contact_solve.h): an external force at t + dt.
     if (ws.contact_force.size() == static_cast<size_t>(n))
       for (int d = 0; d < n; ++d) ws.rhs[d] += ws.contact_force[d];
+    // The damping matrix is b R K0 R^T with this iterate's rotations, whatever
+    // the tangent: taken matrix-free (element_matvec, the rotated linear
+    // stress of v1's gradient at each point), not from the assembled K, which
+    // under `tangent: consistent` adds the rotation term and under
+    // `tangent_reuse` holds kept blocks. With K the converged step depended
+    // on both: hang-20k's first step iterated to a 1e-8 residual moved by
+    // 0.55-2.5% with reuse 1e-2 (docs/numerics.md, "Converged steps and the
+    // line search"), and exact and warped runs solved different equations.
+    // It costs about what the CSR product did (the same operator as K for the
+    // frozen-rotation tangent).
     if (b_ray > 0.0) {
-      if (linear || policy_needs_tangent(m)) sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
-      else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), v1, a1);  // warped: frozen-R K v without K
+      if (linear) sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
+      else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), v1, a1);
       for (int d = 0; d < n; ++d) ws.rhs[d] -= b_ray * a1[d];
     }
     double rnorm = 0.0, fnorm = 0.0;
