@@ -176,16 +176,18 @@ void step_stages(const Model& m, State& s, Workspace& ws) {
 }
 
 namespace {
-// integrator.line_search. Under a grasp or a probe the corotated tangent
-// (its rotation term projected, the Rayleigh term's derivative left out) can
-// send Newton round a cycle: drag15mm-20k under `exact`, 12 iterations a
-// frame, the residual alternating 0.2 <-> 0.47 and the largest rotation
-// change 0.6 <-> 1.1 rad to the cap in every grasp frame. Here an iterate
-// whose residual norm is larger than the last accepted one's is taken back
-// halfway toward it (Delta, and the contact multipliers with their force,
-// which enter the residual: the rows are the frame's, so a mean of two
-// iterates that meet them meets them too), up to kMaxHalvings times; the
-// last try is kept. Returns whether Delta changed (assemble again).
+// integrator.line_search. The tangent (its rotation term projected, the
+// damping term's derivative through R left out) need not give a step that
+// lowers the residual: a very soft cantilever at dt = 0.1 s leaves 8 of 30
+// steps at a 30-iteration cap (6 with this); with the damping term on the
+// assembled consistent tangent, drag15mm-20k's grasp frames cycled under
+// `exact` (residual 0.2 <-> 0.47, rotation change 0.6 <-> 1.1 rad) and this
+// converged them in 6-11 iterations. An iterate whose residual norm is
+// larger than the last accepted one's is taken back halfway toward it
+// (Delta, and the contact multipliers with their force, which enter the
+// residual: the rows are the frame's, so a mean of two iterates that meet
+// them meets them too), up to kMaxHalvings times; the last try is kept.
+// Returns whether Delta changed (assemble again).
 bool line_search_step_back(const Model& m, Workspace& ws, double rnorm, int halvings) {
   constexpr int kMaxHalvings = 3;
   const int n = m.ndof();
@@ -282,9 +284,10 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
     // `tangent_reuse` holds kept blocks. With K the converged step depended
     // on both: hang-20k's first step iterated to a 1e-8 residual moved by
     // 0.55-2.5% with reuse 1e-2 (docs/numerics.md, "Converged steps and the
-    // line search"), and exact and warped runs solved different equations.
-    // It costs about what the CSR product did (the same operator as K for the
-    // frozen-rotation tangent).
+    // line search"), and exact and warped runs solved different equations;
+    // under a grasp it made Newton cycle. The element pass costs 0.3-1 ms
+    // more than the CSR product did (organ-10k, hang-20k); for the
+    // frozen-rotation tangent without reuse it is the same operator as K.
     if (b_ray > 0.0) {
       if (linear) sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
       else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), v1, a1);
