@@ -287,6 +287,17 @@ TEST(SplitSubstitution, SolveTakesOverTheBinsOfAWorkerThatNeverStarts) {
   EXPECT_EQ(two.stats().split_substitutions, 2);
 }
 
+// Holds the worker with a task that runs until `release` is set, once any
+// task a solve gave up on (a loaded machine) has ended; its ticket.
+uint64_t hold_worker(SubstitutionWorker& worker, std::atomic<bool>& release) {
+  worker.wait();
+  return worker.try_start(
+      [](void* p) {
+        while (!static_cast<std::atomic<bool>*>(p)->load()) std::this_thread::sleep_for(std::chrono::microseconds(100));
+      },
+      &release);
+}
+
 // A multi-column substitution gives its second group to the worker (35
 // columns: 16, 16, 3; 2-32: two halves): the same bits as on one thread,
 // whether the worker runs it, never starts (the caller takes it over,
@@ -325,12 +336,7 @@ TEST(SplitSubstitution, MultiColumnSolveGivesAGroupToTheWorkerWithTheSameBits) {
   EXPECT_EQ(late.stats().takeovers, 1) << "the group the worker never started";
   stalled.launch();
   std::atomic<bool> release{false};
-  running.wait();  // a group given up on (a loaded machine) may still run
-  ASSERT_TRUE(running.try_start(
-      [](void* p) {
-        while (!static_cast<std::atomic<bool>*>(p)->load()) std::this_thread::sleep_for(std::chrono::microseconds(100));
-      },
-      &release));
+  ASSERT_TRUE(hold_worker(running, release));
   const int takeovers = two.stats().takeovers;
   two.solve_copy_multi(k, B.data(), X2.data());
   EXPECT_EQ(X2, X1) << "busy worker: every group here";
@@ -357,12 +363,7 @@ TEST(SplitSubstitution, BusyWorkerKeepsSolvesOnOneThread) {
   std::vector<double> x1(n), x2(n), xfree(n);
   two.solve(b.data(), xfree.data());
   std::atomic<bool> release{false};
-  worker.wait();  // a bin given up on (a loaded machine) may still run
-  ASSERT_TRUE(worker.try_start(
-      [](void* p) {
-        while (!static_cast<std::atomic<bool>*>(p)->load()) std::this_thread::sleep_for(std::chrono::microseconds(100));
-      },
-      &release));
+  ASSERT_TRUE(hold_worker(worker, release));
   one.solve(b.data(), x1.data());
   const int takeovers = two.stats().takeovers;
   two.solve(b.data(), x2.data());
