@@ -98,12 +98,12 @@ void size_workspace(const Model& m, Workspace& ws, bool zero) {
   ws.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one
   ws.tangent_cache.theta = m.tangent_reuse;
   if (!zero) {
-    for (auto* w : {&ws.f_int, &ws.rhs, &ws.delta, &ws.du, &ws.tmp, &ws.tmp2}) resize_with_headroom(*w, n);
+    for (auto* w : {&ws.f_int, &ws.rhs, &ws.delta, &ws.du, &ws.tmp, &ws.tmp2, &ws.f_damp}) resize_with_headroom(*w, n);
     resize_with_headroom(ws.K, m.nnz());
     resize_with_headroom(ws.A, m.nnz());
     return;
   }
-  for (auto* w : {&ws.f_int, &ws.rhs, &ws.delta, &ws.du, &ws.tmp, &ws.tmp2}) w->assign(n, 0.0);
+  for (auto* w : {&ws.f_int, &ws.rhs, &ws.delta, &ws.du, &ws.tmp, &ws.tmp2, &ws.f_damp}) w->assign(n, 0.0);
   ws.K.assign(m.nnz(), 0.0);
   ws.A.assign(m.nnz(), 0.0);
 }
@@ -251,9 +251,6 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
     // x = u + Delta; internal forces and tangent there.
     double* x = ws.tmp.data();
     for (int d = 0; d < n; ++d) x[d] = s.u[d] + ws.delta[d];
-    const double* K = internal_forces(m, s, ws, x, policy_needs_tangent(m), /*reuse_tangent=*/true);
-    ws.timing.tangent_updates += ws.tangent_cache.updated;
-
     // Newmark ([book] eq. (3.58); newmark_coefficients for general beta, gamma):
     // a1 = 4/dt^2 Delta - 4/dt v - a,  v1 = 2/dt Delta - v at beta = 1/4, gamma = 1/2.
     // Residual r = f_ext - f_int(x) - M a1 - D v1 with D = a M + b K. For
@@ -265,6 +262,20 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
       a1[d] = nc.a_d * ws.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
       v1[d] = nc.v_d * ws.delta[d] + nc.v_v * s.v[d] + nc.v_a * s.a[d];
     }
+    // The damping matrix is b R K0 R^T with this iterate's rotations, whatever
+    // the tangent: taken matrix-free (the rotated linear stress of v1's
+    // gradient at each point, in the assembly's own pass over the elements),
+    // not from the assembled K, which under `tangent: consistent` adds the
+    // rotation term and under `tangent_reuse` holds kept blocks. With K the
+    // converged step depended on both: hang-20k's first step iterated to a
+    // 1e-8 residual moved by 0.55-2.5% with reuse 1e-2 (docs/numerics.md,
+    // "Converged steps and the line search"), and exact and warped runs solved
+    // different equations; under a grasp it made Newton cycle. For the
+    // frozen-rotation tangent without reuse it is the same operator as K.
+    const bool damp = b_ray > 0.0 && !linear;
+    const double* K = internal_forces(m, s, ws, x, policy_needs_tangent(m), /*reuse_tangent=*/true,
+                                      damp ? v1 : nullptr, damp ? ws.f_damp.data() : nullptr);
+    ws.timing.tangent_updates += ws.tangent_cache.updated;
     // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
     for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
     if (m.mass_kind == MassKind::Lumped) {
@@ -277,21 +288,13 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
     // (engine/dynamics/contact_solve.h): an external force at t + dt.
     if (ws.contact_force.size() == static_cast<size_t>(n))
       for (int d = 0; d < n; ++d) ws.rhs[d] += ws.contact_force[d];
-    // The damping matrix is b R K0 R^T with this iterate's rotations, whatever
-    // the tangent: taken matrix-free (element_matvec, the rotated linear
-    // stress of v1's gradient at each point), not from the assembled K, which
-    // under `tangent: consistent` adds the rotation term and under
-    // `tangent_reuse` holds kept blocks. With K the converged step depended
-    // on both: hang-20k's first step iterated to a 1e-8 residual moved by
-    // 0.55-2.5% with reuse 1e-2 (docs/numerics.md, "Converged steps and the
-    // line search"), and exact and warped runs solved different equations;
-    // under a grasp it made Newton cycle. The element pass costs 0.3-1 ms
-    // more than the CSR product did (organ-10k, hang-20k); for the
-    // frozen-rotation tangent without reuse it is the same operator as K.
     if (b_ray > 0.0) {
-      if (linear) sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
-      else stiffness_matvec(m, ws.work.plan, *ws.work.pool, s.R.data(), v1, a1);
-      for (int d = 0; d < n; ++d) ws.rhs[d] -= b_ray * a1[d];
+      const double* Kv1 = ws.f_damp.data();  // the assembly's R K0 R^T v1
+      if (linear) {
+        sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, K, v1, a1);
+        Kv1 = a1;
+      }
+      for (int d = 0; d < n; ++d) ws.rhs[d] -= b_ray * Kv1[d];
     }
     double rnorm = 0.0, fnorm = 0.0;
     for (int d = 0; d < n; ++d) {
@@ -393,7 +396,8 @@ void check_motion_bounded(const Model& m, const State& s) {
     }
 }
 
-const double* internal_forces(const Model& m, State& s, Workspace& ws, const double* x, bool tangent, bool reuse_tangent) {
+const double* internal_forces(const Model& m, State& s, Workspace& ws, const double* x, bool tangent, bool reuse_tangent,
+                              const double* v, double* Kv) {
   if (m.material.model == MaterialModel::Linear) {
     sym_matvec_parallel(m, ws.work.plan, *ws.work.pool, m.K0_csc.data(), x, ws.f_int.data());
     return m.K0_csc.data();
@@ -403,7 +407,7 @@ const double* internal_forces(const Model& m, State& s, Workspace& ws, const dou
   ws.tangent_cache.updated = tangent ? m.nelem : 0;  // what a full assembly recomputes (the cache overwrites it)
   if (tangent && !cache) ws.tangent_cache.valid = false;  // K rebuilt without it (a static solve): no longer the kept sum
   const int fallbacks = assemble_corotated(m, ws.work.plan, *ws.work.pool, x, s.R.data(), ws.f_int.data(),
-                                          tangent ? ws.K.data() : nullptr, cache);
+                                          tangent ? ws.K.data() : nullptr, cache, v, Kv);
   ws.rotation_fallbacks += fallbacks;
   ws.timing.inverted_points = fallbacks;
   return ws.K.data();

@@ -63,10 +63,11 @@ void check_motion_bounded(const Model& model, const State& state);
 void decide_newton(const Model& model, State& state, Workspace& ws);
 
 // ws.f_int = internal force at displacement x (rotations into state.R), and
-// the tangent into ws.K when asked. Returns the tangent's values: the rest
-// stiffness for the linear model, ws.K otherwise.
+// the tangent into ws.K when asked. With Kv (corotated model): Kv = R K0 R^T v
+// with those rotations, in the same pass. Returns the tangent's values: the
+// rest stiffness for the linear model, ws.K otherwise.
 const double* internal_forces(const Model& model, State& state, Workspace& ws, const double* x, bool tangent,
-                              bool reuse_tangent = false);
+                              bool reuse_tangent = false, const double* v = nullptr, double* Kv = nullptr);
 
 // Sets state.a to the acceleration consistent with the current u and v:
 // M a = f_ext - f_int(u) - D v on the free DOFs (0 on constrained ones), by

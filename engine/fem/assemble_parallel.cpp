@@ -122,7 +122,7 @@ void size_scratch(const Model& m, AssemblyPlan& p) {
       assert(p.elem_rot[k] == p.elem_rot[p.elem_rot_ptr[e]] + (k - p.elem_rot_ptr[e]));
   }
   const int n = p.max_elem_nodes;
-  p.scratch.assign(p.nthreads, std::vector<double>(15 * n + 9 * n * (n + 1) / 2 + 9 * p.max_elem_slots + 16));
+  p.scratch.assign(p.nthreads, std::vector<double>(18 * n + 9 * n * (n + 1) / 2 + 9 * p.max_elem_slots + 16));
 }
 
 // A point whose slot is its own with the same gradients (tet10 per_point)
@@ -367,6 +367,16 @@ inline void condensed_element_terms(const Model& m, const AssemblyPlan& plan, in
   }
 }
 
+// y += a split element's pieces' R K0 R^T v (ve: v at its nodes; t1, t2: (npe, 3) scratch).
+inline void condensed_element_matvec(const Model& m, const AssemblyPlan& plan, int e, const int* nodes,
+                                     const double* Rall, const double* ve, double* y, double* t1, double* t2) {
+  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
+    const int r = plan.elem_rot[k];
+    condensed_slot_force(m.mesh.npe(), &m.rot_K0[m.rot_K0_ptr[r]], m.slot_partner(r), Rall + 9 * r, ve, nullptr, nodes,
+                         t1, t2, y);
+  }
+}
+
 // f_a += P g_a for the element's n DOF nodes (P the point's weighted stress).
 template <int NN>
 inline void add_point_force(int n_dyn, const int* nodes, const double* P, const double* g, double* f) {
@@ -449,10 +459,12 @@ inline void add_point_blocks(int n_dyn, const double* g, const double* h, double
 
 // Cubature point q of element e: its force into f and, with Kl, its blocks
 // (h, t: scratch). Its F is its slot's kept in Fs where qp_slot_F says so.
+// With fv: fv += the point's part of R K0 R^T v (ve: the element's v, (n, 3)),
+// the stress of v's gradient with the same R (element_matvec's product).
 template <int NN>
 inline void point_terms(const Model& m, const AssemblyPlan& plan, int e, int q, int n, const int* nodes,
                         const double* xe, const double* Rall, const double* Fs, double* f, double* Kl, double* h,
-                        double* t) {
+                        double* t, const double* ve, double* fv) {
   const bool linear = m.material.model == MaterialModel::Linear;
   const double mu = m.mu, lambda = m.lambda;
   const double w = m.qp_weight[q];
@@ -464,6 +476,12 @@ inline void point_terms(const Model& m, const AssemblyPlan& plan, int e, int q, 
   else grad_sum<NN>(n, xe, g, Fq);
   rotated_stress(R, F, w, mu, lambda, /*strain=*/true, P);
   add_point_force<NN>(n, nodes, P, g, f);
+  if (fv) {
+    double G[9];
+    grad_sum<NN>(n, ve, g, G);
+    rotated_stress(R, G, w, mu, lambda, /*strain=*/false, P);
+    add_point_force<NN>(n, nodes, P, g, fv);
+  }
   if (!Kl) return;  // a kept element: forces only
   rotate_gradients<NN>(n, R, g, h);
   double Y[9];
@@ -479,10 +497,12 @@ inline void point_terms(const Model& m, const AssemblyPlan& plan, int e, int q, 
 // With `cache` (tangent_reuse, valid): the element's blocks are recomputed only
 // when some slot's F moved more than cache->theta from the F they were made
 // at, and K then gains the difference; *updated says whether they were.
+// With fv: fv += the element's R K0 R^T v with the rotations just extracted
+// (stiffness_matvec's product, in the same pass: the damping force).
 template <int NN>
 int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double* u, double* Rall, double* f, double* K,
                   double* scratch, TangentCache* cache = nullptr, bool* updated = nullptr,
-                  bool* keepable = nullptr) {
+                  bool* keepable = nullptr, const double* v = nullptr, double* fv = nullptr) {
   const int b0 = m.elem_dof_ptr[e];
   const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
   const int* nodes = &m.elem_dof_node[b0];
@@ -491,9 +511,13 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
   double* Kl = h + 3 * n;    // blocks a <= b, 9 each, row-major
   double* t = Kl + 9 * n * (n + 1) / 2;  // (n, 3, 3) rotation-mode vectors (rotation_stiffness.h)
   double* Fs = t + 9 * n;                // (slots, 9) each slot's F, for the points that share it (qp_slot_F)
+  double* ve = Fs + 9 * plan.max_elem_slots;  // (n, 3) v at the element's nodes, with fv
   const int nblk = n * (n + 1) / 2;
   for (int a = 0; a < n; ++a)
     for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
+  if (fv)
+    for (int a = 0; a < n; ++a)
+      for (int i = 0; i < 3; ++i) ve[3 * a + i] = v[3 * nodes[a] + i];
   if (K && !(cache && cache->valid && !cache->bypass)) prefetch_element_K(m, e, K);
   // probe (TangentCache::bypass): blocks recomputed and added to K directly,
   // F kept per slot only to tell whether the element would have been kept.
@@ -510,10 +534,13 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
   if (updated) *updated = K != nullptr;
   double* Kout = K ? Kl : nullptr;  // the element's blocks, when they are made
   if (K) slot_rotation_terms<NN>(m, plan, e, n, xe, Rall, cache, Kl, h, t);
-  if (plan.elem_condensed[e]) condensed_element_terms(m, plan, e, n, nodes, xe, Rall, f, Kout, h, t);
-  else
+  if (plan.elem_condensed[e]) {
+    condensed_element_terms(m, plan, e, n, nodes, xe, Rall, f, Kout, h, t);
+    if (fv) condensed_element_matvec(m, plan, e, nodes, Rall, ve, fv, h, t);
+  } else {
     for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q)
-      point_terms<NN>(m, plan, e, q, n, nodes, xe, Rall, Fs, f, Kout, h, t);
+      point_terms<NN>(m, plan, e, q, n, nodes, xe, Rall, Fs, f, Kout, h, t, ve, fv);
+  }
   if (K) scatter_blocks(m, e, nblk, Kl, K, cache, cached);
   return fallbacks;
 }
@@ -527,11 +554,7 @@ void element_matvec(const Model& m, const AssemblyPlan& plan, int e, const doubl
   for (int a = 0; a < n; ++a)
     for (int i = 0; i < 3; ++i) ve[3 * a + i] = v[3 * nodes[a] + i];
   if (plan.elem_condensed[e]) {
-    for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
-      const int r = plan.elem_rot[k];
-      condensed_slot_force(m.mesh.npe(), &m.rot_K0[m.rot_K0_ptr[r]], m.slot_partner(r), Rall + 9 * r, ve, nullptr,
-                           nodes, ve + 3 * n, ve + 6 * n, y);
-    }
+    condensed_element_matvec(m, plan, e, nodes, Rall, ve, y, ve + 3 * n, ve + 6 * n);
     return;
   }
   for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
@@ -578,8 +601,9 @@ void for_each_element(const AssemblyPlan& plan, ThreadPool& pool, double* zero_a
 }  // namespace
 
 int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, double* R, double* f,
-                       double* K, TangentCache* cache) {
+                       double* K, TangentCache* cache, const double* v, double* fv) {
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
+  if (fv) std::fill(fv, fv + m.ndof(), 0.0);
   if (cache && (!K || !(cache->theta > 0.0))) cache = nullptr;
   const bool probe = cache && cache->bypass;
   if (probe) {
@@ -597,9 +621,9 @@ int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, con
     double* s = plan.scratch[tid].data();
     const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
     bool updated = false, keepable = false;
-    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable)
-                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable)
-                                : element_terms<0>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable);
+    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv)
+                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv)
+                                : element_terms<0>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv);
     up[tid] += updated;
     kp[tid] += keepable;
   });

@@ -81,9 +81,12 @@ struct TangentCache {
 // R (nrot, 9): warm start in, the rotation of every slot out (identity for the
 // linear model); f_int (ndof) and K (nnz, skipped when null) overwritten, or,
 // with a valid `cache` (theta > 0), updated element by element (TangentCache).
+// With fv (ndof): fv = R K0 R^T v with the rotations extracted here, in the
+// same pass (stiffness_matvec's product; the damping force of a step).
 // Returns the number of SVD fallbacks of the rotation extraction.
 int assemble_corotated(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, double* R,
-                       double* f_int, double* K, TangentCache* cache = nullptr);
+                       double* f_int, double* K, TangentCache* cache = nullptr, const double* v = nullptr,
+                       double* fv = nullptr);
 
 // Serial, over `elems` only, accumulating (nothing is zeroed): f_int += the
 // elements' internal forces at u (their rotation slots updated in R, warm

@@ -26,6 +26,7 @@ struct Workspace {
   std::vector<double> rhs, du;           // (ndof) Newton residual and increment
   std::vector<double> delta;             // (ndof) step increment Delta = u(t + dt) - u(t)
   std::vector<double> tmp, tmp2;         // (ndof) scratch
+  std::vector<double> f_damp;            // (ndof) R K0 R^T v1 of the iterate (the Rayleigh stiffness force / b)
   TangentCache tangent_cache;   // integrator.tangent_reuse: element blocks kept in K between frames
   CholmodSolver solver;
   bool factor_current = false;  // the factor in `solver` is valid for the policy (linear: never changes)

@@ -577,6 +577,11 @@ TEST(SolverPolicies, ParallelAssemblyMatchesSerial) {
           EXPECT_LT(test::rel_diff(y2, y1), 1e-13);
         }
         EXPECT_LT(test::rel_diff(y3, y1), 1e-14);
+        // The same product fused into the assembly's pass (the step's damping
+        // force), with the rotations that pass extracts.
+        std::vector<double> Rv = R0, fv(m.ndof()), Kv(m.ndof(), 1.0);
+        assemble_corotated(m, plan, pool, u.data(), Rv.data(), fv.data(), nullptr, nullptr, v.data(), Kv.data());
+        EXPECT_LT(test::rel_diff(Kv, y2), 1e-14) << "order " << order << " threads " << threads;
       }
     }
 }
