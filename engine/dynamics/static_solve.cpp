@@ -83,6 +83,7 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
       const auto factorize = [&] {
         const double* K = linear ? m.K0_csc.data() : ws.K.data();
         std::copy(K, K + m.nnz(), ws.A.begin());
+        ws.A_generation = 0;
         project_constraints(m, ws.A.data());
         ws.solver.factorize(ws.A.data());
         ++ws.refactorizations;

@@ -95,6 +95,7 @@ bool lumped_mass_solve(const Model& m, const std::vector<double>& r, std::vector
 
 void size_workspace(const Model& m, Workspace& ws, bool zero) {
   const int n = m.ndof();
+  ++ws.K_generation;  // a new or carried model: K and A are formed anew
   ws.tangent_cache = TangentCache{};  // a new model: the next assembly is a full one
   ws.tangent_cache.theta = m.tangent_reuse;
   if (!zero) {
@@ -123,6 +124,7 @@ void init_state(const Model& m, State& s, Workspace& ws, bool consistent_a0) {
     for (int d = 0; d < n; ++d) s.a[d] = ws.rhs[d] / m.mass_lumped[d];
   } else {
     std::copy(m.mass_csc.begin(), m.mass_csc.end(), ws.A.begin());
+    ws.A_generation = 0;
     project_constraints(m, ws.A.data());
     ws.solver.factorize(ws.A.data());
     ws.solver.solve(ws.rhs.data(), s.a.data());
@@ -404,10 +406,12 @@ const double* internal_forces(const Model& m, State& s, Workspace& ws, const dou
   }
   // rotations, forces and (when asked) the tangent, on solver.threads workers
   TangentCache* cache = reuse_tangent && tangent && m.tangent_reuse > 0.0 ? &ws.tangent_cache : nullptr;
+  const bool keeping = cache && cache->valid && !cache->bypass;  // K updated block by block, not rebuilt
   ws.tangent_cache.updated = tangent ? m.nelem : 0;  // what a full assembly recomputes (the cache overwrites it)
   if (tangent && !cache) ws.tangent_cache.valid = false;  // K rebuilt without it (a static solve): no longer the kept sum
   const int fallbacks = assemble_corotated(m, ws.work.plan, *ws.work.pool, x, s.R.data(), ws.f_int.data(),
                                           tangent ? ws.K.data() : nullptr, cache, v, Kv);
+  if (tangent && !(keeping && ws.tangent_cache.updated == 0)) ++ws.K_generation;
   ws.rotation_fallbacks += fallbacks;
   ws.timing.inverted_points = fallbacks;
   return ws.K.data();

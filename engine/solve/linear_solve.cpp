@@ -791,21 +791,34 @@ void update_node_rotations(const Model& m, const double* R, Workspace& ws) {
   });
 }
 
+namespace {
+// ws.A = cM M + cK K unless it already holds that for this K: a streaming
+// pass over nnz values (about 1 ms at 20k DOF) saved in every Newton
+// iteration whose assembly kept every element's blocks (tangent_reuse on a
+// calm body) and for the linear model's constant K0.
+void form_matrix_once(const Model& m, Workspace& ws, const double* K) {
+  if (ws.A_generation == ws.K_generation && ws.A_source == K) return;
+  form_matrix(m, K, ws.A.data());
+  ws.A_generation = ws.K_generation;
+  ws.A_source = K;
+}
+}  // namespace
+
 void form_dynamic_matrix(const Model& m, const State& s, Workspace& ws, const double* K) {
   const bool linear = m.material.model == MaterialModel::Linear;
   switch (m.solver.policy) {
     case SolverPolicy::Exact:
-      if (!(linear && ws.factor_current)) form_matrix(m, K, ws.A.data());
+      if (!(linear && ws.factor_current)) form_matrix_once(m, ws, K);
       break;
     case SolverPolicy::Lagged:
-      form_matrix(m, K, ws.A.data());
+      form_matrix_once(m, ws, K);
       if (m.solver.warp) update_node_rotations(m, s.R.data(), ws);
       break;
     case SolverPolicy::Warped:
       update_node_rotations(m, s.R.data(), ws);
       break;
     case SolverPolicy::WarpedCG:
-      form_matrix(m, K, ws.A.data());
+      form_matrix_once(m, ws, K);
       update_node_rotations(m, s.R.data(), ws);
       break;
   }

@@ -5,6 +5,7 @@
 // it is physical state: a copied State stepped with a fresh Workspace gives
 // the same frames (deterministic solver settings). A cut carries it over to
 // the next Model in carry_workspace_over_cut (engine/solve/workspace_carry.h).
+#include <cstdint>
 #include <vector>
 
 #include "engine/dynamics/contact_rows.h"
@@ -23,6 +24,13 @@ struct Workspace {
   std::vector<double> f_int;             // (ndof) internal force at the current iterate
   std::vector<double> K;                 // (nnz) tangent stiffness
   std::vector<double> A;                 // (nnz) dynamic matrix cM M + cK K, projected
+  // What A was formed from, so an unchanged K (tangent_reuse keeping every
+  // element, or the linear model's K0) is not formed again: K_generation
+  // grows whenever ws.K may change (an assembly that recomputed a block, a
+  // new or carried model), A_generation is K_generation when A was formed
+  // from A_source (0: A holds something else, e.g. the static solve's K).
+  std::uint64_t K_generation = 1, A_generation = 0;
+  const double* A_source = nullptr;
   std::vector<double> rhs, du;           // (ndof) Newton residual and increment
   std::vector<double> delta;             // (ndof) step increment Delta = u(t + dt) - u(t)
   std::vector<double> tmp, tmp2;         // (ndof) scratch

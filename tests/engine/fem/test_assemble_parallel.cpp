@@ -4,6 +4,7 @@
 // than theta, and the trajectory approaches the full-assembly one as theta
 // shrinks (off at 0).
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -12,6 +13,7 @@
 #include "engine/fem/polar.h"
 #include "engine/mesh/mesh_tools.h"
 #include "engine/dynamics/step.h"
+#include "engine/solve/linear_solve.h"
 #include "tests/engine/test_util.h"
 
 namespace incise {
@@ -118,6 +120,30 @@ TEST(TangentReuse, NewModelStartsWithAFullAssembly) {
   EXPECT_EQ(ws.timing.tangent_updates, m.nelem) << "so the next step assembles every element";
   size_workspace(m, ws);  // what a cut's rebuild does (carry_workspace_over_cut)
   EXPECT_FALSE(ws.tangent_cache.valid);
+}
+
+// The dynamic matrix is formed only when K changed (form_dynamic_matrix):
+// after every step A is exactly what forming it from the step's last K gives,
+// and the steps whose assemblies kept every element's blocks did not form it.
+TEST(TangentReuse, TheDynamicMatrixIsFormedAgainOnlyWhenKChanged) {
+  Scene sc = swing(0.4);
+  const Model m = build_model(beam_mesh(), sc);
+  State st; Workspace ws;
+  init_state(m, st, ws);
+  int skipped = 0;
+  for (int k = 0; k < 70; ++k) {  // from about frame 45 on the beam is calm
+    const std::uint64_t before = ws.K_generation;
+    step(m, st, ws);
+    if (ws.timing.tangent_updates == 0) {
+      EXPECT_EQ(ws.K_generation, before) << "frame " << k << ": no block recomputed, K unchanged";
+      ++skipped;
+    }
+    const std::vector<double> kept_A = ws.A;
+    ws.A_generation = 0;  // form it anew from the same K
+    form_dynamic_matrix(m, st, ws, ws.K.data());
+    ASSERT_EQ(ws.A, kept_A) << "frame " << k;
+  }
+  EXPECT_GT(skipped, 5) << "theta 0.4 keeps every element in the calm frames";
 }
 
 // While (nearly) every element moves past theta the cache is bypassed: full
