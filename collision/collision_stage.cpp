@@ -51,6 +51,7 @@ void add_contact_row(const TissueContact& c, double target, const ToolFrame& f, 
   double vel = 0.0;
   for (int d = 0; d < 3; ++d) vel += c.normal[d] * (moved[d] - c.point[d]) / dt;
   rows.begin_row(RowKind::Contact, target, tool, c.point, c.normal, std::max(0.0, target), -1, vel);
+  rows.key.back() = row_key(tool, 3, 4LL * c.face + c.part);
   for (int k = 0; k < c.weights.n; ++k)
     for (int d = 0; d < 3; ++d) rows.add(3 * c.weights.dofnode[k] + d, c.weights.weight[k] * c.normal[d]);
 }
@@ -62,10 +63,12 @@ void add_friction_rows(const TissueContact& c, const ToolFrame& tool_frame, doub
   double t[2][3];
   tangents(c.normal, t[0], t[1]);
   const std::array<double, 3> moved = carried(tool_frame, c.point);
-  for (const auto& dir : t) {
+  for (int j = 0; j < 2; ++j) {
+    const double* dir = t[j];
     double target = 0.0;
     for (int d = 0; d < 3; ++d) target += dir[d] * (moved[d] - c.point[d]);
     rows.begin_row(RowKind::Friction, target, tool, c.point, dir, 0.0, normal_row, target / dt);
+    rows.key.back() = row_key(tool, 4 + j, 4LL * c.face + c.part);
     for (int k = 0; k < c.weights.n; ++k)
       for (int d = 0; d < 3; ++d) rows.add(3 * c.weights.dofnode[k] + d, c.weights.weight[k] * dir[d]);
   }

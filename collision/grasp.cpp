@@ -78,7 +78,8 @@ void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFram
 void add_grasp_rows(const State& state, const Grasp& grasp, const ToolFrame& tool_frame, double dt, int tool,
                     const TissueSurface& surface, ContactRows& rows) {
   if (!grasp.holding) return;
-  for (const HeldPoint& h : grasp.held) {
+  for (size_t i = 0; i < grasp.held.size(); ++i) {
+    const HeldPoint& h = grasp.held[i];
     const PointWeights w = surface.point_weights(h.elem, h.piece, h.rst, h.side);
     double X[3], x[3];
     surface.reference_position(h.elem, h.rst, X);
@@ -89,6 +90,7 @@ void add_grasp_rows(const State& state, const Grasp& grasp, const ToolFrame& too
       double dir[3] = {0, 0, 0};
       dir[c] = 1.0;
       rows.begin_row(RowKind::Grasp, goal[c] - x[c], tool, x, dir, 0.0, -1, (goal[c] - was[c]) / dt);
+      rows.key.back() = row_key(tool, c, static_cast<long long>(i));
       for (int k = 0; k < w.n; ++k) rows.add(3 * w.dofnode[k] + c, w.weight[k]);
     }
   }

@@ -17,6 +17,14 @@ namespace incise {
 
 enum class RowKind : char { Contact, Grasp, Friction };
 
+// A row's identity across frames (ContactRows::key): the instrument, what
+// the row constrains of it (`what` < 8: a grasp's axis 0-2, a contact's
+// normal 3 or friction directions 4-5) and the thing it holds (a grasp's
+// held point, a contact's surface face and tool part).
+inline long long row_key(int tool, int what, long long id) {
+  return ((static_cast<long long>(tool) * 8 + what) << 40) + id;
+}
+
 struct ContactRows {
   std::vector<int> ptr{0};       // (nrow + 1) into dof, coef
   std::vector<int> dof;          // DOF of each entry of H
@@ -30,6 +38,10 @@ struct ContactRows {
   std::vector<double> depth;     // (nrow) contact: penetration found by collision (>= 0); 0 otherwise
   std::vector<double> velocity;  // (nrow) the tool's velocity along the row at the frame's end: an active
                                  // row's point ends the frame moving with the tool (inelastic contact)
+  // (nrow) what the row is across frames (row_key; -1: nothing): a row with
+  // the key of one of the last frame's starts from its multiplier
+  // (begin_contacts, engine/dynamics/contact_solve.h).
+  std::vector<long long> key;
   double friction = 0.0;         // Coulomb coefficient of the friction rows
   int max_sweeps = 200;          // projected Gauss-Seidel sweeps at most (scene contact.pgs_iterations)
   int refine_rounds = 0;         // correction rounds refined by CG (scene contact.refine_rounds; contact_solve.h)
@@ -51,6 +63,7 @@ struct ContactRows {
     ptr.assign(1, 0);
     for (auto* v : {&coef, &target, &point, &dir, &depth, &velocity, &lambda}) v->clear();
     dof.clear();
+    key.clear();
     kind.clear();
     normal_row.clear();
     tool.clear();
@@ -59,6 +72,7 @@ struct ContactRows {
   void begin_row(RowKind k, double tgt, int tool_id, const double p[3], const double d[3], double dep = 0.0,
                  int normal = -1, double vel = 0.0) {
     velocity.push_back(vel);
+    key.push_back(-1);
     target.push_back(tgt);
     kind.push_back(k);
     normal_row.push_back(normal);

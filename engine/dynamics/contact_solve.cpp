@@ -11,8 +11,13 @@
 
 namespace incise {
 
-void begin_contacts(const Model& m, Workspace& ws) {
+namespace {
+void record_contact_force(const Model& m, Workspace& ws);
+}  // namespace
+
+void begin_contacts(const Model& m, const State& s, Workspace& ws) {
   ContactRows& c = ws.contacts;
+  const bool last_frame = ws.contact_frame >= 0 && ws.contact_frame == s.frame - 1;
   ws.contact_frame = -1;  // new rows: Y and W are computed afresh
   if (c.nrow() == 0) {
     ws.contact_force.clear();
@@ -21,6 +26,24 @@ void begin_contacts(const Model& m, Workspace& ws) {
   }
   c.lambda.assign(c.nrow(), 0.0);
   ws.contact_force.assign(m.ndof(), 0.0);
+  // Under `exact` Y is A^-1 and the start does not matter: it stays at 0
+  // there, so a State alone determines the next frame bit for bit.
+  if (!iterative_policy(m) || !last_frame || c.key.size() != c.lambda.size()) return;
+  const std::vector<long long>& last = ws.contact_last_key;
+  bool any = false;
+  for (int i = 0; i < c.nrow(); ++i) {
+    if (c.key[i] < 0) continue;
+    // The last frame's row of the same key: mostly at the same index (a
+    // grasp's rows come first, in the same order); at most ~50 rows.
+    const size_t guess = static_cast<size_t>(i);
+    size_t j = guess < last.size() && last[guess] == c.key[i] ? guess : last.size();
+    for (size_t k = 0; j == last.size() && k < last.size(); ++k)
+      if (last[k] == c.key[i]) j = k;
+    if (j == last.size()) continue;
+    c.lambda[i] = ws.contact_last_lambda[j];
+    any = any || c.lambda[i] != 0.0;
+  }
+  if (any) record_contact_force(m, ws);
 }
 
 namespace {
@@ -463,6 +486,8 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
       ws.timing.contact_sweeps += lcp_round(m, ws, *Wsolve, /*first=*/false);
     }
   record_contact_force(m, ws);
+  ws.contact_last_lambda = c.lambda;
+  ws.contact_last_key = c.key;
 }
 
 void project_contact_kinematics(const Model& m, State& s, Workspace& ws) {

@@ -27,9 +27,17 @@
 
 namespace incise {
 
-// At the start of a step: lambda and the contact force zeroed for the
-// frame's rows (none: contact_force emptied, so assembly adds nothing).
-void begin_contacts(const Model& model, Workspace& ws);
+// At the start of a step: lambda and the contact force for the frame's rows
+// (none: contact_force emptied, so assembly adds nothing). Zero, except
+// under the iterative policies for a row whose key (ContactRows::key: a
+// grasp's held point and axis, a contact's tool, face and part) was one of
+// the last frame's rows: it starts from that row's multiplier, and the force
+// goes into the first Newton iteration's residual, so the contact correction
+// through the preconditioner's compliance is only the frame's change.
+// Measured on drag15mm-20k (realtime preset): the grasp frames' Newton
+// iterations 3-4 -> 1-2, the error against `exact` at frame 20 1.0e-1 ->
+// 1.9e-2 (docs/benchmarks.md).
+void begin_contacts(const Model& model, const State& state, Workspace& ws);
 
 // The stage: lambda, the corrected ws.delta and ws.contact_force = H^T lambda.
 // Records rows, sweeps and the total force in ws.timing.

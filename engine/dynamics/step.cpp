@@ -147,6 +147,8 @@ void attach_state(const Model& m, const State& s, Workspace& ws) {
   check(s.R, 9 * static_cast<size_t>(m.nrot), "R");
   size_workspace(m, ws);
   ws.work.guess.clear();
+  ws.contact_last_lambda.clear();  // another run's multipliers: the next frame starts cold
+  ws.contact_last_key.clear();
   prepare_solver(m, ws, s.frame);
 }
 
@@ -160,7 +162,7 @@ void step_stages(const Model& m, State& s, Workspace& ws) {
   ws.rescue_pending = false;
   ws.rotation_fallbacks = 0;
   ws.newton_iterations_done = 0;
-  begin_contacts(m, ws);
+  begin_contacts(m, s, ws);
   const bool contacts = ws.contacts.nrow() > 0;
   while (!ws.newton_done) {
     run_stage(ws.timing, kStageAssembly, [&] { assemble_system(m, s, ws); });

@@ -55,6 +55,10 @@ struct Workspace {
   std::vector<double> contact_W;     // (nrow, nrow) the compliance H A^-1 H^T of the last solve
   std::vector<double> contact_Wc;    // (nrow, nrow) the same plus the tools' coupling springs (ContactRows::compliance)
   int contact_frame = -1;            // State::frame contact_W and contact_work were computed in
+  // The multipliers the last contact stage ended with and its rows' keys
+  // (ContactRows::key): the next frame's rows of the same keys start there.
+  std::vector<double> contact_last_lambda;
+  std::vector<long long> contact_last_key;
   // The rows (H: ptr, dof, coef) and the lagged factor (contact_factor_key)
   // contact_work's Y = P^-1 H^T was computed for: a later frame with the
   // same rows and the same factor takes Y and W over (contact_solve.cpp).
