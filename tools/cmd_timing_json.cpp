@@ -40,7 +40,8 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["instruments"] = {{"contact_frames", s.contact_frames},   {"contacts_mean", s.contacts_mean},
                       {"contacts_max", s.contacts_max},       {"grasp_rows_max", s.grasp_rows_max},
                       {"pgs_sweeps_mean", s.contact_sweeps_mean}, {"max_depth", s.max_depth},
-                      {"contact_force_max", s.contact_force_max}, {"bvh_refits", s.bvh_refits},
+                      {"contact_force_max", s.contact_force_max},
+                      {"contact_force_change", s.contact_force_change}, {"bvh_refits", s.bvh_refits},
                       {"bvh_rebuilds", s.bvh_rebuilds}};
   j["cut_frames"] = pct(s.cut_frames);
   j["cut_frames"]["count"] = s.cut_frames.count;

@@ -58,6 +58,14 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
   }
   if (!frames.empty()) s.contacts_mean /= frames.size();
   if (s.contact_frames > 0) s.contact_sweeps_mean /= s.contact_frames;
+  int pairs = 0;
+  for (size_t k = 1; k < frames.size(); ++k) {
+    const FrameTiming &a = frames[k - 1], &b = frames[k];
+    if (a.contacts + a.grasp_rows == 0 || b.contacts + b.grasp_rows == 0) continue;
+    s.contact_force_change += std::abs(b.contact_force - a.contact_force);
+    ++pairs;
+  }
+  if (pairs > 0) s.contact_force_change /= pairs;
   s.frame = percentiles(f);
   s.cut_frames = percentiles(cut);
   s.plain_frames = percentiles(plain);
@@ -102,9 +110,10 @@ std::string format_summary(const TimingSummary& s) {
     std::snprintf(line, sizeof line,
                   "instruments: %d frames with contacts or grasps; contact rows per frame mean %.1f, max %d; grasp rows "
                   "max %d;\n  PGS sweeps per such frame %.0f; deepest penetration found at a frame's start %.3g; "
-                  "largest total force %.3g N;\n  collision tree refitted %lld times, rebuilt %lld (topology changes)\n",
+                  "largest total force %.3g N, its change between frames mean %.3g N;\n  collision tree refitted %lld "
+                  "times, rebuilt %lld (topology changes)\n",
                   s.contact_frames, s.contacts_mean, s.contacts_max, s.grasp_rows_max, s.contact_sweeps_mean,
-                  s.max_depth, s.contact_force_max, s.bvh_refits, s.bvh_rebuilds);
+                  s.max_depth, s.contact_force_max, s.contact_force_change, s.bvh_refits, s.bvh_rebuilds);
     out += line;
   }
   if (s.cut_frames.count > 0) {

@@ -34,6 +34,9 @@ struct TimingSummary {
   double contact_sweeps_mean = 0;  // PGS sweeps per frame with rows
   double max_depth = 0;         // deepest penetration collision found at a frame's start
   double contact_force_max = 0; // largest |total contact and grasp force| (N)
+  // Mean change of that force between consecutive frames that both have
+  // rows (N): a held tool's force chatters when this is a large share of it.
+  double contact_force_change = 0;
   long long bvh_refits = 0, bvh_rebuilds = 0;
 };
 TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms = 1000.0 / 30.0);
