@@ -390,6 +390,17 @@ inline void add_point_force(int n_dyn, const int* nodes, const double* P, const 
   }
 }
 
+// y_a += (w R sig(R^T G)) g_a with G = sum_b v_b (x) g_b: a point's part of
+// R K0 R^T v (stiffness_matvec, and the damping product of the assembly).
+template <int NN>
+inline void add_point_product(int n_dyn, const int* nodes, const double* R, const double* g, double w, double mu,
+                              double lambda, const double* ve, double* y) {
+  double G[9], P[9];
+  grad_sum<NN>(n_dyn, ve, g, G);
+  rotated_stress(R, G, w, mu, lambda, /*strain=*/false, P);
+  add_point_force<NN>(n_dyn, nodes, P, g, y);
+}
+
 // Rotated gradients h_a = R g_a, (n, 3).
 template <int NN>
 inline void rotate_gradients(int n_dyn, const double* R, const double* g, double* h) {
@@ -476,12 +487,7 @@ inline void point_terms(const Model& m, const AssemblyPlan& plan, int e, int q, 
   else grad_sum<NN>(n, xe, g, Fq);
   rotated_stress(R, F, w, mu, lambda, /*strain=*/true, P);
   add_point_force<NN>(n, nodes, P, g, f);
-  if (fv) {
-    double G[9];
-    grad_sum<NN>(n, ve, g, G);
-    rotated_stress(R, G, w, mu, lambda, /*strain=*/false, P);
-    add_point_force<NN>(n, nodes, P, g, fv);
-  }
+  if (fv) add_point_product<NN>(n, nodes, R, g, w, mu, lambda, ve, fv);
   if (!Kl) return;  // a kept element: forces only
   rotate_gradients<NN>(n, R, g, h);
   double Y[9];
@@ -557,19 +563,9 @@ void element_matvec(const Model& m, const AssemblyPlan& plan, int e, const doubl
     condensed_element_matvec(m, plan, e, nodes, Rall, ve, y, ve + 3 * n, ve + 6 * n);
     return;
   }
-  for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
-    const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
-    double G[9], P[9];
-    grad_sum<NN>(n, ve, g, G);
-    rotated_stress(Rall + 9 * m.qp_rot[q], G, m.qp_weight[q], m.mu, m.lambda, /*strain=*/false, P);
-    for (int a = 0; a < n; ++a) {
-      const double g0 = g[3 * a], g1 = g[3 * a + 1], g2 = g[3 * a + 2];
-      double* ya = y + 3 * nodes[a];
-      ya[0] += P[0] * g0 + P[3] * g1 + P[6] * g2;
-      ya[1] += P[1] * g0 + P[4] * g1 + P[7] * g2;
-      ya[2] += P[2] * g0 + P[5] * g1 + P[8] * g2;
-    }
-  }
+  for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q)
+    add_point_product<NN>(n, nodes, Rall + 9 * m.qp_rot[q], &m.qp_grad[m.qp_grad_ptr[q]], m.qp_weight[q], m.mu,
+                          m.lambda, ve, y);
 }
 
 // Runs body(e, tid) over every element with the plan's race-free schedule,

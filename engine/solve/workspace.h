@@ -3,7 +3,10 @@
 // once, the factorization(s) and their threads (SolverWork), the tangent
 // cache, the Newton loop's progress and the last frame's timings. Nothing in
 // it is physical state: a copied State stepped with a fresh Workspace gives
-// the same frames (deterministic solver settings). A cut carries it over to
+// the same frames under a deterministic solver (`exact`); under the
+// iterative policies the lagged factor, CG's start and the carried contact
+// multipliers are history that shapes a frame within the CG tolerance
+// (docs/architecture.md). A cut carries it over to
 // the next Model in carry_workspace_over_cut (engine/solve/workspace_carry.h).
 #include <cstdint>
 #include <vector>

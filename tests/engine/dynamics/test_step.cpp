@@ -276,12 +276,6 @@ TEST(Newmark, AdaptiveIterationsApproachTheConvergedStep) {
               diff(adapt.first), adapt.second);
 }
 
-}  // namespace
-}  // namespace incise
-
-namespace incise {
-namespace {
-
 // A soft cantilever (Young's modulus E: large, fast rotations) with
 // Rayleigh stiffness damping b, stepped `steps` times; `each` sees every
 // step's Workspace. Returns the final displacement.
