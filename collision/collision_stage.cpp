@@ -4,6 +4,8 @@
 #include <cmath>
 #include <memory>
 
+#include "collision/face_contact.h"
+
 namespace incise {
 
 namespace {
@@ -44,22 +46,28 @@ std::array<double, 3> carried(const ToolFrame& f, const double p[3]) {
   return tool_to_world(f.after, world_to_tool(f.before, {p[0], p[1], p[2]}));
 }
 
+// What a contact row holds across frames (ContactRows::key): its surface
+// face and tool part, or its triangle under contact.rows "triangle".
+long long contact_id(const TissueContact& c, ContactSettings::Rows rule) {
+  return 4LL * (rule == ContactSettings::Rows::Triangle ? c.tri : c.face) + c.part;
+}
+
 // One unilateral row: n . (sum_k w_k Delta_k) >= target.
-void add_contact_row(const TissueContact& c, double target, const ToolFrame& f, double dt, int tool,
+void add_contact_row(const TissueContact& c, long long id, double target, const ToolFrame& f, double dt, int tool,
                      ContactRows& rows) {
   const std::array<double, 3> moved = carried(f, c.point);
   double vel = 0.0;
   for (int d = 0; d < 3; ++d) vel += c.normal[d] * (moved[d] - c.point[d]) / dt;
   rows.begin_row(RowKind::Contact, target, tool, c.point, c.normal, std::max(0.0, target), -1, vel);
-  rows.key.back() = row_key(tool, 3, 4LL * c.face + c.part);
+  rows.key.back() = row_key(tool, 3, id);
   for (int k = 0; k < c.weights.n; ++k)
     for (int d = 0; d < 3; ++d) rows.add(3 * c.weights.dofnode[k] + d, c.weights.weight[k] * c.normal[d]);
 }
 
 // Coulomb friction: the tissue point follows the tool's surface tangentially
 // while it sticks. Target: the tool's motion at the point over the frame.
-void add_friction_rows(const TissueContact& c, const ToolFrame& tool_frame, double dt, int tool, int normal_row,
-                       ContactRows& rows) {
+void add_friction_rows(const TissueContact& c, long long id, const ToolFrame& tool_frame, double dt, int tool,
+                       int normal_row, ContactRows& rows) {
   double t[2][3];
   tangents(c.normal, t[0], t[1]);
   const std::array<double, 3> moved = carried(tool_frame, c.point);
@@ -68,7 +76,7 @@ void add_friction_rows(const TissueContact& c, const ToolFrame& tool_frame, doub
     double target = 0.0;
     for (int d = 0; d < 3; ++d) target += dir[d] * (moved[d] - c.point[d]);
     rows.begin_row(RowKind::Friction, target, tool, c.point, dir, 0.0, normal_row, target / dt);
-    rows.key.back() = row_key(tool, 4 + j, 4LL * c.face + c.part);
+    rows.key.back() = row_key(tool, 4 + j, id);
     for (int k = 0; k < c.weights.n; ++k)
       for (int d = 0; d < 3; ++d) rows.add(3 * c.weights.dofnode[k] + d, c.weights.weight[k] * dir[d]);
   }
@@ -98,6 +106,8 @@ void collision_stage(Simulation& sim) {
   // Grasps first: they are what the user asked for, and not subject to max_rows.
   auto& candidates = cd.candidates;
   candidates.clear();
+  double deepest = 0.0;  // penetration of the deepest point found
+  const ContactSettings::Rows rule = sim.scene.contact.rows;
   for (size_t i = 0; i < sim.scene.instruments.size(); ++i) {
     const InstrumentSpec& spec = sim.scene.instruments[i];
     if (!touches(spec)) continue;
@@ -117,16 +127,24 @@ void collision_stage(Simulation& sim) {
     }
     set_tool_pose(cd.shapes[i], inflated(spec, cd.margin[i]), tf.after);
     query_contacts(cd.model, cd.shapes[i], cd.request, cd.results[i]);
-    // One row per tissue face a tool part touches, at its deepest point (the
-    // contacts come deepest first): a face's triangles give nearly the same
-    // row, and each row costs the contact stage a substitution.
-    const auto& found = cd.results[i].contacts;
+    // One row per tissue face a tool part touches (contact.rows "face",
+    // "face_deepest"; the contacts come deepest first, so the first of a
+    // face is its deepest point): a face's triangles give nearly the same
+    // row, and each row costs the contact stage a substitution. Under "face"
+    // a round part's row moves to the face's weighted point
+    // (collision/face_contact.h: the deepest point jumps about a face that
+    // wraps the tool); a box pushes along the face's normal, where it does not.
+    auto& found = cd.results[i].contacts;
     cd.face_seen.assign(cd.model.surface().nface, 0);
     for (size_t k = 0; k < found.size(); ++k) {
-      unsigned char& seen = cd.face_seen[found[k].face];
-      if (seen & (1 << found[k].part)) continue;
-      seen |= static_cast<unsigned char>(1 << found[k].part);
-      candidates.push_back({found[k].depth - cd.margin[i], static_cast<int>(i), static_cast<int>(k)});
+      TissueContact& c = found[k];
+      unsigned char& seen = cd.face_seen[c.face];
+      if (rule != ContactSettings::Rows::Triangle && (seen & (1 << c.part))) continue;
+      seen |= static_cast<unsigned char>(1 << c.part);
+      deepest = std::max(deepest, c.depth - cd.margin[i]);
+      if (rule == ContactSettings::Rows::Face)
+        weight_round_face_contact(surface, cd.shapes[i].part[c.part], sim.state.u.data(), c);
+      candidates.push_back({c.depth - cd.margin[i], static_cast<int>(i), static_cast<int>(k)});
     }
   }
   ft.grasp_rows = rows.nrow();
@@ -137,15 +155,14 @@ void collision_stage(Simulation& sim) {
   });
   const bool friction = rows.friction > 0.0;
   int budget = sim.scene.contact.max_rows;
-  double deepest = 0.0;
   for (const CollisionData::Candidate& c : candidates) {
     if (budget < (friction ? 3 : 1)) break;
     const TissueContact& tc = cd.results[c.tool].contacts[c.index];
     const int normal_row = rows.nrow();
-    add_contact_row(tc, c.depth, sim.tools[c.tool], sim.model.dt, c.tool, rows);
-    if (friction) add_friction_rows(tc, sim.tools[c.tool], sim.model.dt, c.tool, normal_row, rows);
+    const long long id = contact_id(tc, rule);
+    add_contact_row(tc, id, c.depth, sim.tools[c.tool], sim.model.dt, c.tool, rows);
+    if (friction) add_friction_rows(tc, id, sim.tools[c.tool], sim.model.dt, c.tool, normal_row, rows);
     budget -= friction ? 3 : 1;
-    deepest = std::max(deepest, c.depth);
     ++ft.contacts;
   }
   ft.max_depth = deepest;

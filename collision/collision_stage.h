@@ -5,8 +5,11 @@
 // respect turned into rows of ws.contacts (engine/dynamics/contact_rows.h):
 //   probe, open grasper  contacts: the tissue point must move by the depth
 //                        along the contact normal (unilateral), one per
-//                        tissue face and tool part at its deepest point,
-//                        plus two friction rows each with contact.friction > 0;
+//                        tissue face and tool part (contact.rows "face": a
+//                        round part's at the face's weighted point,
+//                        collision/face_contact.h, a box's at the deepest
+//                        point), plus two friction rows each with
+//                        contact.friction > 0;
 //   closed grasper       the held points follow the jaws (bilateral,
 //                        collision/grasp.h); opening releases them;
 //   scalpel              nothing here: its edge cuts (cutting/blade_sweep.h).

@@ -709,7 +709,9 @@ void parse_instruments(const Parser& p, const json& v, Scene& s) {
 void parse_contact(const Parser& p, const json& v, Scene& s) {
   const std::string at = "contact";
   p.object(v, at);
-  p.allowed_keys(v, at, {"max_rows", "friction", "pgs_iterations", "refine_rounds"});
+  p.allowed_keys(v, at, {"rows", "max_rows", "friction", "pgs_iterations", "refine_rounds"});
+  if (auto it = v.find("rows"); it != v.end())
+    s.contact.rows = static_cast<ContactSettings::Rows>(p.choice(*it, at + ".rows", {"face", "face_deepest", "triangle"}));
   if (auto it = v.find("max_rows"); it != v.end()) s.contact.max_rows = p.at_least_one(*it, at + ".max_rows");
   if (auto it = v.find("friction"); it != v.end()) s.contact.friction = p.nonnegative(*it, at + ".friction");
   if (auto it = v.find("pgs_iterations"); it != v.end())

@@ -104,6 +104,14 @@ inline double jaw_gap(const InstrumentSpec& spec, double jaw) {
 
 // Contact response settings (scene key "contact"; docs/scene-format.md).
 struct ContactSettings {
+  // Where a probe's rows sit on the tissue (collision/face_contact.h):
+  //   Face         one per face and tool part, at the face's depth-weighted point (default)
+  //   FaceDeepest  one per face and tool part, at its deepest point (the rule before the
+  //                twenty-fifth session: a held probe's force alternates frame to frame)
+  //   Triangle     one per surface triangle, at its deepest point: with render.subdivision
+  //                raised, the converged reference the others are measured against
+  enum class Rows { Face, FaceDeepest, Triangle };
+  Rows rows = Rows::Face;
   int max_rows = 48;            // contact constraints kept per frame (deepest first), >= 1
   double friction = 0.0;        // Coulomb coefficient, >= 0 (0: frictionless)
   int pgs_iterations = 200;     // projected Gauss-Seidel sweeps, >= 1

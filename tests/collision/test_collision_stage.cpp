@@ -82,9 +82,17 @@ TEST(CollisionStage, AScalpelOrNoInstrumentBuildsNoCollisionModel) {
   }
 }
 
-TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
+// Rows per face (the default) and per triangle: one row per face holds one
+// point of each face, so the rest of a face the probe covers (2.5 cm faces
+// under a 3 cm ball) may stay up to 9% of the indent inside it (measured
+// 9.3%; at each face's deepest point 0.6%, but the force chatters:
+// AHeldProbesForceSettlesFrameToFrame); per triangle 2%.
+class PressedProbe : public ::testing::TestWithParam<ContactSettings::Rows> {};
+
+TEST_P(PressedProbe, BalancesSupportsAndWeight) {
   const Mesh mesh = test::tissue_block_mesh();
   Scene scene = tissue_block();
+  scene.contact.rows = GetParam();
   const double r = 0.015, top = 0.05, indent = 0.006;
   scene.instruments.push_back(probe(r));
   // Down from 2 mm above the surface to `indent` deep in 0.5 s, then held.
@@ -92,7 +100,7 @@ TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
     const double s = std::min(t / 0.5, 1.0);
     return at(0.05, 0.05, top + r + 0.002 - s * (0.002 + indent));
   });
-  const double tol = 0.02 * indent;
+  const double tol = (GetParam() == ContactSettings::Rows::Triangle ? 0.02 : 0.12) * indent;
   double worst = 0.0;
   int rebuilds = 0, refits = 0;
   for (int k = 0; k < 120; ++k) {
@@ -122,6 +130,74 @@ TEST(CollisionStage, APressedProbeBalancesSupportsAndWeight) {
   double vmax = 0.0;
   for (double v : sim->state.v) vmax = std::max(vmax, std::abs(v));
   EXPECT_LT(vmax, 1e-3 * indent / sim->model.dt) << "settled";
+}
+
+INSTANTIATE_TEST_SUITE_P(CollisionStage, PressedProbe,
+                         ::testing::Values(ContactSettings::Rows::Face, ContactSettings::Rows::Triangle),
+                         [](const auto& info) {
+                           return info.param == ContactSettings::Rows::Face ? "RowsPerFace" : "RowsPerTriangle";
+                         });
+
+// The total contact force on the tissue in each of `frames` frames of a
+// probe (r = 1 cm) pressed 6 mm into the block in 0.5 s and held, with the
+// organ_instruments material (per-point rotations, consistent tangent,
+// light damping) and the given contact rows.
+std::vector<double> held_probe_force(ContactSettings::Rows rule, int subdivision, int frames) {
+  const Mesh mesh = test::tissue_block_mesh();
+  Scene scene = tissue_block();
+  scene.material.rayleigh_mass = 1.0;
+  scene.material.rayleigh_stiffness = 0.002;
+  scene.consistent_tangent = true;
+  scene.contact.rows = rule;
+  scene.contact.max_rows = 1000;
+  scene.render.subdivision = subdivision;
+  const double r = 0.01, top = 0.05, indent = 0.006;
+  scene.instruments.push_back(probe(r));
+  auto sim = make_probe_sim(mesh, scene, [&](double t) {
+    const double s = std::min(t / 0.5, 1.0);
+    return at(0.045, 0.055, top + r + 0.002 - s * (0.002 + indent));
+  });
+  std::vector<double> F;
+  for (int k = 0; k < frames; ++k) {
+    advance_frame(*sim);
+    const ContactRows& c = sim->ws.contacts;
+    double f[3] = {0, 0, 0};
+    for (int i = 0; i < c.nrow(); ++i)
+      for (int d = 0; d < 3; ++d) f[d] += c.lambda[i] * c.dir[3 * i + d];
+    F.push_back(std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]));
+  }
+  return F;
+}
+
+// Mean of |F_k - F_k-1| / mean F over frames [from, F.size()).
+double relative_force_change(const std::vector<double>& F, int from) {
+  double change = 0.0, mean = 0.0;
+  for (size_t k = from; k < F.size(); ++k) change += std::abs(F[k] - F[k - 1]), mean += F[k];
+  return change / mean;
+}
+
+// Held still, the probe's force must settle. With each face's row at its
+// deepest point the deepest point and its normal jump between places of a
+// face the probe covers, and the force alternates frame to frame for the
+// whole hold (measured 7.4% here; +-12% on organ_instruments); at the face's
+// weighted point (collision/face_contact.h) it changes by 0.3%. The force
+// itself is checked against one row per triangle on a surface refined 8x
+// per face edge (the converged contact: 4.30 N at 4x, 4.26 N at 8x; the
+// weighted rows 4.23 N).
+TEST(CollisionStage, AHeldProbesForceSettlesFrameToFrame) {
+  const int frames = 60, hold = 30;  // the probe stops at frame 15
+  const std::vector<double> face = held_probe_force(ContactSettings::Rows::Face, 2, frames);
+  const std::vector<double> deepest = held_probe_force(ContactSettings::Rows::FaceDeepest, 2, frames);
+  const std::vector<double> fine = held_probe_force(ContactSettings::Rows::Triangle, 8, frames);
+  EXPECT_LT(relative_force_change(face, hold), 0.01);
+  EXPECT_GT(relative_force_change(deepest, hold), 0.03) << "the deepest point chatters (what the test guards)";
+  EXPECT_LT(relative_force_change(fine, hold), 0.01) << "the reference settles";
+  double mean_face = 0.0, mean_fine = 0.0;
+  for (int k = hold; k < frames; ++k) mean_face += face[k] / (frames - hold), mean_fine += fine[k] / (frames - hold);
+  EXPECT_NEAR(mean_face, mean_fine, 0.03 * mean_fine) << "the weighted rows' force against the converged contact";
+  RecordProperty("force_change_face", std::to_string(relative_force_change(face, hold)));
+  RecordProperty("force_change_face_deepest", std::to_string(relative_force_change(deepest, hold)));
+  RecordProperty("force_face_over_converged", std::to_string(mean_face / mean_fine));
 }
 
 // Two halves fixed at the base, cut apart by a vertical plane at x = 0.0475

@@ -51,7 +51,15 @@ TEST(HapticContactModel, TheSolveReturnsTheSimulationsMultipliersAtItsOwnState) 
   // At the device pose the frame was solved at, the multipliers are the frame's.
   const std::array<double, 3> xd = m.x0;
   std::array<double, kMaxHapticRows> lambda{};
-  const std::array<double, 3> f = coupling_force(m, xd, lambda.data());
+  // Tick after tick, each warm-started from the last (as the haptic thread
+  // runs it): rows that nearly repeat each other (two faces' rows beside
+  // the edge under the probe) converge slowly in their difference, so one
+  // tick's 50 sweeps from zero may not be enough.
+  std::array<double, 3> f{};
+  int sweeps = 0, ticks = 0;
+  do f = coupling_force(m, xd, lambda.data(), &sweeps);
+  while (++ticks < 20 && sweeps == 50);
+  RecordProperty("ticks_to_converge", std::to_string(ticks));
   const std::array<double, 3> sim = b.sim_force();  // from the simulation's rows, not the model's
   ASSERT_GT(test::norm(sim), 0.2);
   for (int d = 0; d < 3; ++d) EXPECT_NEAR(f[d], sim[d], 1e-6 * test::norm(sim)) << d;

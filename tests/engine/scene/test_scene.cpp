@@ -16,6 +16,7 @@
 #include "engine/util/error.h"
 
 namespace fs = std::filesystem;
+using incise::ContactSettings;
 using incise::Error;
 using incise::parse_scene;
 using incise::Scene;
@@ -663,6 +664,13 @@ TEST_F(SceneTest, ContactSettingsParsedAndChecked) {
   EXPECT_EQ(s.contact.pgs_iterations, 50);
   EXPECT_EQ(s.contact.refine_rounds, 3);
   EXPECT_EQ(parse_scene(minimal(R"("contact": {})"), scene_path_).contact.refine_rounds, 0);
+  EXPECT_EQ(s.contact.rows, ContactSettings::Rows::Face) << "the default";
+  EXPECT_EQ(parse_scene(minimal(R"("contact": {"rows": "triangle"})"), scene_path_).contact.rows,
+            ContactSettings::Rows::Triangle);
+  EXPECT_EQ(parse_scene(minimal(R"("contact": {"rows": "face_deepest"})"), scene_path_).contact.rows,
+            ContactSettings::Rows::FaceDeepest);
+  expect_error(minimal(R"("contact": {"rows": "node"})"),
+               "contact.rows must be one of \"face\", \"face_deepest\", \"triangle\", got \"node\"");
   expect_error(minimal(R"("contact": {"refine_rounds": 21})"), "contact.refine_rounds must be an integer in [0, 20], got 21");
   expect_error(minimal(R"("contact": {"refine_rounds": -1})"), "contact.refine_rounds must be an integer >= 0, got -1");
   expect_error(minimal(R"("contact": {"max_rows": 0})"), "contact.max_rows must be an integer >= 1, got 0");
@@ -670,7 +678,7 @@ TEST_F(SceneTest, ContactSettingsParsedAndChecked) {
   expect_error(minimal(R"("contact": {"friction": -0.1})"), "contact.friction must be >= 0, got -0.1");
   expect_error(minimal(R"("contact": {"pgs_iterations": 0})"), "contact.pgs_iterations must be an integer >= 1, got 0");
   expect_error(minimal(R"("contact": {"stiffness": 1})"),
-               "contact.stiffness: unknown key; allowed: max_rows, friction, pgs_iterations, refine_rounds");
+               "contact.stiffness: unknown key; allowed: rows, max_rows, friction, pgs_iterations, refine_rounds");
   expect_error(minimal(R"("contact": [])"), "contact must be an object, got array []");
 }
 
