@@ -103,6 +103,7 @@ void collision_stage(Simulation& sim) {
   rows.friction = sim.scene.contact.friction;
   rows.max_sweeps = sim.scene.contact.pgs_iterations;
   rows.refine_rounds = sim.scene.contact.refine_rounds;
+  rows.compliance_reuse = sim.scene.contact.compliance_reuse;
   // Grasps first: they are what the user asked for, and not subject to max_rows.
   auto& candidates = cd.candidates;
   candidates.clear();
@@ -144,7 +145,7 @@ void collision_stage(Simulation& sim) {
       deepest = std::max(deepest, c.depth - cd.margin[i]);
       if (rule == ContactSettings::Rows::Face)
         weight_round_face_contact(surface, cd.shapes[i].part[c.part], sim.state.u.data(), c);
-      candidates.push_back({c.depth - cd.margin[i], static_cast<int>(i), static_cast<int>(k)});
+      candidates.push_back({c.depth - cd.margin[i], static_cast<int>(i), static_cast<int>(k), contact_id(c, rule)});
     }
   }
   ft.grasp_rows = rows.nrow();
@@ -154,15 +155,21 @@ void collision_stage(Simulation& sim) {
     return a.depth != b.depth ? a.depth > b.depth : (a.tool != b.tool ? a.tool < b.tool : a.index < b.index);
   });
   const bool friction = rows.friction > 0.0;
-  int budget = sim.scene.contact.max_rows;
-  for (const CollisionData::Candidate& c : candidates) {
-    if (budget < (friction ? 3 : 1)) break;
+  const size_t keep = std::min(candidates.size(), static_cast<size_t>(sim.scene.contact.max_rows / (friction ? 3 : 1)));
+  // The kept rows in the order of their keys, not of their depth: a held
+  // tool's rows then come in the same order frame after frame, and the
+  // contact stage keeps their compliance columns while the factor and the
+  // rows' keys stay (engine/dynamics/contact_solve.cpp, similar_rows).
+  std::sort(candidates.begin(), candidates.begin() + static_cast<std::ptrdiff_t>(keep),
+            [](const CollisionData::Candidate& a, const CollisionData::Candidate& b) {
+              return a.tool != b.tool ? a.tool < b.tool : a.id < b.id;
+            });
+  for (size_t q = 0; q < keep; ++q) {
+    const CollisionData::Candidate& c = candidates[q];
     const TissueContact& tc = cd.results[c.tool].contacts[c.index];
     const int normal_row = rows.nrow();
-    const long long id = contact_id(tc, rule);
-    add_contact_row(tc, id, c.depth, sim.tools[c.tool], sim.model.dt, c.tool, rows);
-    if (friction) add_friction_rows(tc, id, sim.tools[c.tool], sim.model.dt, c.tool, normal_row, rows);
-    budget -= friction ? 3 : 1;
+    add_contact_row(tc, c.id, c.depth, sim.tools[c.tool], sim.model.dt, c.tool, rows);
+    if (friction) add_friction_rows(tc, c.id, sim.tools[c.tool], sim.model.dt, c.tool, normal_row, rows);
     ++ft.contacts;
   }
   ft.max_depth = deepest;

@@ -42,6 +42,7 @@ struct CollisionData {
   struct Candidate {
     double depth;     // penetration of the real (not inflated) tool; < 0 within the margin
     int tool, index;  // instrument, contact in results[tool]
+    long long id;     // what the row holds across frames (its key's id)
   };
   std::vector<Candidate> candidates;     // this frame's, deepest first (kept: no allocation per frame)
 };

@@ -709,7 +709,11 @@ void parse_instruments(const Parser& p, const json& v, Scene& s) {
 void parse_contact(const Parser& p, const json& v, Scene& s) {
   const std::string at = "contact";
   p.object(v, at);
-  p.allowed_keys(v, at, {"rows", "max_rows", "friction", "pgs_iterations", "refine_rounds"});
+  p.allowed_keys(v, at, {"rows", "max_rows", "friction", "pgs_iterations", "refine_rounds", "compliance_reuse"});
+  if (auto it = v.find("compliance_reuse"); it != v.end()) {
+    s.contact.compliance_reuse = p.nonnegative(*it, at + ".compliance_reuse");
+    if (s.contact.compliance_reuse > 1) p.fail(at + ".compliance_reuse", " must be in [0, 1], got " + show(*it));
+  }
   if (auto it = v.find("rows"); it != v.end())
     s.contact.rows = static_cast<ContactSettings::Rows>(p.choice(*it, at + ".rows", {"face", "face_deepest", "triangle"}));
   if (auto it = v.find("max_rows"); it != v.end()) s.contact.max_rows = p.at_least_one(*it, at + ".max_rows");

@@ -116,6 +116,10 @@ struct ContactSettings {
   double friction = 0.0;        // Coulomb coefficient, >= 0 (0: frictionless)
   int pgs_iterations = 200;     // projected Gauss-Seidel sweeps, >= 1
   int refine_rounds = 0;        // lagged / warped_cg: correction rounds refined by CG (0: Y dlambda alone)
+  // lagged: the rows' compliance columns Y = P^-1 H^T of an earlier frame
+  // of the same factor serve while every row (by key) changed its
+  // coefficients by at most this fraction (0: only identical rows), [0, 1]
+  double compliance_reuse = 0.1;
 };
 
 // A haptic device driving one instrument from a 1 kHz thread (scene key

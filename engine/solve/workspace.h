@@ -67,6 +67,7 @@ struct Workspace {
   // same rows and the same factor takes Y and W over (contact_solve.cpp).
   std::vector<int> contact_Y_ptr, contact_Y_dof;
   std::vector<double> contact_Y_coef;
+  std::vector<long long> contact_Y_rowkey;
   long long contact_Y_key = -1;
   std::vector<double> contact_Z;     // (nrow, ndof) project_contact_kinematics' columns (Y stays in contact_work)
   std::vector<double> contact_h, contact_z;  // (ndof) scratch of the contact kinematics (project_contact_kinematics)

@@ -665,6 +665,10 @@ TEST_F(SceneTest, ContactSettingsParsedAndChecked) {
   EXPECT_EQ(s.contact.refine_rounds, 3);
   EXPECT_EQ(parse_scene(minimal(R"("contact": {})"), scene_path_).contact.refine_rounds, 0);
   EXPECT_EQ(s.contact.rows, ContactSettings::Rows::Face) << "the default";
+  EXPECT_EQ(s.contact.compliance_reuse, 0.1) << "the default";
+  EXPECT_EQ(parse_scene(minimal(R"("contact": {"compliance_reuse": 0})"), scene_path_).contact.compliance_reuse, 0.0);
+  expect_error(minimal(R"("contact": {"compliance_reuse": 1.5})"), "contact.compliance_reuse must be in [0, 1], got 1.5");
+  expect_error(minimal(R"("contact": {"compliance_reuse": -0.1})"), "contact.compliance_reuse must be >= 0, got -0.1");
   EXPECT_EQ(parse_scene(minimal(R"("contact": {"rows": "triangle"})"), scene_path_).contact.rows,
             ContactSettings::Rows::Triangle);
   EXPECT_EQ(parse_scene(minimal(R"("contact": {"rows": "face_deepest"})"), scene_path_).contact.rows,
@@ -678,7 +682,8 @@ TEST_F(SceneTest, ContactSettingsParsedAndChecked) {
   expect_error(minimal(R"("contact": {"friction": -0.1})"), "contact.friction must be >= 0, got -0.1");
   expect_error(minimal(R"("contact": {"pgs_iterations": 0})"), "contact.pgs_iterations must be an integer >= 1, got 0");
   expect_error(minimal(R"("contact": {"stiffness": 1})"),
-               "contact.stiffness: unknown key; allowed: rows, max_rows, friction, pgs_iterations, refine_rounds");
+               "contact.stiffness: unknown key; allowed: rows, max_rows, friction, pgs_iterations, refine_rounds, "
+               "compliance_reuse");
   expect_error(minimal(R"("contact": [])"), "contact must be an object, got array []");
 }
 
