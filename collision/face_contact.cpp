@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "collision/narrowphase.h"
+
 namespace incise {
 namespace {
 
@@ -28,39 +30,46 @@ void weight_round_face_contact(const TissueSurface& s, const ToolPart& part, con
   if (part.kind == ToolPart::Kind::Box || s.nface <= 0) return;
   const double r = part.radius;
   const int tpf = s.ntri() / s.nface, k = kSubdivide;
-  double W = 0.0, deepest = 0.0, a_sample = 0.0, rst[3] = {0, 0, 0};
+  double W = 0.0, rst[3] = {0, 0, 0};
   Eigen::Vector3d n_sum(0, 0, 0);
+  const auto add = [&](double w, const Eigen::Vector3d& g, double d, const int* tv, const double b[3]) {
+    W += w;
+    if (d > 0) n_sum += (w / d) * g;
+    for (int q = 0; q < 3; ++q)
+      rst[q] += w * (b[0] * s.vert_rst[3 * tv[0] + q] + b[1] * s.vert_rst[3 * tv[1] + q] + b[2] * s.vert_rst[3 * tv[2] + q]);
+  };
   for (int t = c.face * tpf; t < (c.face + 1) * tpf; ++t) {  // a face's triangles are contiguous
     const int* tv = &s.tri[3 * static_cast<size_t>(t)];
     Eigen::Vector3d v[3];
     for (int j = 0; j < 3; ++j) v[j] = Eigen::Vector3d(s.x[3 * tv[j]], s.x[3 * tv[j] + 1], s.x[3 * tv[j] + 2]);
     const double area = 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).norm() / (k * k);  // of one sub-triangle
-    a_sample = std::max(a_sample, area);
     // The k^2 sub-triangles' centroids: upward ones at barycentric
     // ((i + 1/3) / k, (j + 1/3) / k), downward ones at ((i + 2/3) / k, (j + 2/3) / k).
+    double deepest = 0.0;  // of this triangle's samples
     for (int i = 0; i < k; ++i)
       for (int j = 0; i + j < k; ++j)
         for (int down = 0; down < 2 && !(down && i + j > k - 2); ++down) {
           const double shift = down ? 2.0 / 3.0 : 1.0 / 3.0;
-          const double b1 = (i + shift) / k, b2 = (j + shift) / k, b0 = 1.0 - b1 - b2;
-          const Eigen::Vector3d x = b0 * v[0] + b1 * v[1] + b2 * v[2];
+          const double b[3] = {1.0 - (i + shift) / k - (j + shift) / k, (i + shift) / k, (j + shift) / k};
+          const Eigen::Vector3d x = b[0] * v[0] + b[1] * v[1] + b[2] * v[2];
           const Eigen::Vector3d g = x - nearest_on_axis(part.a, part.b, x);
           const double d = g.norm(), depth = r - d;
-          if (!(depth > 0) || !(d > 0)) continue;
-          const double w = area * weight(depth);
-          W += w;
+          if (!(depth > 0)) continue;
           deepest = std::max(deepest, depth);
-          n_sum += (w / d) * g;
-          for (int q = 0; q < 3; ++q)
-            rst[q] += w * (b0 * s.vert_rst[3 * tv[0] + q] + b1 * s.vert_rst[3 * tv[1] + q] +
-                           b2 * s.vert_rst[3 * tv[2] + q]);
+          add(area * weight(depth), g, d, tv, b);
         }
+    // The triangle's own deepest point (continuous in the tool's pose: the
+    // nearest point of a triangle, not the argmax over a face's triangles,
+    // which jumps) for what the samples miss: a touch between samples.
+    double b[3], tt;
+    const double d2 = closest_segment_triangle(part.a, part.b, v[0], v[1], v[2], tt, b);
+    const double d = std::sqrt(d2), depth = r - d;
+    if (!(depth > 0)) continue;
+    const Eigen::Vector3d x = b[0] * v[0] + b[1] * v[1] + b[2] * v[2];
+    add(area * std::max(0.0, weight(depth) - weight(deepest)), x - (part.a + tt * (part.b - part.a)), d, tv, b);
   }
-  const double wc = a_sample * std::max(0.0, weight(std::max(0.0, c.depth)) - weight(deepest));
-  W += wc;
   if (!(W > 0)) return;
-  for (int q = 0; q < 3; ++q) rst[q] = (rst[q] + wc * c.rst[q]) / W;
-  n_sum += wc * Eigen::Map<const Eigen::Vector3d>(c.normal);
+  for (int q = 0; q < 3; ++q) rst[q] /= W;
   // A face's vertices all lie in one element and piece (TissueSurface), so
   // rst_f is a point of that element's face.
   const PointWeights pw = s.point_weights(c.elem, c.piece, rst, c.side);

@@ -11,20 +11,23 @@
 // 15 Hz, and Newton stayed at its cap (docs/benchmarks.md, "A held probe's
 // force: the row at the face's weighted point"). The row is placed instead
 // at the face's weighted material point
-//   rst_f = (sum_j w_j rst_j + w_c rst_c) / (sum_j w_j + w_c),
+//   rst_f = sum_j w_j rst_j / sum_j w_j,
 //   w_j = a_j max(0, r - |x_j - y(x_j)|)^p   (samples j over the face, area a_j),
-//   w_c = a max(0, depth_c^p - max_j depth_j^p)   (the deepest point c),
 // r the part's radius inflated by the detection margin, y(x) the axis point
 // nearest x, p = 3, the samples the centroids of k^2 sub-triangles of each
-// of the face's triangles. Every weight vanishes where its point leaves the
-// inflated tool, so rst_f moves continuously with the tissue; the margin
-// is what lets the weights see a face that wraps the tool without
+// of the face's triangles, plus each triangle's own nearest point to the
+// axis with the weight a (depth_t^p - max depth_j^p over its samples): a
+// touch between samples, or a thin sliver at the contact's rim, still has
+// a point. Every weight vanishes where its point leaves the inflated tool
+// and a triangle's nearest point is continuous in the tool's pose (the
+// argmax over a face's triangles is not: the face's own deepest point as
+// that fallback made the row point jump at a rim, tests/collision/
+// test_face_contact.cpp), so rst_f moves continuously with the tissue. The
+// margin is what lets the weights see a face that wraps the tool without
 // penetrating it (with the real radius a settled face has no weight left
 // and the rule falls back to the deepest point, chatter included); the
 // power keeps the point near the deepest region of a face the tool only
-// partly covers. The deepest point counts only by how much deeper it is
-// than the deepest sample (a light touch on a face's interior between
-// samples). The row's normal and depth are the tool's at the material
+// partly covers. The row's normal and depth are the tool's at the material
 // point x(rst_f): (x - y) / |x - y| and r - |x - y|.
 //
 // What it costs: one row still holds one point of a face, so the rest of a
