@@ -444,10 +444,16 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   // for. haptics-20k's held probe: 2 of 3 frames, contact stage 24 -> 2 ms
   // there, error against exact at 90 frames 4.0e-4 -> 4.7e-4
   // (docs/benchmarks.md, "The rows' compliance kept").
+  // W itself is kept only where it was formed for these rows: the frame's
+  // later iterations, or rows equal to Y's own while W is Y's own (not a
+  // later frame's H Y).
   const bool lagged_same = m.solver.policy != SolverPolicy::Exact && have && key >= 0 && key == ws.contact_Y_key;
+  const bool same = lagged_same && same_rows(c, ws);
   const bool reuse = (m.solver.policy != SolverPolicy::Exact && have && ws.contact_frame == s.frame) ||
-                     (lagged_same && same_rows(c, ws));
-  const bool similar = !reuse && lagged_same && c.compliance_reuse > 0 && similar_rows(c, ws, c.compliance_reuse);
+                     (same && ws.contact_W_of_Y);
+  const bool similar =
+      !reuse && lagged_same && (same || (c.compliance_reuse > 0 && similar_rows(c, ws, c.compliance_reuse)));
+  if (!reuse) ws.contact_W_of_Y = !similar;
   resize_with_headroom(ws.contact_work, static_cast<size_t>(r) * n);
   if (!reuse && !similar) {
     ws.contact_Y_key = key;

@@ -62,12 +62,14 @@ struct Workspace {
   // (ContactRows::key): the next frame's rows of the same keys start there.
   std::vector<double> contact_last_lambda;
   std::vector<long long> contact_last_key;
-  // The rows (H: ptr, dof, coef) and the lagged factor (contact_factor_key)
-  // contact_work's Y = P^-1 H^T was computed for: a later frame with the
-  // same rows and the same factor takes Y and W over (contact_solve.cpp).
+  // The rows (H: ptr, dof, coef, keys) and the lagged factor
+  // (contact_factor_key) contact_work's Y = P^-1 H^T was computed for: a
+  // later frame with the same factor and the same rows, or rows within
+  // contact.compliance_reuse of them, takes Y over (contact_solve.cpp).
   std::vector<int> contact_Y_ptr, contact_Y_dof;
   std::vector<double> contact_Y_coef;
   std::vector<long long> contact_Y_rowkey;
+  bool contact_W_of_Y = false;       // contact_W is H Y for Y's own rows (symmetrised), not a later frame's H
   long long contact_Y_key = -1;
   std::vector<double> contact_Z;     // (nrow, ndof) project_contact_kinematics' columns (Y stays in contact_work)
   std::vector<double> contact_h, contact_z;  // (ndof) scratch of the contact kinematics (project_contact_kinematics)
