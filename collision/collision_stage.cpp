@@ -159,7 +159,7 @@ void collision_stage(Simulation& sim) {
   // The kept rows in the order of their keys, not of their depth: a held
   // tool's rows then come in the same order frame after frame, and the
   // contact stage keeps their compliance columns while the factor and the
-  // rows' keys stay (engine/dynamics/contact_solve.cpp, similar_rows).
+  // rows' keys stay (engine/dynamics/contact_solve.cpp, rows_change).
   std::sort(candidates.begin(), candidates.begin() + static_cast<std::ptrdiff_t>(keep),
             [](const CollisionData::Candidate& a, const CollisionData::Candidate& b) {
               return a.tool != b.tool ? a.tool < b.tool : a.id < b.id;

@@ -45,7 +45,7 @@ struct ContactRows {
   double friction = 0.0;         // Coulomb coefficient of the friction rows
   int max_sweeps = 200;          // projected Gauss-Seidel sweeps at most (scene contact.pgs_iterations)
   int refine_rounds = 0;         // correction rounds refined by CG (scene contact.refine_rounds; contact_solve.h)
-  double compliance_reuse = 0.0; // scene contact.compliance_reuse (contact_solve.cpp, similar_rows)
+  double compliance_reuse = 0.0; // scene contact.compliance_reuse (contact_solve.cpp, rows_change)
   std::vector<double> lambda;    // (nrow) result: force along dir on the tissue (N)
   // (ntool, or empty) per instrument: 0 for a tool that is where its pose
   // says, c > 0 for one held through a spring of stiffness 1/c (a haptic

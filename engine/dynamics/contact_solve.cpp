@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Dense>
 
@@ -184,28 +185,28 @@ long long contact_factor_key(const Model& m, const Workspace& ws) {
   return (static_cast<long long>(w.pattern) * SolverWork::kSlots + w.front) * 1000003LL + w.front_frame;
 }
 
-bool same_rows(const ContactRows& c, const Workspace& ws) {
-  return c.ptr == ws.contact_Y_ptr && c.dof == ws.contact_Y_dof && c.coef == ws.contact_Y_coef;
-}
-
-// Rows that Y (computed for the rows kept with it) still serves under
-// contact.compliance_reuse = tol: the same rows by key, in the same order
-// and on the same DOFs, each within tol of the coefficients Y was computed
-// for (|h_i - h_i,Y| <= tol |h_i,Y|). A held probe's rows, at the faces'
-// weighted points (collision/face_contact.h), change a little every frame.
-bool similar_rows(const ContactRows& c, const Workspace& ws, double tol) {
-  if (c.ptr != ws.contact_Y_ptr || c.dof != ws.contact_Y_dof || c.key != ws.contact_Y_rowkey) return false;
+// How far the rows moved from those Y was computed for (ws.contact_Y_*):
+// the largest |h_i - h_i,Y| / |h_i,Y| over the rows, 0 for the same rows bit
+// for bit (a grasp holding its points), infinity where they differ in
+// number, order, DOFs or keys, or a row without a key moved at all. A held
+// probe's rows, at the faces' weighted points (collision/face_contact.h),
+// move a little every frame (contact.compliance_reuse).
+double rows_change(const ContactRows& c, const Workspace& ws) {
+  constexpr double kApart = std::numeric_limits<double>::infinity();
+  if (c.ptr != ws.contact_Y_ptr || c.dof != ws.contact_Y_dof || c.key != ws.contact_Y_rowkey) return kApart;
+  double worst = 0.0;
   for (int i = 0; i < c.nrow(); ++i) {
-    if (c.key[i] < 0) return false;
     double d2 = 0.0, h2 = 0.0;
     for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) {
       const double diff = c.coef[k] - ws.contact_Y_coef[k];
       d2 += diff * diff;
       h2 += ws.contact_Y_coef[k] * ws.contact_Y_coef[k];
     }
-    if (d2 > tol * tol * h2) return false;
+    if (d2 == 0.0) continue;
+    if (c.key[i] < 0 || !(h2 > 0.0)) return kApart;
+    worst = std::max(worst, std::sqrt(d2 / h2));
   }
-  return true;
+  return worst;
 }
 
 // constrained_refine's projection for the active rows act, in the space of
@@ -448,11 +449,10 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   // later iterations, or rows equal to Y's own while W is Y's own (not a
   // later frame's H Y).
   const bool lagged_same = m.solver.policy != SolverPolicy::Exact && have && key >= 0 && key == ws.contact_Y_key;
-  const bool same = lagged_same && same_rows(c, ws);
+  const double change = lagged_same ? rows_change(c, ws) : std::numeric_limits<double>::infinity();
   const bool reuse = (m.solver.policy != SolverPolicy::Exact && have && ws.contact_frame == s.frame) ||
-                     (same && ws.contact_W_of_Y);
-  const bool similar =
-      !reuse && lagged_same && (same || (c.compliance_reuse > 0 && similar_rows(c, ws, c.compliance_reuse)));
+                     (change == 0.0 && ws.contact_W_of_Y);
+  const bool similar = !reuse && change <= c.compliance_reuse;
   if (!reuse) ws.contact_W_of_Y = !similar;
   resize_with_headroom(ws.contact_work, static_cast<size_t>(r) * n);
   if (!reuse && !similar) {
