@@ -23,8 +23,8 @@ void print_model_summary(const Simulation& sim) {
               m.fixed_dofs.size(), m.prescribed.size(), m.dt, m.newton_iterations,
               !m.adaptive_newton()           ? ""
               : m.residual_tolerance > 0 ? " (more, up to integrator.max_newton_iterations, while rotations move > "
-                                           "rotation_tolerance or the residual is above residual_tolerance)"
-                                         : " (more, up to integrator.max_newton_iterations, while rotations move > rotation_tolerance)");
+                                           "rotation_tolerance over the body or the residual is above residual_tolerance)"
+                                         : " (more, up to integrator.max_newton_iterations, while rotations move > rotation_tolerance over the body)");
   if (sim.scene.initial_static)
     std::printf("  initial: static equilibrium at t = 0 (solved at set-up, static.tolerance %g)\n", sim.scene.static_tolerance);
   if (m.material.model == MaterialModel::Corotated && m.material.rayleigh_stiffness == 0.0 &&

@@ -28,6 +28,8 @@ void element_slots(const Model& m, AssemblyPlan& p) {
     for (int r = 0; r < m.nrot; ++r) p.elem_rot[next[m.rot_elem[r]]++] = r;
   }
   for (int e = 0; e < m.nelem; ++e) p.max_elem_nodes = std::max(p.max_elem_nodes, m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e]);
+  p.slot_volume.assign(m.nrot, 0.0);
+  for (size_t q = 0; q < m.qp_rot.size(); ++q) p.slot_volume[m.qp_rot[q]] += m.qp_weight[q];
 }
 
 // Block of each element: slabs of equal element count across the longest
@@ -665,16 +667,16 @@ void stiffness_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, cons
 
 namespace {
 // The element's positions gathered once for all its slots (a slot at a time
-// gathered them per slot: 4 times for a tet10 per_point).
+// gathered them per slot: 4 times for a tet10 per_point); each slot's angle
+// into the worker's largest and its volume-weighted sums.
 template <int NN>
-double element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, const double* u, const double* Rall,
-                               double* xe) {
+void element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, const double* u, const double* Rall,
+                             double* xe, double threshold, RotationChange& acc) {
   const int b0 = m.elem_dof_ptr[e];
   const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
   const int* nodes = &m.elem_dof_node[b0];
   for (int a = 0; a < n; ++a)
     for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
-  double worst = 0.0;
   for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
     const int r = plan.elem_rot[k];
     double F[9];
@@ -683,31 +685,42 @@ double element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, 
     // as F passes through det F = 0 and does not settle with more Newton
     // iterations; it is counted (FrameTiming::inverted_points), not checked.
     if (!(Eigen::Map<const Mat3>(F).determinant() > 0.0)) continue;
-    worst = std::max(worst, rotation_angle_to(Eigen::Map<const Mat3>(F), Eigen::Map<const Mat3>(Rall + 9 * r)));
+    const double a = rotation_angle_to(Eigen::Map<const Mat3>(F), Eigen::Map<const Mat3>(Rall + 9 * r));
+    if (!(a >= 0.0)) continue;  // NaN
+    const double v = plan.slot_volume[r];
+    acc.max = std::max(acc.max, a);
+    acc.rms += v * a * a;  // the sum until the caller divides
+    acc.volume += v;
+    if (a > threshold) acc.above += v;
   }
-  return worst;
 }
 }  // namespace
 
-double max_rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R) {
-  if (m.material.model == MaterialModel::Linear) return 0.0;
+RotationChange rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R,
+                               double threshold) {
+  RotationChange out;
+  if (m.material.model == MaterialModel::Linear) return out;
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
-  double worst[64] = {0};  // per worker (solver.threads <= 64)
+  RotationChange part[64];  // per worker (solver.threads <= 64)
   pool.run([&](int tid) {
     int b, e;
     ThreadPool::split(m.nelem, pool.size(), tid, b, e);
     double* xe = plan.scratch[tid].data();
     for (int el = b; el < e; ++el) {
       const int n = m.elem_dof_ptr[el + 1] - m.elem_dof_ptr[el];
-      const double w = n == 10 ? element_rotation_change<10>(m, plan, el, u, R, xe)
-                       : n == 4 ? element_rotation_change<4>(m, plan, el, u, R, xe)
-                                : element_rotation_change<0>(m, plan, el, u, R, xe);
-      worst[tid] = std::max(worst[tid], w);
+      if (n == 10) element_rotation_change<10>(m, plan, el, u, R, xe, threshold, part[tid]);
+      else if (n == 4) element_rotation_change<4>(m, plan, el, u, R, xe, threshold, part[tid]);
+      else element_rotation_change<0>(m, plan, el, u, R, xe, threshold, part[tid]);
     }
   });
-  double w = 0.0;
-  for (int t = 0; t < pool.size(); ++t) w = std::max(w, worst[t]);
-  return w;
+  for (int t = 0; t < pool.size(); ++t) {
+    out.max = std::max(out.max, part[t].max);
+    out.rms += part[t].rms;
+    out.volume += part[t].volume;
+    out.above += part[t].above;
+  }
+  out.rms = out.volume > 0.0 ? std::sqrt(out.rms / out.volume) : 0.0;
+  return out;
 }
 
 void element_subset_forces(const Model& m, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,

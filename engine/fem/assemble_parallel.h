@@ -30,6 +30,7 @@ struct AssemblyPlan {
   std::vector<char> qp_own_rot;   // (nqp) 1 where the point's rotation slot is its own (rotation_stiffness.h)
   std::vector<char> qp_slot_F;    // (nqp) 1 where the point's F is its slot's (one point, same gradients): computed once
   int max_elem_slots = 0;         // most rotation slots of one element
+  std::vector<double> slot_volume;  // (nrot) the volume of the slot's points (sum of their qp_weight)
   std::vector<double> slot_weight;  // (nrot) shared_slot_weights: > 0 where a shared slot gets the rotation term
   bool exact_rotation_term = false;  // the term unprojected (rotation_stiffness.h, `exact`): the static solve's Newton
   std::vector<char> elem_condensed;  // (nelem) 1 where every slot of the element has a rest stiffness (Model::rot_K0)
@@ -92,11 +93,20 @@ int assemble_corotated(const Model& model, AssemblyPlan& plan, ThreadPool& pool,
 // elements' internal forces at u (their rotation slots updated in R, warm
 // started), and, when v is given, Kv += their R K0 R^T v. For a cut rebuild's
 // consistent acceleration near the elements the cut changed.
-// Largest angle between the slot rotations R and the rotations of the
-// configuration u, over every slot (rotation_angle_to: one Newton step, not a
-// full extraction), on the pool's workers; R is not changed. An angle that is
-// NaN is not counted, nor a slot where u inverts the element (det F <= 0).
-double max_rotation_change(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R);
+// The angles between the slot rotations R and the rotations of the
+// configuration u (rotation_angle_to: one Newton step, not a full
+// extraction): the largest over every slot, and their root mean square
+// weighted by the slots' volumes. An angle that is NaN is not counted, nor a
+// slot where u inverts the element (det F <= 0). On the pool's workers; R is
+// not changed.
+struct RotationChange {
+  double max = 0.0;     // rad
+  double rms = 0.0;     // rad, sqrt(sum_r V_r a_r^2 / sum_r V_r)
+  double volume = 0.0;  // of the slots counted
+  double above = 0.0;   // of the slots whose angle is above the threshold
+};
+RotationChange rotation_change(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R,
+                               double threshold);
 
 void element_subset_forces(const Model& model, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,
                            double* R, double* f_int, const double* v, double* Kv);

@@ -31,6 +31,8 @@ struct Model {
   int newton_iterations = 1;
   int max_newton_iterations = 4;    // adaptive cap (scene integrator.max_newton_iterations)
   double rotation_tolerance = 0.1;  // radians; 0 = fixed iteration count
+  double rotation_fraction = 1e-4;  // integrator.rotation_fraction: volume fraction allowed past rotation_tolerance
+  double rotation_rms = 0.02;       // integrator.rotation_rms: radians, volume-weighted RMS; 0 = off
   bool line_search = false;         // integrator.line_search: halve an iteration that raised the residual
   double residual_tolerance = 0.0;  // integrator.residual_tolerance: also iterate while the relative residual is above it
   double newmark_gamma = 0.5, newmark_beta = 0.25;  // 1/2, 1/4: trapezoidal rule
@@ -43,7 +45,8 @@ struct Model {
   int nnode = 0;                // standard DOF nodes (= mesh nodes)
   int ndofnode = 0;             // all DOF nodes (standard + enriched)
   // Newton iterates past newton_iterations while rotations move more than
-  // rotation_tolerance (decide_newton, engine/dynamics/step.cpp).
+  // rotation_tolerance over more than rotation_fraction of the body, or by
+  // more than rotation_rms in the mean (decide_newton, engine/dynamics/step.cpp).
   bool adaptive_newton() const {
     return material.model == MaterialModel::Corotated && (rotation_tolerance > 0 || residual_tolerance > 0) &&
            max_newton_iterations > newton_iterations;

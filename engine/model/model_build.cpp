@@ -1100,6 +1100,8 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.newton_iterations = scene.newton_iterations;
   m.max_newton_iterations = std::max(scene.max_newton_iterations, scene.newton_iterations);
   m.rotation_tolerance = scene.rotation_tolerance;
+  m.rotation_fraction = scene.rotation_fraction;
+  m.rotation_rms = scene.rotation_rms;
   m.line_search = scene.line_search;
   m.residual_tolerance = scene.residual_tolerance;
   m.newmark_gamma = scene.newmark_gamma;

@@ -402,7 +402,7 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
   p.object(v, at);
   p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance", "newmark_gamma",
                           "newmark_beta", "tangent", "tangent_reuse", "predictor", "line_search",
-                          "residual_tolerance"});
+                          "residual_tolerance", "rotation_fraction", "rotation_rms"});
   if (auto it = v.find("dt"); it != v.end()) {
     double dt = p.number(*it, at + ".dt");
     if (!(dt > 0.0 && dt <= 1.0))
@@ -415,6 +415,12 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
     s.max_newton_iterations = p.at_least_one(*it, at + ".max_newton_iterations");
   if (auto it = v.find("rotation_tolerance"); it != v.end())
     s.rotation_tolerance = p.nonnegative(*it, at + ".rotation_tolerance");
+  if (auto it = v.find("rotation_fraction"); it != v.end()) {
+    s.rotation_fraction = p.nonnegative(*it, at + ".rotation_fraction");
+    if (!(s.rotation_fraction < 1.0))
+      p.fail(at + ".rotation_fraction", " must be in [0, 1) (a fraction of the body's volume; 0 = any point), got " + show(*it));
+  }
+  if (auto it = v.find("rotation_rms"); it != v.end()) s.rotation_rms = p.nonnegative(*it, at + ".rotation_rms");
   if (auto it = v.find("tangent"); it != v.end())
     s.consistent_tangent = p.choice(*it, at + ".tangent", {"frozen_rotation", "consistent"}) == 1;
   if (auto it = v.find("line_search"); it != v.end()) s.line_search = p.boolean(*it, at + ".line_search");
@@ -1029,6 +1035,8 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
   kv.push_back({"integrator.newton_iterations", std::to_string(s.newton_iterations)});
   kv.push_back({"integrator.max_newton_iterations", std::to_string(s.max_newton_iterations)});
   kv.push_back({"integrator.rotation_tolerance", number_text(s.rotation_tolerance)});
+  kv.push_back({"integrator.rotation_fraction", number_text(s.rotation_fraction)});
+  kv.push_back({"integrator.rotation_rms", number_text(s.rotation_rms)});
   kv.push_back({"integrator.line_search", s.line_search ? "true" : "false"});
   kv.push_back({"integrator.residual_tolerance", number_text(s.residual_tolerance)});
   kv.push_back({"integrator.tangent", quoted(s.consistent_tangent ? "consistent" : "frozen_rotation")});

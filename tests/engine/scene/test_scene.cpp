@@ -752,6 +752,18 @@ TEST_F(SceneTest, AdaptiveNewtonKeys) {
                "integrator.max_newton_iterations must be an integer >= 1, got 0");
 }
 
+TEST_F(SceneTest, NewtonStopOverTheBodyKeys) {
+  const Scene d = parse_scene(minimal(R"("integrator": {})"), scene_path_);
+  EXPECT_DOUBLE_EQ(d.rotation_fraction, 1e-4);
+  EXPECT_DOUBLE_EQ(d.rotation_rms, 0.02);
+  const Scene s = parse_scene(minimal(R"("integrator": {"rotation_fraction": 0, "rotation_rms": 0.005})"), scene_path_);
+  EXPECT_DOUBLE_EQ(s.rotation_fraction, 0.0);
+  EXPECT_DOUBLE_EQ(s.rotation_rms, 0.005);
+  expect_error(minimal(R"("integrator": {"rotation_fraction": 1})"),
+               "integrator.rotation_fraction must be in [0, 1) (a fraction of the body's volume; 0 = any point), got 1");
+  expect_error(minimal(R"("integrator": {"rotation_rms": -0.1})"), "integrator.rotation_rms must be >= 0, got -0.1");
+}
+
 TEST_F(SceneTest, TangentReuseKey) {
   EXPECT_DOUBLE_EQ(parse_scene(minimal(R"("integrator": {})"), scene_path_).tangent_reuse, 0.0);
   EXPECT_DOUBLE_EQ(parse_scene(minimal(R"("integrator": {"tangent_reuse": 0.003})"), scene_path_).tangent_reuse, 0.003);
