@@ -32,7 +32,7 @@ struct Model {
   int max_newton_iterations = 4;    // adaptive cap (scene integrator.max_newton_iterations)
   double rotation_tolerance = 0.1;  // radians; 0 = fixed iteration count
   double rotation_fraction = 1e-4;  // integrator.rotation_fraction: volume fraction allowed past rotation_tolerance
-  double rotation_rms = 0.03;       // integrator.rotation_rms: radians, volume-weighted RMS; 0 = off
+  double rotation_rms = 0.02;       // integrator.rotation_rms: radians, volume-weighted RMS; 0 = off
   bool line_search = false;         // integrator.line_search: halve an iteration that raised the residual
   double residual_tolerance = 0.0;  // integrator.residual_tolerance: also iterate while the relative residual is above it
   double newmark_gamma = 0.5, newmark_beta = 0.25;  // 1/2, 1/4: trapezoidal rule

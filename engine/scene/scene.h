@@ -270,7 +270,7 @@ struct Scene {
   // A few crushed points (singular values of F near 0.1: their rotation is
   // ill-conditioned and does not settle) no longer decide alone.
   double rotation_fraction = 1e-4;
-  double rotation_rms = 0.03;
+  double rotation_rms = 0.02;
   // integrator.line_search: an iteration whose configuration has a larger
   // residual than the one before is taken back halfway, up to 3 times
   // (engine/dynamics/step.cpp, assemble_system). Off by default: it costs an

@@ -755,7 +755,7 @@ TEST_F(SceneTest, AdaptiveNewtonKeys) {
 TEST_F(SceneTest, NewtonStopOverTheBodyKeys) {
   const Scene d = parse_scene(minimal(R"("integrator": {})"), scene_path_);
   EXPECT_DOUBLE_EQ(d.rotation_fraction, 1e-4);
-  EXPECT_DOUBLE_EQ(d.rotation_rms, 0.03);
+  EXPECT_DOUBLE_EQ(d.rotation_rms, 0.02);
   const Scene s = parse_scene(minimal(R"("integrator": {"rotation_fraction": 0, "rotation_rms": 0.005})"), scene_path_);
   EXPECT_DOUBLE_EQ(s.rotation_fraction, 0.0);
   EXPECT_DOUBLE_EQ(s.rotation_rms, 0.005);
