@@ -262,11 +262,12 @@ struct Scene {
   int max_newton_iterations = 4;
   double rotation_tolerance = 0.1;
   // The rotation test over the body, not at its worst point
-  // (integrator.rotation_fraction, rotation_rms; docs/numerics.md, "Adaptive
-  // Newton"): iterate again while the slots that turned more than
-  // rotation_tolerance hold more than rotation_fraction of the body's volume
-  // (0: any slot, the test before the twenty-sixth session), or while the
-  // volume-weighted RMS of every slot's turn is above rotation_rms (0: off).
+  // (integrator.rotation_fraction, rotation_rms; docs/numerics.md,
+  // "Linearisation, iterations and stability"): iterate again while the
+  // slots that turned more than rotation_tolerance hold more than
+  // rotation_fraction of the body's volume (0: any slot, the test before the
+  // twenty-sixth session), or while the volume-weighted RMS of every slot's
+  // turn is above rotation_rms (0: off).
   // A few crushed points (singular values of F near 0.1: their rotation is
   // ill-conditioned and does not settle) no longer decide alone.
   double rotation_fraction = 1e-4;
