@@ -211,15 +211,16 @@ inline void rotated_stress(const double* R, const double* F, double w, double mu
   Pm.noalias() = w * (Rm * sig);
 }
 
-// A condensed slot (Model::rot_K0, over the npe mesh nodes in the piece's
-// displacements d_a = in_a + in_{p(a)}, p = the slot's partner list):
+// A condensed slot (Model::rot_K0, over k nodes: the npe mesh nodes in the
+// piece's displacements d_a = in_a + in_{p(a)}, p = the slot's partner list,
+// or all the element's DOF nodes with p = -1):
 // t_a = sum_b K0_ab (R^T d_b - X_b), and out gains R t_a at a and at p(a)
 // (X = null: no rest positions, the product R^ K0 R^T in). K0 holds blocks
-// a <= b, row-major; y and t are (npe, 3) scratch.
-void condensed_slot_force(int npe, const double* K0, const int* partner, const double* R, const double* in,
+// a <= b, row-major; y and t are (k, 3) scratch.
+void condensed_slot_force(int k, const double* K0, const int* partner, const double* R, const double* in,
                           const double* X, const int* nodes, double* y, double* t, double* out) {
   const Eigen::Map<const Mat3> Rm(R);
-  for (int a = 0; a < npe; ++a) {
+  for (int a = 0; a < k; ++a) {
     Eigen::Vector3d d = Eigen::Map<const Eigen::Vector3d>(in + 3 * a);
     if (partner[a] >= 0) d += Eigen::Map<const Eigen::Vector3d>(in + 3 * partner[a]);
     Eigen::Map<Eigen::Vector3d> ya(y + 3 * a);
@@ -227,17 +228,17 @@ void condensed_slot_force(int npe, const double* K0, const int* partner, const d
     if (X) ya -= Eigen::Map<const Eigen::Vector3d>(X + 3 * nodes[a]);
   }
   // t = K0 y from the upper blocks: (a, b) adds K_ab y_b to t_a and K_ab^T y_a to t_b.
-  std::fill(t, t + 3 * npe, 0.0);
+  std::fill(t, t + 3 * k, 0.0);
   const double* blk = K0;
-  for (int a = 0; a < npe; ++a)
-    for (int b = a; b < npe; ++b, blk += 9) {
+  for (int a = 0; a < k; ++a)
+    for (int b = a; b < k; ++b, blk += 9) {
       const double* yb = y + 3 * b;
       for (int i = 0; i < 3; ++i) t[3 * a + i] += blk[3 * i] * yb[0] + blk[3 * i + 1] * yb[1] + blk[3 * i + 2] * yb[2];
       if (b == a) continue;
       const double* ya = y + 3 * a;
       for (int j = 0; j < 3; ++j) t[3 * b + j] += blk[j] * ya[0] + blk[3 + j] * ya[1] + blk[6 + j] * ya[2];
     }
-  for (int a = 0; a < npe; ++a) {
+  for (int a = 0; a < k; ++a) {
     const Eigen::Vector3d v = Rm * Eigen::Map<const Eigen::Vector3d>(t + 3 * a);
     Eigen::Map<Eigen::Vector3d>(out + 3 * nodes[a]) += v;
     if (partner[a] >= 0) Eigen::Map<Eigen::Vector3d>(out + 3 * nodes[partner[a]]) += v;
@@ -249,12 +250,12 @@ void condensed_slot_force(int npe, const double* K0, const int* partner, const d
 // (a, b), (a, p(b)), (p(a), b) and (p(a), p(b)), transposed where the row
 // node comes after the column node; for a = b (B symmetric) the (p(a), a)
 // copy is (a, p(a))'s transpose and is not added again.
-void condensed_slot_stiffness(int n, int npe, const double* K0, const int* partner, const double* R, double* Kl) {
+void condensed_slot_stiffness(int n, int k, const double* K0, const int* partner, const double* R, double* Kl) {
   const Eigen::Map<const Mat3> Rm(R);
   const auto at = [n](int i, int j) { return 9 * (i * n - i * (i - 1) / 2 + (j - i)); };
   const double* k0 = K0;
-  for (int a = 0; a < npe; ++a)
-    for (int b = a; b < npe; ++b, k0 += 9) {
+  for (int a = 0; a < k; ++a)
+    for (int b = a; b < k; ++b, k0 += 9) {
       const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> K(k0);
       const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> B = Rm * K * Rm.transpose();
       const int I[2] = {a, partner[a]}, J[2] = {b, partner[b]};
@@ -356,7 +357,8 @@ inline void slot_rotation_terms(const Model& m, const AssemblyPlan& plan, int e,
   }
 }
 
-// A split element: its pieces' rest stiffness rotated (Model::rot_K0) gives
+// A split element: its pieces' rest stiffness rotated (Model::rot_K0, over d
+// or over all its DOF nodes) gives
 // the forces into f and, with Kl, the blocks (y, t: scratch).
 inline void condensed_element_terms(const Model& m, const AssemblyPlan& plan, int e, int n, const int* nodes,
                                     const double* xe, const double* Rall, double* f, double* Kl, double* y, double* t) {
@@ -364,17 +366,17 @@ inline void condensed_element_terms(const Model& m, const AssemblyPlan& plan, in
     const int r = plan.elem_rot[k];
     const double* K0 = &m.rot_K0[m.rot_K0_ptr[r]];
     const int* partner = m.slot_partner(r);
-    condensed_slot_force(m.mesh.npe(), K0, partner, Rall + 9 * r, xe, m.X.data(), nodes, y, t, f);
-    if (Kl) condensed_slot_stiffness(n, m.mesh.npe(), K0, partner, Rall + 9 * r, Kl);
+    condensed_slot_force(m.slot_K0_nodes(r), K0, partner, Rall + 9 * r, xe, m.X.data(), nodes, y, t, f);
+    if (Kl) condensed_slot_stiffness(n, m.slot_K0_nodes(r), K0, partner, Rall + 9 * r, Kl);
   }
 }
 
-// y += a split element's pieces' R K0 R^T v (ve: v at its nodes; t1, t2: (npe, 3) scratch).
+// y += a split element's pieces' R K0 R^T v (ve: v at its nodes; t1, t2: (k, 3) scratch).
 inline void condensed_element_matvec(const Model& m, const AssemblyPlan& plan, int e, const int* nodes,
                                      const double* Rall, const double* ve, double* y, double* t1, double* t2) {
   for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
     const int r = plan.elem_rot[k];
-    condensed_slot_force(m.mesh.npe(), &m.rot_K0[m.rot_K0_ptr[r]], m.slot_partner(r), Rall + 9 * r, ve, nullptr, nodes,
+    condensed_slot_force(m.slot_K0_nodes(r), &m.rot_K0[m.rot_K0_ptr[r]], m.slot_partner(r), Rall + 9 * r, ve, nullptr, nodes,
                          t1, t2, y);
   }
 }

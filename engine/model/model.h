@@ -84,17 +84,20 @@ struct Model {
   // with one rotation R for all of them, their force is R^ K0 (R^T x - X) and
   // their frozen-R tangent R^ K0 R^T (R^ = diag(R, ...)), so assembly rotates
   // this matrix instead of integrating the piece's many sub-element points.
-  // A piece displaces its mesh node a by d_a = u_a + q_a (q_a: the piece's
-  // enriched DOF node at a, if any; [preprint] eq. (66)), so K0 is kept over the
-  // npe mesh nodes in d and spread onto the element's u and q at assembly:
-  // a quarter of the blocks of the same matrix over all the DOF nodes.
+  // Two forms. Over d: a piece displaces its mesh node a by d_a = u_a + q_a
+  // (q_a: the piece's enriched DOF node at a, if any; [preprint] eq. (66)),
+  // so K0 is kept over the npe mesh nodes in d and spread onto the element's
+  // u and q at assembly (a quarter of the blocks of the same matrix over all
+  // the DOF nodes); the partner list names q_a's local index. Over all the
+  // element's n DOF nodes, in its order (partner list all -1): a piece of an
+  // element with branch DOF nodes (front enrichment), whose N_a (F - F_a)
+  // gradients do not fold onto d.
   std::vector<int> rot_K0_ptr;     // (nrot + 1) into rot_K0; an empty range: the slot's points are integrated
-  std::vector<double> rot_K0;      // per condensed slot: blocks (a <= b) x 9, row-major, over the npe mesh nodes
-  std::vector<int> rot_K0_partner; // per condensed slot, (npe): local DOF-node index of q_a, -1 where none
-  const int* slot_partner(int r) const {  // rot_K0_partner of condensed slot r
-    const int npe = mesh.npe();
-    return &rot_K0_partner[static_cast<size_t>(rot_K0_ptr[r]) / (9 * npe * (npe + 1) / 2) * npe];
-  }
+  std::vector<double> rot_K0;      // per condensed slot: blocks (a <= b) x 9, row-major, over its k nodes
+  std::vector<int> rot_K0_partner_ptr;  // (nrot + 1) into rot_K0_partner: k entries per condensed slot
+  std::vector<int> rot_K0_partner; // per condensed slot, (k): local DOF-node index of q_a, -1 where none
+  const int* slot_partner(int r) const { return &rot_K0_partner[rot_K0_partner_ptr[r]]; }
+  int slot_K0_nodes(int r) const { return rot_K0_partner_ptr[r + 1] - rot_K0_partner_ptr[r]; }  // k of slot r
 
   // Global sparse pattern: upper triangle, compressed columns, ndof x ndof
   std::vector<int> Ap;             // (ndof + 1) column starts
