@@ -6,6 +6,9 @@
 // (cut_stage.h) cuts along all of them, with the scene's declared cuts, as a
 // progressive cut: the layout changes only when the set of split elements does.
 #include <array>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include "engine/runtime/simulation.h"
 
@@ -18,6 +21,25 @@ namespace incise {
 // tissue the nearest such element's map, extrapolated. *inside tells which.
 std::array<double, 3> reference_point(const Model& model, const State& state, const double x[3], bool* inside);
 
+// The same for many points of one configuration: the deformed corner
+// tetrahedra and their bounding boxes made once (O(elements)); a point
+// inside the tissue then tests only the elements whose box holds it, a
+// point outside all of them (its extrapolation).
+class TissueLocator {
+ public:
+  TissueLocator(const Model& model, const State& state);
+  std::array<double, 3> reference(const double x[3], bool* inside) const;  // as reference_point
+  bool inside(const double x[3]) const;  // whether x lies in the tissue (no mapping; cheap)
+
+ private:
+  Eigen::Vector4d barycentric(int e, const double x[3]) const;
+  int best_element(const double x[3], bool all, double& best_min, Eigen::Vector4d& best_L) const;
+  const Model* model_;
+  std::vector<double> corners_;  // (ntet, 4, 3) deformed corner positions
+  std::vector<double> box_;      // (ntet, 6) their bounding boxes (lo, hi), grown by 1e-6 of their size
+  double lo_[3], hi_[3];         // the tissue's box
+};
+
 // Appends to sim.state.swept the triangles each scalpel's edge swept in the
 // coming frame (sim.tools: before -> after), when the band meets the tissue.
 // Returns how many were added.
@@ -25,5 +47,10 @@ int sweep_blades(Simulation& sim);
 
 // Edge segments sampled per frame: the band is (kSweepSegments) quads.
 inline constexpr int kSweepSegments = 2;
+// A frame's motion is swept in steps of at most half the size of the
+// smaller elements (sweep_spacing), and at most this many: a blade that
+// passes through thin tissue within one frame, outside it at both ends,
+// still cuts it.
+inline constexpr int kMaxSweepSteps = 64;
 
 }  // namespace incise
