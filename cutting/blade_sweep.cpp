@@ -12,7 +12,7 @@
 
 namespace incise {
 
-TissueLocator::TissueLocator(const Model& m, const State& s) : model_(&m) {
+TissueLocator::TissueLocator(const Model& m, const double* u) : model_(&m) {
   const int npe = m.mesh.npe(), nt = m.mesh.ntet();
   corners_.resize(12 * static_cast<size_t>(nt));
   box_.resize(6 * static_cast<size_t>(nt));
@@ -24,7 +24,7 @@ TissueLocator::TissueLocator(const Model& m, const State& s) : model_(&m) {
     for (int d = 0; d < 3; ++d) b[d] = 1e300, b[3 + d] = -1e300;
     for (int k = 0; k < 4; ++k)
       for (int d = 0; d < 3; ++d) {
-        c[3 * k + d] = m.X[3 * nodes[k] + d] + s.u[3 * nodes[k] + d];
+        c[3 * k + d] = m.X[3 * nodes[k] + d] + (u ? u[3 * nodes[k] + d] : 0.0);
         b[d] = std::min(b[d], c[3 * k + d]);
         b[3 + d] = std::max(b[3 + d], c[3 * k + d]);
       }
@@ -235,11 +235,60 @@ int sweep_blades(Simulation& sim) {
         if (far <= (prev_frame == st.frame - 1 ? 1.0 : 0.5) * element_size(sim.model)) row[0] = prev;
       }
     }
+    // The incision this blade made before this frame.
+    const std::unique_ptr<CutSurface> old =
+        make_swept_surface(st.swept, st.swept_tool, static_cast<int>(i), spec.json_path);
+    const double h = element_size(sim.model);
+    // Triangle (a, b, c), as the nearest old facet faces where it continues
+    // the incision in about its plane: (b, a, c) when it faced the other way
+    // (the blade drawn back; last_edge reads the third corners).
     const auto push = [&](const std::array<double, 3>& a, const std::array<double, 3>& b, const std::array<double, 3>& c) {
-      for (const auto* p : {&a, &b, &c}) st.swept.insert(st.swept.end(), p->begin(), p->end());
+      bool flip = false;
+      if (old) {
+        const Eigen::Vector3d A(a.data()), B(b.data()), C(c.data()), n = (B - A).cross(C - A).normalized();
+        const Eigen::Vector3d m = (A + B + C) / 3.0;
+        const Facet& f = old->nearest(m.data());
+        const Eigen::Vector3d fn(f.n[0], f.n[1], f.n[2]), fp(f.p[0], f.p[1], f.p[2]);
+        flip = n.dot(fn) < -0.7 && std::abs((m - fp).dot(fn)) <= 0.25 * h && old->distance(m.data()) <= h;
+      }
+      for (const auto* p : {flip ? &b : &a, flip ? &a : &b, &c}) st.swept.insert(st.swept.end(), p->begin(), p->end());
       st.swept_tool.push_back(static_cast<double>(i));
       st.swept_frame.push_back(static_cast<double>(st.frame));
       ++added;
+    };
+    // A band within the incision already made (the blade drawn back along
+    // it, or through it again) cuts nothing new: every point of a 3 x 5
+    // grid over it that lies in the reference body lies within kReCutReach
+    // of the old bands and beside them, not ahead of them (a blade that
+    // goes on is ahead by its motion; points outside the body are
+    // extrapolations, off by more, and cut nothing). Kept, it lay on the
+    // old bands, facing the other way when the blade went back, and the
+    // nearest-facet level set between two such sheets changed sign from
+    // node to node: a withdrawal cut off a zero-thickness sliver that
+    // flailed, cutting back and forth diverged.
+    std::unique_ptr<TissueLocator> body;  // the reference configuration
+    const auto recuts = [&](int k) {
+      if (!old) return false;
+      if (!body) body = std::make_unique<TissueLocator>(sim.model, nullptr);
+      bool any = false;
+      for (int a = 0; a <= 2; ++a)
+        for (int b = 0; b <= 4; ++b) {
+          const double s = 0.5 * a, t = 0.25 * b * kSweepSegments;
+          const int j = std::min(static_cast<int>(t), kSweepSegments - 1);
+          const double w = t - j;
+          double x[3];
+          for (int d = 0; d < 3; ++d)
+            x[d] = (1 - s) * ((1 - w) * row[k][j][d] + w * row[k][j + 1][d]) +
+                   s * ((1 - w) * row[k + 1][j][d] + w * row[k + 1][j + 1][d]);
+          if (!body->inside(x)) continue;
+          any = true;
+          // Within reach of the old bands, and beside them rather than
+          // ahead: the offset to the nearest one is across its plane.
+          const double dist = old->distance(x), across = old->value(x).phi;
+          if (!(dist <= kReCutReach * h && dist * dist - across * across <= 0.04 * kReCutReach * kReCutReach * h * h))
+            return false;
+        }
+      return any;
     };
     for (int k = k0; k < k1; ++k) {
       // A band of no area (the edge moved by roundoff, or along itself)
@@ -248,7 +297,7 @@ int sweep_blades(Simulation& sim) {
       for (int j = 0; j < kSweepSegments; ++j)
         flat = flat && degenerate_triangle(row[k][j].data(), row[k][j + 1].data(), row[k + 1][j + 1].data()) &&
                degenerate_triangle(row[k][j].data(), row[k + 1][j + 1].data(), row[k + 1][j].data());
-      if (flat) continue;
+      if (flat || recuts(k)) continue;
       for (int j = 0; j < kSweepSegments; ++j) {
         push(row[k][j], row[k][j + 1], row[k + 1][j + 1]);
         push(row[k][j], row[k + 1][j + 1], row[k + 1][j]);

@@ -27,7 +27,9 @@ std::array<double, 3> reference_point(const Model& model, const State& state, co
 // point outside all of them (its extrapolation).
 class TissueLocator {
  public:
-  TissueLocator(const Model& model, const State& state);
+  TissueLocator(const Model& model, const State& state) : TissueLocator(model, state.u.data()) {}
+  // u: the displacement (ndof); null: the reference configuration.
+  TissueLocator(const Model& model, const double* u);
   std::array<double, 3> reference(const double x[3], bool* inside) const;  // as reference_point
   bool inside(const double x[3]) const;  // whether x lies in the tissue (no mapping; cheap)
 
@@ -52,5 +54,9 @@ inline constexpr int kSweepSegments = 2;
 // passes through thin tissue within one frame, outside it at both ends,
 // still cuts it.
 inline constexpr int kMaxSweepSteps = 64;
+// A band whose edge samples all lie within this many element sizes of the
+// blade's incision so far (of its facets' planes, and not further ahead of
+// its boundary) re-cuts it and is dropped.
+inline constexpr double kReCutReach = 0.25;
 
 }  // namespace incise

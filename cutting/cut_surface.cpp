@@ -225,6 +225,13 @@ int CutSurface::nearest_facet(const double x[3]) const {
   return best;
 }
 
+double CutSurface::distance(const double x[3]) const {
+  if (facets_.empty()) return 1e300;
+  const Facet& f = facets_[nearest_facet(x)];
+  const V xv(x[0], x[1], x[2]);
+  return f.unbounded ? std::abs((xv - vec(f.p)).dot(vec(f.n))) : triangle_distance(xv, vec(f.v[0]), vec(f.v[1]), vec(f.v[2]));
+}
+
 // [preprint] eq. (72), against the nearest facet's plane.
 CutSurface::Value CutSurface::value(const double x[3]) const {
   if (facets_.empty()) return {1.0, 1};

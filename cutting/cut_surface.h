@@ -50,6 +50,10 @@ class CutSurface {
   // surface without boundary (the infinite plane). A boundary edge is an
   // edge of one facet only (vertices matched exactly).
   double front_distance(const double x[3]) const;
+  // The facet nearest to x (distance to its triangle; the level set's), and
+  // that distance.
+  const Facet& nearest(const double x[3]) const { return facets_[nearest_facet(x)]; }
+  double distance(const double x[3]) const;
 
  private:
   struct Edge {
