@@ -624,7 +624,8 @@ void parse_cuts(const Parser& p, const json& v, Scene& s) {
   }
 }
 
-// A unit quaternion [w, x, y, z] (within 1e-6), returned normalised.
+// A unit quaternion [w, x, y, z] (within 1e-3, as trajectories: 4 decimals
+// pass), returned normalised.
 std::array<double, 4> unit_quaternion(const Parser& p, const json& v, const std::string& where) {
   if (!v.is_array() || v.size() != 4) {
     std::string got = v.is_array() ? "array of " + std::to_string(v.size()) + " values" : describe(v);
@@ -633,10 +634,10 @@ std::array<double, 4> unit_quaternion(const Parser& p, const json& v, const std:
   std::array<double, 4> q{};
   for (size_t i = 0; i < 4; ++i) q[i] = p.number(v[i], Parser::index(where, i));
   const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-  if (!(std::abs(n - 1.0) <= 1e-6)) {
+  if (!(std::abs(n - 1.0) <= 1e-3)) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.10g", n);
-    p.fail(where, " must be a unit quaternion [w, x, y, z] (norm 1 within 1e-6), got norm " + std::string(buf));
+    p.fail(where, " must be a unit quaternion [w, x, y, z] (norm 1 within 1e-3), got norm " + std::string(buf));
   }
   for (double& c : q) c /= n;
   return q;

@@ -19,7 +19,8 @@ inline constexpr std::size_t kMaxSceneBytes = std::size_t(16) << 20;    // 16 Mi
 inline constexpr std::size_t kMaxTableBytes = std::size_t(512) << 20;   // CSV, OBJ, STL: 512 MiB
 
 // The whole content of `path`, which must be a regular file of at most
-// max_bytes. `what` names the kind of file in messages ("mesh file").
+// max_bytes, without a leading UTF-8 byte order mark. `what` names the kind
+// of file in messages ("mesh file").
 // Throws Error: "PATH: cannot read WHAT: it is a FIFO, not a regular file".
 std::string read_input_file(const std::string& path, std::size_t max_bytes, const char* what);
 

@@ -144,8 +144,12 @@ TEST_F(TrajectoryTest, DecreasingOrRepeatedTime) {
 
 TEST_F(TrajectoryTest, NonUnitQuaternion) {
   expect_error(kHeader + "0,0,0,0,1,0,0,0\n1,0,0,0,1,0,0,0.1\n", 3,
-               "the quaternion qw,qx,qy,qz must have unit norm (within 1e-6), got norm 1.004987562");
-  expect_error(kHeader + "0,0,0,0,0,0,0,0\n", 2, "the quaternion qw,qx,qy,qz must have unit norm (within 1e-6), got norm 0");
+               "the quaternion qw,qx,qy,qz must have unit norm (within 1e-3), got norm 1.004987562");
+  expect_error(kHeader + "0,0,0,0,0,0,0,0\n", 2, "the quaternion qw,qx,qy,qz must have unit norm (within 1e-3), got norm 0");
+  // A tracker's export rounded to 4 decimals (norm 0.99999) is accepted and normalised.
+  const ToolPose r = read(kHeader + "0,0,0,0,0.7071,0,0,0.7071\n").sample(0.0);
+  EXPECT_NEAR(r.q[0], std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(r.q[3], std::sqrt(0.5), 1e-15);
   // Within the tolerance it is accepted (and normalised).
   const ToolPose p = read(kHeader + "0,0,0,0,1.0000005,0,0,0\n").sample(0.0);
   EXPECT_EQ(p.q[0], 1.0);

@@ -33,6 +33,12 @@ TEST_F(FileIo, ReadsARegularFileWhole) {
   EXPECT_EQ(read_input_file(p, 100, "scene file"), "abc\n");
 }
 
+TEST_F(FileIo, DropsALeadingUtf8ByteOrderMarkOnly) {
+  const fs::path p = dir / "bom.csv";
+  std::ofstream(p, std::ios::binary) << "\xEF\xBB\xBFt,x\n0,\xEF\xBB\xBF";
+  EXPECT_EQ(read_input_file(p.string(), 1024, "trajectory"), "t,x\n0,\xEF\xBB\xBF");
+}
+
 TEST_F(FileIo, RefusesAFifoWithoutBlocking) {
   const std::string p = (dir / "pipe").string();
   ASSERT_EQ(::mkfifo(p.c_str(), 0600), 0);
