@@ -31,7 +31,7 @@ void weight_round_face_contact(const TissueSurface& s, const ToolPart& part, con
   const double r = part.radius;
   const int tpf = s.ntri() / s.nface, k = kSubdivide;
   double W = 0.0, rst[3] = {0, 0, 0};
-  Eigen::Vector3d n_sum(0, 0, 0);
+  Eigen::Vector3d n_sum(0, 0, 0), n_face(0, 0, 0);  // n_face: the face's outward normal times twice its area
   const auto add = [&](double w, const Eigen::Vector3d& g, double d, const int* tv, const double b[3]) {
     W += w;
     if (d > 0) n_sum += (w / d) * g;
@@ -42,6 +42,7 @@ void weight_round_face_contact(const TissueSurface& s, const ToolPart& part, con
     const int* tv = &s.tri[3 * static_cast<size_t>(t)];
     Eigen::Vector3d v[3];
     for (int j = 0; j < 3; ++j) v[j] = Eigen::Vector3d(s.x[3 * tv[j]], s.x[3 * tv[j] + 1], s.x[3 * tv[j] + 2]);
+    n_face += (v[1] - v[0]).cross(v[2] - v[0]);
     const double area = 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).norm() / (k * k);  // of one sub-triangle
     // The k^2 sub-triangles' centroids: upward ones at barycentric
     // ((i + 1/3) / k, (j + 1/3) / k), downward ones at ((i + 2/3) / k, (j + 2/3) / k).
@@ -79,9 +80,13 @@ void weight_round_face_contact(const TissueSurface& s, const ToolPart& part, con
   const Eigen::Vector3d x(xm[0], xm[1], xm[2]);
   const Eigen::Vector3d g = x - nearest_on_axis(part.a, part.b, x);
   const double d = g.norm();
-  // The axis on the far side of the point, seen along the samples' normals:
-  // the geometric direction would pull the tissue through the tool.
-  if (!(d > 1e-9 * r) || !(g.dot(n_sum) > 0)) return;
+  // The axis on the far side of the point, seen along the samples' normals
+  // or behind the face's plane (a probe pushed in deeper than the face: a
+  // 5 mm probe jabbed 1 cm a frame): the geometric direction would pull the
+  // tissue out through the tool (the rows pushed the face outward, the force
+  // fell to 0.03 N and the probe ended inside at 0 N); the narrowphase's
+  // face rule (-n_out) stays.
+  if (!(d > 1e-9 * r) || !(g.dot(n_sum) > 0) || !(g.dot(n_face) < 0)) return;
   for (int q = 0; q < 3; ++q) {
     c.rst[q] = rst[q];
     c.point[q] = xm[q];
