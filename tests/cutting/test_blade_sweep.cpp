@@ -17,6 +17,17 @@
 namespace incise {
 namespace {
 
+// A scalpel (no contact) with this blade and cutting edge, instruments[0].
+InstrumentSpec edge_scalpel(Vec3 blade, Vec3 a, Vec3 b) {
+  InstrumentSpec scalpel;
+  scalpel.kind = InstrumentSpec::Kind::Scalpel;
+  scalpel.blade = blade;
+  scalpel.edge = {a, b};
+  scalpel.contact = false;
+  scalpel.json_path = "instruments[0]";
+  return scalpel;
+}
+
 // Under an affine deformation x = F X + c the corner map is exact, inside and
 // (extrapolated) outside the body.
 TEST(BladeSweep, ReferencePointInvertsAnAffineDeformation) {
@@ -51,13 +62,7 @@ TEST(BladeSweep, AScalpelDrivenThroughABlockSeparatesIt) {
   const Mesh mesh = make_beam(2, 1, 1, 4, 2, 2, 2);
   Scene scene = test::block_scene(2);
   scene.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-  InstrumentSpec scalpel;
-  scalpel.kind = InstrumentSpec::Kind::Scalpel;
-  scalpel.blade = {0.2, 0.01, 0.1};
-  scalpel.edge = {Vec3{0, 0, -0.3}, Vec3{0, 0, 1.3}};  // vertical, through the whole height
-  scalpel.contact = false;
-  scalpel.json_path = "instruments[0]";
-  scene.instruments.push_back(scalpel);
+  scene.instruments.push_back(edge_scalpel({0.2, 0.01, 0.1}, Vec3{0, 0, -0.3}, Vec3{0, 0, 1.3}));  // vertical, through the whole height
   auto sim = test::make_sim(mesh, scene);
   ASSERT_TRUE(sim->pipeline.has(kStageCutting)) << "a scalpel calls for the cutting stage";
   // The tool-poses stage (tools/ fills it from a trajectory): y from -0.3 to 1.3.
@@ -111,13 +116,7 @@ TEST(BladeSweep, ABladeThatPassesThroughThinTissueWithinAFrameCutsIt) {
   Scene scene = test::block_scene(2);
   scene.gravity = {0, 0, 0};
   scene.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-  InstrumentSpec scalpel;
-  scalpel.kind = InstrumentSpec::Kind::Scalpel;
-  scalpel.blade = {1.6, 0.01, 0.1};
-  scalpel.edge = {Vec3{0, -0.3, 0}, Vec3{0, 1.3, 0}};  // along y, across the whole width
-  scalpel.contact = false;
-  scalpel.json_path = "instruments[0]";
-  scene.instruments.push_back(scalpel);
+  scene.instruments.push_back(edge_scalpel({1.6, 0.01, 0.1}, Vec3{0, -0.3, 0}, Vec3{0, 1.3, 0}));  // along y, across the whole width
   auto sim = test::make_sim(mesh, scene);
   // Frame 1 only: z from 0.6 down to -0.6 (the plate is 0 <= z <= 0.05).
   sim->pipeline.set(kStageToolPoses, [](Simulation& s) {
@@ -156,13 +155,7 @@ TEST(BladeSweep, ABladeDrawnBackAndForthAlongItsIncisionCutsNothingNew) {
   s.material.young = 3e4;  // soft: the cut sides sag between the strokes (the tip 0.1)
   s.material.rayleigh_mass = 1.0;
   s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-  InstrumentSpec scalpel;
-  scalpel.kind = InstrumentSpec::Kind::Scalpel;
-  scalpel.blade = {0.2, 0.01, 0.1};
-  scalpel.edge = {Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}};
-  scalpel.contact = false;
-  scalpel.json_path = "instruments[0]";
-  s.instruments.push_back(scalpel);
+  s.instruments.push_back(edge_scalpel({0.2, 0.01, 0.1}, Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}));
   auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
   sim->pipeline.set(kStageToolPoses, [&](Simulation& q) {
     q.tools.resize(1);
@@ -213,13 +206,7 @@ TEST(BladeSweep, AScalpelThatStopsAndGoesOnCutsAsIfItHadNot) {
     s.material.model = MaterialModel::Linear;
     s.material.young = 1e5;
     s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-    InstrumentSpec scalpel;
-    scalpel.kind = InstrumentSpec::Kind::Scalpel;
-    scalpel.blade = {0.2, 0.01, 0.1};
-    scalpel.edge = {Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}};
-    scalpel.contact = false;
-    scalpel.json_path = "instruments[0]";
-    s.instruments.push_back(scalpel);
+    s.instruments.push_back(edge_scalpel({0.2, 0.01, 0.1}, Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}));
     auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
     const auto z_at = [&](int f) { return run == 0 ? paused(f) : straight(f); };
     sim->pipeline.set(kStageToolPoses, [&](Simulation& q) {
