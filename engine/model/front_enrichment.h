@@ -56,8 +56,10 @@ inline constexpr int kTipFunctions = 4;
 // taking an enriched front to faces: 0.24 -> 0.21 of the gravity work
 // (FrontEnrichment.ASecondCutThroughTheFrontTakesItToFaces...).
 // Reach 0.5: on the 3k-DOF partial slit (assets/scenes/beam_partial_slit.json)
-// the enriched frame's assembly takes 16 ms against 4.9 with the 4-point
-// rule and 27 with the 27-point rule in every branch element; the
+// the enriched frame's assembly took 16 ms against 4.9 with the 4-point
+// rule and 27 with the 27-point rule in every branch element, all point by
+// point (since the split branch elements' pieces rotate a rest stiffness,
+// build_slot_stiffness: 5 ms, the whole ring elements' points most of it); the
 // ASecondCut... energy change and the 1e-12 h fronts' difference are those
 // of every element (0.207, 5.2e-3); at reach 0.25 they are the 4-point
 // rule's (0.242, 3.6e-4).
