@@ -21,8 +21,13 @@ std::shared_ptr<ReplayWriter> install_record_stage(Simulation& sim, const std::s
   for (const ScenePatch& p : patches) m.patches.push_back({p.key, p.value, p.given});
   m.mesh_file = sim.scene.mesh_file;
   m.mesh_hash = replay_file_hash(sim.scene.mesh_file, "mesh");
+  // Absolute, as scene_path: a scene run by a relative path names its cut
+  // files relative to the folder `run` was started in, and a replay from
+  // another folder could not find them (or would hash another file).
   for (const CutSpec& c : sim.scene.cuts)
-    if (!c.file.empty()) m.files.emplace_back(c.file, replay_file_hash(c.file, "cut surface"));
+    if (!c.file.empty())
+      m.files.emplace_back(std::filesystem::absolute(c.file).lexically_normal().string(),
+                           replay_file_hash(c.file, "cut surface"));
   m.compliance = sim.ws.contacts.compliance;
   m.compliance.resize(sim.scene.instruments.size(), 0.0);
   m.snapshot_every = snapshot_every;

@@ -2,8 +2,11 @@
 // progressive scalpel cut, a probe pressing and a scripted haptic device on
 // its own thread, under the realtime preset (background factor taken when the
 // clock says), replays bit for bit; an edited pose is found at its frame.
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <sys/wait.h>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -112,6 +115,34 @@ TEST_F(Replay, AnEditedInstrumentPoseIsFoundAtItsFrame) {
 }
 
 // The mesh is not in the file, only its hash: a changed mesh is refused.
+// A scene with a mesh-type cut, run by a relative path and replayed from
+// another folder: the recording names the cut file absolutely (it named it
+// relative to the folder the run started in, and the replay failed with
+// "no such cut surface file").
+TEST_F(Replay, AReplayFromAnotherFolderFindsTheCutFile) {
+  std::filesystem::create_directories(dir_ / "c");
+  ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 8 2 2 --out " + path("c/beam.vtu")).code, 0);
+  write("c/cut.obj", "v 1.3 -1 -1\nv 1.3 2 -1\nv 1.3 2 2\nv 1.3 -1 2\nf 1 2 3 4\n");
+  write("c/scene.json", R"({"mesh": {"file": "beam.vtu", "order": 2},
+    "material": {"young": 1e5, "poisson": 0.3, "density": 1},
+    "gravity": [0, 0, -1], "fixed": [{"box": [[-1, -1, -1], [0, 2, 2]]}],
+    "cuts": [{"type": "mesh", "file": "cut.obj"}], "output": {"vtu": false}})");
+  const std::string bin = INCISE_BINARY;
+  const auto in = [&](const std::string& where, const std::string& args) {
+    const std::string log = path("log.txt");
+    const int status = std::system(("cd " + where + " && " + bin + " " + args + " > " + log + " 2>&1").c_str());
+    std::ifstream is(log);
+    std::stringstream ss;
+    ss << is.rdbuf();
+    return Result{WEXITSTATUS(status), ss.str()};
+  };
+  const Result run = in(dir_.string(), "run c/scene.json --frames 3 --record c/r.replay");
+  ASSERT_EQ(run.code, 0) << run.out;
+  const Result v = in(path("c"), "replay r.replay --verify");
+  EXPECT_EQ(v.code, 0) << v.out;
+  EXPECT_NE(v.out.find("match bit for bit"), std::string::npos) << v.out;
+}
+
 TEST_F(Replay, AChangedMeshIsRefused) {
   scene();
   ASSERT_EQ(incise("run " + path("scene.json") + " --frames 2 --record " + path("r.replay")).code, 0);
