@@ -69,11 +69,10 @@ void run_static(const StaticOptions& o) {
               r.converged ? "converged" : "NOT converged", r.iterations, r.residual, sim->scene.static_tolerance,
               clock.ms());
   std::printf("  %s\n", static_report(r).c_str());
-  char unconverged[320];
-  std::snprintf(unconverged, sizeof unconverged,
-                ": static solve did not reach static.tolerance %g in %d iterations (relative residual %g); raise "
-                "static.max_iterations or loosen static.tolerance",
+  char buf[320];
+  std::snprintf(buf, sizeof buf, ": static solve did not reach static.tolerance %g in %d iterations (relative residual %g); ",
                 sim->scene.static_tolerance, r.iterations, r.residual);
+  const std::string unconverged = buf + static_failure_advice(r);
   // An unconverged result is written only when asked for (and still exits 1).
   if (!r.converged && !o.keep_unconverged)
     throw Error(o.scene + unconverged +

@@ -168,6 +168,28 @@ std::string static_report(const StaticResult& r) {
   return out;
 }
 
+std::string static_failure_advice(const StaticResult& r) {
+  const std::vector<double>& h = r.residuals;
+  const size_t n = h.size();
+  if (n < 4) return "raise static.max_iterations or loosen static.tolerance";
+  const size_t half = n / 2;
+  const double early = *std::min_element(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(half));
+  const double late = *std::min_element(h.begin() + static_cast<std::ptrdiff_t>(half), h.end());
+  if (late < 0.1 * early) return "raise static.max_iterations (the residual is still falling) or loosen static.tolerance";
+  char buf[256];
+  if (late < 1e-5)
+    std::snprintf(buf, sizeof buf,
+                  "the residual stopped falling at %.1e, near double precision's floor for this body (its internal "
+                  "forces cancel to roundoff there): loosen static.tolerance to about %.0e; more iterations do not help",
+                  late, 4 * late);
+  else
+    std::snprintf(buf, sizeof buf,
+                  "the residual stopped falling at %.1e: no equilibrium was found near the start (a load too large "
+                  "for the material, a buckling or an unsupported piece); more iterations do not help",
+                  late);
+  return buf;
+}
+
 void start_at_static_equilibrium(const Model& m, State& s, Workspace& ws, double tolerance, int max_iterations,
                                  const std::string& scene_path) {
   const StaticResult r = solve_static(m, s, ws, tolerance, max_iterations, s.time);
@@ -175,10 +197,9 @@ void start_at_static_equilibrium(const Model& m, State& s, Workspace& ws, double
     char buf[320];
     std::snprintf(buf, sizeof buf,
                   ": initial \"static\": the static solve did not reach static.tolerance %g in %d iterations "
-                  "(relative residual %g); raise static.max_iterations or static.tolerance, or start from rest "
-                  "(initial \"rest\")",
+                  "(relative residual %g); ",
                   tolerance, r.iterations, r.residual);
-    throw Error(scene_path + buf);
+    throw Error(scene_path + buf + static_failure_advice(r) + "; or start from rest (initial \"rest\")");
   }
   std::fill(s.v.begin(), s.v.end(), 0.0);
   consistent_acceleration(m, s, ws);  // M a = f_ext - f_int(u): the residual the solve left, ~0

@@ -45,6 +45,16 @@ StaticResult solve_static(const Model& model, State& state, Workspace& ws, doubl
 // points at the end.
 std::string static_report(const StaticResult& result);
 
+// What to do about a solve that did not converge, from its residuals: while
+// they still fall, more iterations ("raise static.max_iterations"); once they
+// have stopped falling (the last half of the iterations lowered the best
+// residual by less than 10x), more iterations do not help: stalled near
+// double precision's floor (below 1e-5: a stiff or tiny body's internal
+// forces cancel to roundoff there), a tolerance that loose; stalled higher,
+// no equilibrium was found near the start (a load too large for the
+// material).
+std::string static_failure_advice(const StaticResult& result);
+
 // The scene key `initial: "static"` (issue 20): the State at frame 0 becomes
 // the static equilibrium under the loads and the prescribed values at t = 0,
 // at rest (v = 0, a from the forces left, ~0), so a hanging organ starts

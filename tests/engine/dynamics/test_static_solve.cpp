@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "engine/dynamics/static_solve.h"
 #include "engine/dynamics/step.h"
@@ -62,6 +63,26 @@ TEST(StaticSolve, NewtonConvergesQuadraticallyOnACorotatedCantilever) {
 }
 
 // The report names the tolerance-independent facts (residuals, line search).
+// The advice of an unconverged solve reads its residuals: still falling,
+// more iterations; stalled low (a stiff beam at E = 1e8 stops at 2.5e-8 of
+// the load, its forces cancelling to roundoff), a looser tolerance; stalled
+// high (E = 100 Pa under its weight: 1 -> 15 and no lower in 200
+// iterations), no equilibrium near the start. It used to say "raise
+// static.max_iterations" in all three.
+TEST(StaticSolve, AdviceForAnUnconvergedSolveFollowsItsResiduals) {
+  StaticResult falling, floor, high;
+  falling.residuals = {1, 1e-2, 1e-4, 1e-6, 1e-7};
+  floor.residuals = {1, 1.4, 2.8e-8, 2.4e-8, 2.4e-8, 2.1e-8, 2.9e-8, 2.7e-8};
+  high.residuals = {1, 15, 12, 14, 9.4, 11, 13, 10};
+  EXPECT_NE(static_failure_advice(falling).find("raise static.max_iterations"), std::string::npos);
+  const std::string f = static_failure_advice(floor), h = static_failure_advice(high);
+  EXPECT_NE(f.find("stopped falling at 2.1e-08, near double precision's floor"), std::string::npos) << f;
+  EXPECT_NE(f.find("loosen static.tolerance to about 8e-08"), std::string::npos) << f;
+  EXPECT_EQ(f.find("raise static.max_iterations"), std::string::npos) << f;
+  EXPECT_NE(h.find("stopped falling at 9.4e+00: no equilibrium was found near the start"), std::string::npos) << h;
+  EXPECT_EQ(h.find("raise static.max_iterations"), std::string::npos) << h;
+}
+
 TEST(StaticSolve, ReportListsTheResidualsAndTheLineSearch) {
   const StaticResult r = solve_cantilever(1.0, 1e-7);
   ASSERT_TRUE(r.converged);
