@@ -20,6 +20,7 @@
 #include "engine/util/error.h"
 #include "engine/util/file_io.h"
 #include "engine/util/json_depth.h"
+#include "engine/util/number_text.h"
 #include "tools/commands.h"
 #include "tools/option_checks.h"
 #include "tools/frame_list.h"
@@ -208,15 +209,29 @@ void run_point(const fs::path& dir, int k) {
     if (!plan["probe"].get<std::string>().empty()) probes = read_probe_points(plan["probe"]);
     auto sim = load_checked_simulation(plan["scene"], point_patches(plan, k));
     std::printf("%s", format_resolved_settings(sim->scene).c_str());
+    // --frames are frames of the base scene's dt: a point with another dt
+    // (a dt sweep) samples at the same times, its frame f dt_base / dt. Its
+    // samples were taken at the same frame numbers, i.e. other times (0.66
+    // "error" between dt = 1/30 and 1/60 at frame 5 of a beam at rest).
+    const double base_dt = load_scene(plan["scene"]).dt;
+    std::vector<int> at;
+    for (const int f : frames) {
+      const double g = f * base_dt / sim->model.dt;
+      if (!(std::abs(g - std::round(g)) <= 1e-6 * std::max(1.0, g)))
+        throw Error("study: integrator.dt " + number_text(sim->model.dt, 6) + " does not reach frame " +
+                    std::to_string(f) + " of the base scene's dt " + number_text(base_dt, 6) + " (t = " +
+                    number_text(f * base_dt, 6) + " s) in whole steps; sweep dt by divisors of the base dt");
+      at.push_back(static_cast<int>(std::round(g)));
+    }
     res["dof"] = sim->model.ndof();
     res["energy_start"] = total_energy(sim->model, sim->state);
     double energy_scale = std::abs(res["energy_start"].get<double>());
     std::vector<FrameTiming> t;
     res["samples"] = nlohmann::json::array();
     if (!probes.empty()) res["probe"] = nlohmann::json::array();
-    for (int f = 1, c = 0; f <= frames.back(); ++f) {
+    for (int f = 1, c = 0; f <= at.back(); ++f) {
       t.push_back(advance_frame(*sim));
-      if (frames[static_cast<size_t>(c)] != f) continue;
+      if (at[static_cast<size_t>(c)] != f) continue;
       ++c;
       res["samples"].push_back(sample(*sim, body));
       energy_scale = std::max(energy_scale, std::abs(total_energy(sim->model, sim->state)));
