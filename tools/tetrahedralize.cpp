@@ -1,7 +1,9 @@
 #include "tools/tetrahedralize.h"
 
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -98,6 +100,22 @@ Mesh tetrahedralize(const std::string& surface, double size, double quality) {
       fs::remove_all(p, ec);
     }
   } cleanup{tmp};
+  // TetGen 1.5 reads ASCII STL only; a binary one (80-byte header, a
+  // triangle count, 50 bytes a triangle) made it abort, and the error then
+  // blamed the surface's shape.
+  if (ext == ".stl") {
+    check_input_file(surface, kMaxMeshBytes, "surface");
+    std::ifstream is(surface, std::ios::binary);
+    char head[84] = {0};
+    is.read(head, sizeof head);
+    std::uint32_t ntri = 0;
+    std::memcpy(&ntri, head + 80, 4);
+    const std::uintmax_t bytes = fs::file_size(surface);
+    if (is.gcount() == 84 && bytes == 84 + 50 * static_cast<std::uintmax_t>(ntri))
+      throw Error(surface + ": a binary STL (" + std::to_string(ntri) +
+                  " triangles); TetGen reads ASCII STL only: convert it to ASCII STL or OBJ (e.g. meshio convert "
+                  "--ascii in.stl out.stl)");
+  }
   const fs::path in = tmp / (std::string("surface") + (ext == ".obj" ? ".off" : ext));
   if (ext == ".obj") obj_to_off(surface, in.string());
   else fs::copy_file(surface, in);

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -143,6 +144,22 @@ TEST_F(Cli, TetrahedralizeFillsAClosedSurfaceAndRefusesAnOpenOne) {
   EXPECT_NE(bad.code, 0);
   EXPECT_NE(bad.out.find("open.stl: TetGen made no tetrahedra: the surface is not closed"), std::string::npos) << bad.out;
   EXPECT_FALSE(fs::exists(path("o.msh")));
+  // A binary STL (TetGen reads ASCII only; it aborted and the message blamed the surface's shape).
+  {
+    std::ofstream os(path("bin.stl"), std::ios::binary);
+    const char header[80] = "binary STL";
+    os.write(header, 80);
+    const std::uint32_t n = 1;
+    os.write(reinterpret_cast<const char*>(&n), 4);
+    const float tri[12] = {0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0};
+    os.write(reinterpret_cast<const char*>(tri), sizeof tri);
+    os.write("\0\0", 2);
+  }
+  const Result binary = incise("mesh tetrahedralize " + path("bin.stl") + " --size 0.01 --out " + path("b.msh"));
+  EXPECT_NE(binary.code, 0);
+  EXPECT_NE(binary.out.find("bin.stl: a binary STL (1 triangles); TetGen reads ASCII STL only"), std::string::npos)
+      << binary.out;
+  EXPECT_FALSE(fs::exists(path("b.msh")));
 }
 
 TEST_F(Cli, MeshConvertRaisesToTet10) {
