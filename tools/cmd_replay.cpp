@@ -165,12 +165,32 @@ void replay(const ReplayOptions& o) {
       throw Error(o.file + buf);
     }
   } else if (o.verify) {
-    std::printf("replay: all %d frames match bit for bit (u, v, a, R, topology and clock hashes)\n", frames);
+    if (frames > 0) std::printf("replay: all %d frames match bit for bit (u, v, a, R, topology and clock hashes)\n", frames);
+    else std::printf("replay: the recording holds no frame to compare\n");
   } else {
     std::printf("replay: %d frames stepped\n", frames);
   }
-  if (!r.end_status.empty() && frames == static_cast<int>(r.frames.size()))
-    std::printf("the recorded run stopped after frame %zu: %s\n", r.frames.size(), r.end_status.c_str());
+  if (r.end_status.empty() || frames != static_cast<int>(r.frames.size())) return;
+  std::printf("the recorded run stopped after frame %zu: %s\n", r.frames.size(), r.end_status.c_str());
+  if (!compare) return;
+  // The failing frame itself is not in the recording (it stopped before its
+  // end). Without instruments nothing else drives it: step it and check the
+  // run fails again, so a verified replay of a failed run checks the
+  // failure too (it used to end "all 0 frames match bit for bit").
+  if (!s.scene.instruments.empty()) {
+    std::printf("replay: the failing frame's instrument poses are not in the recording: the failure is not replayed\n");
+    return;
+  }
+  std::string again;
+  try {
+    advance_frame(s);
+  } catch (const std::exception& e) {
+    again = e.what();
+  }
+  if (again.empty())
+    throw Error(o.file + ": the recorded run stopped after frame " + std::to_string(r.frames.size()) + " (" +
+                r.end_status + "), the replay stepped the next frame without error");
+  std::printf("replay: the failure reproduces at frame %zu: %s\n", r.frames.size() + 1, again.c_str());
 }
 
 }  // namespace

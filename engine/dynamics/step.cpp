@@ -410,20 +410,20 @@ void check_motion_bounded(const Model& m, const State& s) {
       std::ostringstream os;
       os << "step: the motion diverged at frame " << s.frame << " (t = " << s.time << "): DOF " << d << " moves at "
          << std::abs(s.v[d]) << " units/s, more than " << kDivergedSpeed << " body lengths (" << length
-         << ") a second; the simulation was stopped.";
+         << ") a second; the simulation was stopped";
       // Advice for what this run is (it used to name lagged and cuts always).
       const bool iterative = m.solver.policy != SolverPolicy::Exact;
       if (iterative && m.has_cuts())
-        os << " Under solver.policy " << policy_name(m.solver.policy)
+        os << ". Under solver.policy " << policy_name(m.solver.policy)
            << ", a tiny cut piece whose DOFs CG leaves far off can do this: raise solver.condense_below (condenses "
-              "them out exactly), or use solver.policy exact.";
+              "them out exactly), or use solver.policy exact";
       else if (iterative)
-        os << " Try solver.policy exact: if it runs, the iterative solve (solver.tolerance) let the motion grow.";
-      if (m.consistent_tangent) os << " With integrator.tangent consistent: try frozen_rotation.";
+        os << ". Try solver.policy exact: if it runs, the iterative solve (solver.tolerance) let the motion grow";
+      if (m.consistent_tangent) os << ". With integrator.tangent consistent: try frozen_rotation";
       if (m.material.poisson > 0.49 && m.newton_iterations == 1)
-        os << " Near-incompressible (material.poisson > 0.49) with one linearised solve a step: add "
-              "material.rayleigh.stiffness (docs/numerics.md).";
-      if (!m.prescribed.empty()) os << " Check the prescribed displacements (a ramp too fast for the tissue).";
+        os << ". Near-incompressible (material.poisson > 0.49) with one linearised solve a step: add "
+              "material.rayleigh.stiffness (docs/numerics.md)";
+      if (!m.prescribed.empty()) os << ". Check the prescribed displacements (a ramp too fast for the tissue)";
       throw NumericalError(os.str(), static_cast<long>(d));
     }
 }

@@ -143,6 +143,29 @@ TEST_F(Replay, AReplayFromAnotherFolderFindsTheCutFile) {
   EXPECT_NE(v.out.find("match bit for bit"), std::string::npos) << v.out;
 }
 
+// A recorded run that failed: its failing frame is not in the recording
+// (it stopped before the frame's end), so `replay --verify` steps it again
+// and checks the run fails the same way. It used to end "all 0 frames
+// match bit for bit" and exit 0 without stepping it.
+TEST_F(Replay, AFailedRunsFailureIsReplayedToo) {
+  ASSERT_EQ(incise("mesh beam --size 0.1 0.02 0.02 --cells 4 1 1 --out " + path("b.vtu")).code, 0);
+  // The free end yanked 1 m in one step: the motion diverges in frame 1.
+  write("fail.json", R"({"mesh": {"file": "b.vtu", "order": 2},
+    "material": {"young": 1e5, "poisson": 0.45, "density": 1000},
+    "gravity": [0, 0, 0], "fixed": [{"box": [[-1, -1, -1], [0, 1, 1]]}],
+    "prescribed": [{"plane": {"point": [0.1, 0, 0], "normal": [-1, 0, 0]}, "displacement": {"z": 1e4}}],
+    "output": {"vtu": false}})");
+  const Result run = incise("run " + path("fail.json") + " --frames 3 --record " + path("f.replay"));
+  ASSERT_NE(run.code, 0) << run.out;
+  ASSERT_NE(run.out.find("the motion diverged at frame 1"), std::string::npos) << run.out;
+  const Result v = incise("replay " + path("f.replay") + " --verify");
+  EXPECT_EQ(v.code, 0) << v.out;
+  EXPECT_NE(v.out.find("replay: the recording holds no frame to compare"), std::string::npos) << v.out;
+  EXPECT_NE(v.out.find("replay: the failure reproduces at frame 1: step: the motion diverged at frame 1"),
+            std::string::npos)
+      << v.out;
+}
+
 TEST_F(Replay, AChangedMeshIsRefused) {
   scene();
   ASSERT_EQ(incise("run " + path("scene.json") + " --frames 2 --record " + path("r.replay")).code, 0);
