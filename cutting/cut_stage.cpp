@@ -4,6 +4,9 @@
 
 #include "cutting/blade_sweep.h"
 #include "cutting/cut_apply.h"
+#include "engine/dynamics/static_solve.h"
+#include "engine/runtime/failure_context.h"
+#include "engine/util/error.h"
 
 namespace incise {
 
@@ -28,6 +31,21 @@ void install_cutting_stage(Simulation& sim) {
   for (const InstrumentSpec& i : sim.scene.instruments) scalpel = scalpel || i.kind == InstrumentSpec::Kind::Scalpel;
   if (!sim.scene.cuts.empty() || scalpel) sim.pipeline.set(kStageCutting, cutting_stage);
   warn_cuts_that_cut_nothing(sim);
+  // initial "static" with cuts due at t = 0: load_simulation solved the
+  // uncut equilibrium (engine/ does not cut), so the scene started there
+  // and moved at once when the first frame cut (a partial slit: 0.57 m/s at
+  // frame 1). The cuts are applied now and the equilibrium solved again
+  // from there.
+  bool due = false;
+  for (const CutSpec& c : sim.scene.cuts) due = due || c.at_time <= 0.0;
+  if (sim.scene.initial_static && due && sim.state.frame == 0 && update_cuts(sim, 0.0, 0.0).changed) {
+    try {
+      start_at_static_equilibrium(sim.model, sim.state, sim.ws, sim.scene.static_tolerance,
+                                  sim.scene.static_max_iterations, sim.scene.path);
+    } catch (const NumericalError& e) {
+      throw Error(sim.scene.path + ": initial \"static\" with the cuts at t = 0: " + with_failure_context(e, sim.model));
+    }
+  }
   if (scalpel && sim.scene.front_enrichment)
     std::fprintf(stderr,
                  "warning: %s: cut_front \"enriched\" enriches the fronts of the scene's cuts once they are "

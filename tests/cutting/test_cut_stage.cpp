@@ -1,5 +1,8 @@
 // The cutting stage in the frame's pipeline, and the State as a value across
 // cuts: a copy taken before, during or after an incision continues exactly.
+#include <algorithm>
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include "cutting/cut_stage.h"
@@ -67,6 +70,37 @@ TEST(CutStage, OnlyAScenesWithCutsHaveTheStage) {
   EXPECT_GT(cut_frames, 2) << "the progressive cut changed the model in several frames";
   EXPECT_EQ(cut->state.cut_progress.size(), 1u);
   EXPECT_DOUBLE_EQ(cut->state.cut_progress[0], 1.0) << "the sweep ended at 0.6 s";
+}
+
+// initial "static" with a cut due at t = 0 (a partial slit declared in the
+// scene): the scene starts at the equilibrium of the cut beam, at rest. The
+// equilibrium used to be the uncut one (load_simulation cannot cut), the
+// first frame cut, and the beam moved at once (0.57 m/s at frame 1 on
+// assets/scenes/beam_partial_slit.json).
+TEST(CutStage, AnInitialStaticSceneStartsAtRestWithItsCutsAtTimeZero) {
+  Scene s = test::block_scene(2);
+  s.material.young = 1e3;
+  s.material.rayleigh_mass = 1.0;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  CutSpec slit;  // x = 2.05 from the top down to z = 0.4
+  slit.type = CutSpec::Type::Polygon;
+  slit.points = {{2.05, -1, 0.4}, {2.05, 2, 0.4}, {2.05, 2, 3}, {2.05, -1, 3}};
+  slit.json_path = "cuts[0]";
+  s.cuts = {slit};
+  s.initial_static = true;
+  auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
+  EXPECT_TRUE(sim->model.has_cuts()) << "the cut applied before frame 0";
+  double sag = 0;
+  for (int i = 0; i < sim->model.nnode; ++i) sag = std::max(sag, std::abs(sim->state.u[3 * i + 2]));
+  ASSERT_GT(sag, 1e-3);
+  double vmax = 0;
+  int cut_frames = 0;
+  for (int k = 0; k < 5; ++k) {
+    cut_frames += advance_frame(*sim).cut_frame;
+    for (double v : sim->state.v) vmax = std::max(vmax, std::abs(v));
+  }
+  EXPECT_EQ(cut_frames, 0);
+  EXPECT_LT(vmax * sim->model.dt, 1e-3 * sag) << "at rest: moved less than 0.1% of the sag a frame";
 }
 
 }  // namespace
