@@ -213,7 +213,10 @@ TEST_F(CliErrors, MalformedStudyFilesAreErrorsNamingTheFile) {
   EXPECT_NE(r.out.find(path("st/study.json") + ":1: nested deeper than 64 levels"), std::string::npos) << r.out;
   // a real study, then a point result of another shape
   beam_scene();
-  ASSERT_EQ(incise("study " + path("scene.json") + " --sweep dt=0.02,0.03 --frames 1 --out " + path("s2")).code, 0);
+  // (dt values that reach frame 1 of the base dt, 1/30 s, in whole steps: StudyCli.ADtSweepComparesAtEqualTimes)
+  ASSERT_EQ(incise("study " + path("scene.json") + " --sweep dt=0.0166666666666667,0.0333333333333333 --frames 1 --out " +
+                   path("s2")).code,
+            0);
   write("s2/points/point_1.json", R"({"point": 1, "frame_ms": 3})");
   r = incise("study --collect " + path("s2"));
   EXPECT_EQ(r.code, 1) << r.out;
