@@ -209,11 +209,12 @@ void run_point(const fs::path& dir, int k) {
     if (!plan["probe"].get<std::string>().empty()) probes = read_probe_points(plan["probe"]);
     auto sim = load_checked_simulation(plan["scene"], point_patches(plan, k));
     std::printf("%s", format_resolved_settings(sim->scene).c_str());
-    // --frames are frames of the base scene's dt: a point with another dt
-    // (a dt sweep) samples at the same times, its frame f dt_base / dt. Its
-    // samples were taken at the same frame numbers, i.e. other times (0.66
-    // "error" between dt = 1/30 and 1/60 at frame 5 of a beam at rest).
-    const double base_dt = load_scene(plan["scene"]).dt;
+    // --frames are frames of the base scene's dt (with the study's --set
+    // patches, not its sweeps): a point with another dt (a dt sweep)
+    // samples at the same times, its frame f dt_base / dt. Its samples were
+    // taken at the same frame numbers, i.e. other times (0.66 "error"
+    // between dt = 1/30 and 1/60 at frame 5 of a swinging beam).
+    const double base_dt = load_scene(plan["scene"], point_patches(plan, k, false)).dt;
     std::vector<int> at;
     for (const int f : frames) {
       const double g = f * base_dt / sim->model.dt;

@@ -97,6 +97,9 @@ TEST_F(StudyCli, ADtSweepComparesAtEqualTimes) {
   EXPECT_EQ(f[2], "ok") << line;
   EXPECT_GT(std::stod(f[6]), 0.0) << line;
   EXPECT_LT(std::stod(f[6]), 0.1) << line;
+  // A --set dt for every point is the base dt: no sweep, nothing to map.
+  const test::Result set = test::incise("study " + path("scene.json") + " --set integrator.dt=0.03 --sweep order=1,2 --frames 3 --out " + path("u"));
+  EXPECT_EQ(set.code, 0) << set.out;
   const test::Result bad = test::incise("study " + path("scene.json") + " --sweep dt=0.0333333333333333,0.025 --frames 5 --out " + path("t"));
   EXPECT_NE(bad.out.find("study: integrator.dt 0.025 does not reach frame 5 of the base scene's dt"), std::string::npos) << bad.out;
 }
