@@ -1,7 +1,11 @@
 // incise render: step K frames and render that frame to a PNG.
+#include <cctype>
 #include <cstdio>
+#include <filesystem>
+#include <string>
 
 #include "engine/runtime/simulation.h"
+#include "engine/util/error.h"
 #include "tools/commands.h"
 #include "tools/option_checks.h"
 #include "tools/frame_loop.h"
@@ -18,6 +22,10 @@ struct RenderOptions {
 };
 
 void render_command(const RenderOptions& o) {
+  // PNG only: a .jpg name got PNG bytes.
+  std::string ext = std::filesystem::path(o.out).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".png") throw Error("--out: the image is written as PNG: the file must end in .png, got " + o.out);
   auto sim = load_checked_simulation(o.scene, o.patches);
   RenderSettings settings = sim->scene.render;
   if (o.width > 0) settings.width = o.width;

@@ -194,10 +194,11 @@ void add_run_command(CLI::App& app) {
   cmd->add_option("--out", opts->out, "Output folder for the .pvd/.vtu series and timing.json (default: output.dir)");
   cmd->add_option("--render", opts->render_dir, "Render every frame offscreen to DIR/frame_00000.png ... (+ DIR/frames.mp4 with ffmpeg)");
   add_egl_platform_option(*cmd, opts->platform);
-  cmd->add_flag("--haptics", opts->haptics,
+  auto* haptics = cmd->add_flag("--haptics", opts->haptics,
                 "Run the scene's haptic device (\"haptics\") on a 1 kHz thread beside frames paced at 1/dt; writes "
                 "haptics_force.csv (t,fx,fy,fz,tick_us,late_us), haptics_device.csv, haptics_events.csv, haptics.json");
-  cmd->add_option("--haptics-dir", opts->haptics_dir, "Folder for the haptic logs (default: --out, else output.dir, else .)");
+  cmd->add_option("--haptics-dir", opts->haptics_dir, "Folder for the haptic logs (default: --out, else output.dir, else .)")
+      ->needs(haptics);  // without the thread there are no logs (it was ignored in silence)
   cmd->add_option("--pace", opts->pace_hz, "Start frames at this rate in Hz (default: 1/dt with --haptics, else back to back; 0: back to back)")
       ->check(pace_rate());
   cmd->add_option("--record", opts->record,

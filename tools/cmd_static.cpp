@@ -109,8 +109,10 @@ void add_static_command(CLI::App& app) {
   auto opts = std::make_shared<StaticOptions>();
   auto* cmd = app.add_subcommand("static", "Solve the static equilibrium (Newton on the corotated forces)");
   cmd->add_option("scene", opts->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--probe", opts->probe, "CSV of reference points x,y,z (header allowed)")->check(CLI::ExistingFile);
-  cmd->add_option("--out", opts->out, "Probe result CSV x,y,z,ux,uy,uz (default: stdout)");
+  auto* probe = cmd->add_option("--probe", opts->probe, "CSV of reference points x,y,z (header allowed)")
+                    ->check(CLI::ExistingFile);
+  // Without --probe there is nothing to write there (it was ignored in silence).
+  cmd->add_option("--out", opts->out, "Probe result CSV x,y,z,ux,uy,uz (default: stdout)")->needs(probe);
   cmd->add_option("--vtu", opts->vtu, "Also write the deformed mesh with fields to this .vtu");
   cmd->add_flag("--keep-unconverged", opts->keep_unconverged,
                 "Write --vtu and --out even when Newton does not reach static.tolerance (the last iterate; the exit "

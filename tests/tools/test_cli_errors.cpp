@@ -105,6 +105,10 @@ TEST_F(CliErrors, NonFiniteAndAbsurdOptionsAreRefusedWithTheRange) {
       {"mesh beam --size 1 1 1 --cells 1 1 3000000000 --out " + path("b.vtu"), "--cells: must be an integer from 1 to 1666666"},
       {"mesh tetrahedralize " + scene + " --size nan --out " + path("b.vtu"), "--size: must be a finite number from 1e-09 to 1000000000, got nan"},
       {"mesh tetrahedralize " + scene + " --size 1 --quality 0.5 --out " + path("b.vtu"), "--quality: must be a finite number from 1.1 to 10"},
+      // options that did nothing without another, in silence
+      {"static " + scene + " --out " + path("b.vtu"), "--out requires --probe"},
+      {"run " + scene + " --frames 1 --haptics-dir " + path("h"), "--haptics-dir requires --haptics"},
+      {"render " + scene + " --out " + path("x.jpg"), "--out: the image is written as PNG: the file must end in .png, got "},
   };
   for (const auto& [args, want] : cases) {
     const Result r = incise(args);
