@@ -157,6 +157,8 @@ int sweep_blades(Simulation& sim) {
   int added = 0;
   State& st = sim.state;
   std::unique_ptr<TissueLocator> locator;  // made once, when a blade moved
+  std::unique_ptr<TissueLocator> body;     // the reference configuration, made once, when a band may re-cut
+  const double h = element_size(sim.model);
   double spacing = -1;
   using Row = std::array<std::array<double, 3>, kSweepSegments + 1>;
   for (size_t i = 0; i < sim.scene.instruments.size() && i < sim.tools.size(); ++i) {
@@ -232,13 +234,12 @@ int sweep_blades(Simulation& sim) {
           for (int d = 0; d < 3; ++d) d2 += (prev[j][d] - row[0][j][d]) * (prev[j][d] - row[0][j][d]);
           far = std::max(far, std::sqrt(d2));
         }
-        if (far <= (prev_frame == st.frame - 1 ? 1.0 : 0.5) * element_size(sim.model)) row[0] = prev;
+        if (far <= (prev_frame == st.frame - 1 ? 1.0 : 0.5) * h) row[0] = prev;
       }
     }
     // The incision this blade made before this frame.
     const std::unique_ptr<CutSurface> old =
         make_swept_surface(st.swept, st.swept_tool, static_cast<int>(i), spec.json_path);
-    const double h = element_size(sim.model);
     // Triangle (a, b, c), as the nearest old facet faces where it continues
     // the incision in about its plane: (b, a, c) when it faced the other way
     // (the blade drawn back; last_edge reads the third corners).
@@ -266,7 +267,6 @@ int sweep_blades(Simulation& sim) {
     // nearest-facet level set between two such sheets changed sign from
     // node to node: a withdrawal cut off a zero-thickness sliver that
     // flailed, cutting back and forth diverged.
-    std::unique_ptr<TissueLocator> body;  // the reference configuration
     const auto recuts = [&](int k) {
       if (!old) return false;
       if (!body) body = std::make_unique<TissueLocator>(sim.model, nullptr);
