@@ -15,23 +15,30 @@ namespace {
 using Mat3 = Eigen::Matrix3d;
 using Vec3d = Eigen::Vector3d;
 
-// F = sum_a x_a (x) grad_a over the element's DOF nodes.
-Mat3 deformation_gradient(const Model& m, int e, const double* u, const double* grad) {
+// G = F - I = sum_a u_a (x) grad_a over the element's DOF nodes (F = sum_a
+// x_a (x) grad_a and sum_a X_a (x) grad_a = I; summing positions loses
+// |X| / h digits: assemble_parallel.cpp, add_identity).
+Mat3 displacement_gradient(const Model& m, int e, const double* u, const double* grad) {
   Mat3 F = Mat3::Zero();
   const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
   for (int a = 0; a < n; ++a) {
     const int node = m.elem_dof_node[b + a];
-    const Vec3d x(m.X[3 * node] + u[3 * node], m.X[3 * node + 1] + u[3 * node + 1],
-                  m.X[3 * node + 2] + u[3 * node + 2]);
-    F += x * Vec3d(grad[3 * a], grad[3 * a + 1], grad[3 * a + 2]).transpose();
+    const Vec3d ua(u[3 * node], u[3 * node + 1], u[3 * node + 2]);
+    F += ua * Vec3d(grad[3 * a], grad[3 * a + 1], grad[3 * a + 2]).transpose();
   }
   return F;
 }
 
+// The corotated strain sym(R^T F) - I from G = F - I, as sym(R^T G + R^T - I)
+// (no cancellation against I).
+Mat3 corotated_strain(const Mat3& R, const Mat3& G) {
+  const Mat3 E = R.transpose() * G + R.transpose() - Mat3::Identity();
+  return 0.5 * (E + E.transpose());
+}
+
 // Corotated stress sig' (in the unrotated frame) at one point.
-Mat3 corotated_stress(const Model& m, const Mat3& R, const Mat3& F) {
-  const Mat3 RtF = R.transpose() * F;
-  const Mat3 eps = 0.5 * (RtF + RtF.transpose()) - Mat3::Identity();
+Mat3 corotated_stress(const Model& m, const Mat3& R, const Mat3& G) {
+  const Mat3 eps = corotated_strain(R, G);
   return 2.0 * m.mu * eps + m.lambda * eps.trace() * Mat3::Identity();
 }
 }  // namespace
@@ -68,7 +75,7 @@ int update_rotations(const Model& m, const double* u, double* R, int r_begin, in
   }
   int fallbacks = 0;
   for (int r = r_begin; r < r_end; ++r) {
-    const Mat3 F = deformation_gradient(m, m.rot_elem[r], u, &m.rot_grad[m.rot_grad_ptr[r]]);
+    const Mat3 F = Mat3::Identity() + displacement_gradient(m, m.rot_elem[r], u, &m.rot_grad[m.rot_grad_ptr[r]]);
     Mat3 Rr = Eigen::Map<const Mat3>(R + 9 * r);
     if (extract_rotation(F, Rr) < 0) ++fallbacks;
     Eigen::Map<Mat3>(R + 9 * r) = Rr;
@@ -97,7 +104,7 @@ void assemble_internal(const Model& m, const double* u, const double* R, double*
       const int r = m.qp_rot[q];
       if (slot_w[r] <= 0.0 || std::find(done.begin(), done.end(), r) != done.end()) continue;
       done.push_back(r);
-      const Mat3 Fbar = deformation_gradient(m, e, u, &m.rot_grad[m.rot_grad_ptr[r]]);
+      const Mat3 Fbar = Mat3::Identity() + displacement_gradient(m, e, u, &m.rot_grad[m.rot_grad_ptr[r]]);
       add_slot_rotation_stiffness(n, R + 9 * r, Fbar.data(), &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda, slot_w[r],
                                   Kloc.data(), h.data(), t.data());
     }
@@ -105,8 +112,9 @@ void assemble_internal(const Model& m, const double* u, const double* R, double*
       const double w = m.qp_weight[q];
       const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
       const Eigen::Map<const Mat3> Rq(R + 9 * m.qp_rot[q]);
-      const Mat3 F = deformation_gradient(m, e, u, g);
-      const Mat3 P = w * (Rq * corotated_stress(m, Rq, F));  // w R sig'
+      const Mat3 G = displacement_gradient(m, e, u, g);
+      const Mat3 F = Mat3::Identity() + G;
+      const Mat3 P = w * (Rq * corotated_stress(m, Rq, G));  // w R sig'
       for (int a = 0; a < n; ++a) {
         const Vec3d ga(g[3 * a], g[3 * a + 1], g[3 * a + 2]);
         const Vec3d fa = P * ga;
@@ -151,8 +159,7 @@ void element_von_mises(const Model& m, const double* u, const double* R, double*
     double vol = 0.0;
     for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
       const Eigen::Map<const Mat3> Rq(R + 9 * m.qp_rot[q]);
-      const Mat3 F = deformation_gradient(m, e, u, &m.qp_grad[m.qp_grad_ptr[q]]);
-      s += m.qp_weight[q] * corotated_stress(m, Rq, F);
+      s += m.qp_weight[q] * corotated_stress(m, Rq, displacement_gradient(m, e, u, &m.qp_grad[m.qp_grad_ptr[q]]));
       vol += m.qp_weight[q];
     }
     s /= vol;
@@ -169,8 +176,7 @@ double elastic_energy(const Model& m, const double* u, const double* R) {
   for (int e = 0; e < m.nelem; ++e)
     for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q) {
       const Eigen::Map<const Mat3> Rq(R + 9 * m.qp_rot[q]);
-      const Mat3 RtF = Rq.transpose() * deformation_gradient(m, e, u, &m.qp_grad[m.qp_grad_ptr[q]]);
-      const Mat3 eps = 0.5 * (RtF + RtF.transpose()) - Mat3::Identity();
+      const Mat3 eps = corotated_strain(Rq, displacement_gradient(m, e, u, &m.qp_grad[m.qp_grad_ptr[q]]));
       E += m.qp_weight[q] * (m.mu * (eps.array() * eps.array()).sum() + 0.5 * m.lambda * eps.trace() * eps.trace());
     }
   return E;

@@ -200,13 +200,27 @@ inline void grad_sum(int n_dyn, const double* x, const double* g, double* F) {
   std::memcpy(F, f, sizeof f);
 }
 
-// P = w R sig(S) with S = R^T F; sig = mu (S + S^T) + lambda tr(S) I (- (2 mu + 3 lambda) I when `strain`).
-inline void rotated_stress(const double* R, const double* F, double w, double mu, double lambda, bool strain, double* P) {
-  const Eigen::Map<const Mat3> Rm(R), Fm(F);
-  const Mat3 S = Rm.transpose() * Fm;
-  Mat3 sig = mu * (S + S.transpose());
-  const double tr = strain ? S.trace() - 3.0 : S.trace();
-  sig.diagonal().array() += lambda * tr - (strain ? 2.0 * mu : 0.0);
+// Deformation gradients are kept as G = F - I = sum_a u_a g_a^T (u: the
+// element's DOF nodes' displacements). sum_a X_a g_a^T = I holds at every
+// point and slot by construction (the isoparametric map; enriched and branch
+// DOF nodes have X = 0). Summing positions X_a + u_a instead loses |X| / h
+// digits to cancellation, and forming I + G loses G's below eps: strain
+// errors of 1e-14 and 1e-16, stress errors E times that, which stopped the
+// static solve of a beam at E = 1e8 Pa at 2.5e-8 of its load (2e11: 5e-5).
+inline void add_identity(const double* G, double* F) {
+  std::memcpy(F, G, 9 * sizeof(double));
+  F[0] += 1.0, F[4] += 1.0, F[8] += 1.0;
+}
+
+// P = w R sig(E); sig = mu (E + E^T) + lambda tr(E) I, E = R^T G, or with
+// `strain` (G = F - I) R^T F - I = R^T G + (R^T - I): the strain formed
+// without the cancellation of R^T F - I.
+inline void rotated_stress(const double* R, const double* G, double w, double mu, double lambda, bool strain, double* P) {
+  const Eigen::Map<const Mat3> Rm(R), Gm(G);
+  Mat3 E = Rm.transpose() * Gm;
+  if (strain) E += Rm.transpose() - Mat3::Identity();
+  Mat3 sig = mu * (E + E.transpose());
+  sig.diagonal().array() += lambda * E.trace();
   Eigen::Map<Mat3> Pm(P);
   Pm.noalias() = w * (Rm * sig);
 }
@@ -214,18 +228,20 @@ inline void rotated_stress(const double* R, const double* F, double w, double mu
 // A condensed slot (Model::rot_K0, over k nodes: the npe mesh nodes in the
 // piece's displacements d_a = in_a + in_{p(a)}, p = the slot's partner list,
 // or all the element's DOF nodes with p = -1):
-// t_a = sum_b K0_ab (R^T d_b - X_b), and out gains R t_a at a and at p(a)
-// (X = null: no rest positions, the product R^ K0 R^T in). K0 holds blocks
+// t_a = sum_b K0_ab (R^T d_b + (R^T - I) X_b), the piece's R^T x - X with
+// in = displacements (not positions: see add_identity), and out
+// gains R t_a at a and at p(a) (X = null: the product R^ K0 R^T in). K0 holds blocks
 // a <= b, row-major; y and t are (k, 3) scratch.
 void condensed_slot_force(int k, const double* K0, const int* partner, const double* R, const double* in,
                           const double* X, const int* nodes, double* y, double* t, double* out) {
   const Eigen::Map<const Mat3> Rm(R);
+  const Mat3 RtmI = Rm.transpose() - Mat3::Identity();
   for (int a = 0; a < k; ++a) {
     Eigen::Vector3d d = Eigen::Map<const Eigen::Vector3d>(in + 3 * a);
     if (partner[a] >= 0) d += Eigen::Map<const Eigen::Vector3d>(in + 3 * partner[a]);
     Eigen::Map<Eigen::Vector3d> ya(y + 3 * a);
     ya.noalias() = Rm.transpose() * d;
-    if (X) ya -= Eigen::Map<const Eigen::Vector3d>(X + 3 * nodes[a]);
+    if (X) ya.noalias() += RtmI * Eigen::Map<const Eigen::Vector3d>(X + 3 * nodes[a]);
   }
   // t = K0 y from the upper blocks: (a, b) adds K_ab y_b to t_a and K_ab^T y_a to t_b.
   std::fill(t, t + 3 * k, 0.0);
@@ -302,12 +318,13 @@ inline void prefetch_element_K(const Model& m, int e, double* K) {
 }
 
 // The rotations of element e's slots (identity for the linear model), each
-// from its slot's F = sum_a xe_a g_a^T, which Fs (slots, 9) keeps for the
-// points that share it (qp_slot_F). keep (in/out) stays true while every
-// |F - cache F| <= theta (a NaN: false); `probe` compares into would_keep
-// instead and stores F in the cache. Returns the SVD fallbacks.
+// from its slot's F = I + G, G = sum_a u_a g_a^T, which Fs (slots, 9) keeps
+// (as G) for the points that share it (qp_slot_F). keep (in/out) stays true
+// while every |F - cache F| <= theta (a NaN: false); `probe` compares into
+// would_keep instead and stores F (as G) in the cache. Returns the SVD
+// fallbacks.
 template <int NN>
-inline int element_rotations(const Model& m, const AssemblyPlan& plan, int e, int n, const double* xe, double* Rall,
+inline int element_rotations(const Model& m, const AssemblyPlan& plan, int e, int n, const double* ue, double* Rall,
                              double* Fs, TangentCache* cache, bool probe, bool& keep, bool& would_keep) {
   int fallbacks = 0;
   const bool linear = m.material.model == MaterialModel::Linear;
@@ -318,10 +335,11 @@ inline int element_rotations(const Model& m, const AssemblyPlan& plan, int e, in
       Rm.setIdentity();
       continue;
     }
-    double* F = Fs + 9 * (k - plan.elem_rot_ptr[e]);
-    grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
-    Mat3 Rr = Rm;
-    if (extract_rotation(Eigen::Map<const Mat3>(F), Rr) < 0) ++fallbacks;
+    double* F = Fs + 9 * (k - plan.elem_rot_ptr[e]);  // G, F - I
+    grad_sum<NN>(n, ue, &m.rot_grad[m.rot_grad_ptr[r]], F);
+    Mat3 Rr = Rm, Ff;
+    add_identity(F, Ff.data());
+    if (extract_rotation(Ff, Rr) < 0) ++fallbacks;
     Rm = Rr;
     if (keep)
       for (int i = 0; i < 9; ++i)
@@ -340,7 +358,7 @@ inline int element_rotations(const Model& m, const AssemblyPlan& plan, int e, in
 // slot_weight > 0 (h, t: scratch); with a cache, stores each slot's F, the F
 // the new blocks are made at.
 template <int NN>
-inline void slot_rotation_terms(const Model& m, const AssemblyPlan& plan, int e, int n, const double* xe,
+inline void slot_rotation_terms(const Model& m, const AssemblyPlan& plan, int e, int n, const double* ue,
                                 const double* Rall, TangentCache* cache, double* Kl, double* h, double* t) {
   std::fill(Kl, Kl + 9 * (n * (n + 1) / 2), 0.0);
   if (m.material.model == MaterialModel::Linear) return;
@@ -348,9 +366,10 @@ inline void slot_rotation_terms(const Model& m, const AssemblyPlan& plan, int e,
     const int r = plan.elem_rot[k];
     const bool store_F = cache != nullptr;
     if (!store_F && !(plan.slot_weight[r] > 0.0)) continue;
-    double F[9];
-    grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
-    if (store_F) std::copy(F, F + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
+    double G[9], F[9];
+    grad_sum<NN>(n, ue, &m.rot_grad[m.rot_grad_ptr[r]], G);
+    if (store_F) std::copy(G, G + 9, cache->F.begin() + 9 * static_cast<size_t>(r));
+    add_identity(G, F);
     if (plan.slot_weight[r] > 0.0)  // a shared slot's rotation term (h is free until the points)
       add_slot_rotation_stiffness(n, Rall + 9 * r, F, &m.rot_grad[m.rot_grad_ptr[r]], m.mu, m.lambda,
                                   plan.slot_weight[r], Kl, h, t, plan.exact_rotation_term);
@@ -361,12 +380,12 @@ inline void slot_rotation_terms(const Model& m, const AssemblyPlan& plan, int e,
 // or over all its DOF nodes) gives
 // the forces into f and, with Kl, the blocks (y, t: scratch).
 inline void condensed_element_terms(const Model& m, const AssemblyPlan& plan, int e, int n, const int* nodes,
-                                    const double* xe, const double* Rall, double* f, double* Kl, double* y, double* t) {
+                                    const double* ue, const double* Rall, double* f, double* Kl, double* y, double* t) {
   for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
     const int r = plan.elem_rot[k];
     const double* K0 = &m.rot_K0[m.rot_K0_ptr[r]];
     const int* partner = m.slot_partner(r);
-    condensed_slot_force(m.slot_K0_nodes(r), K0, partner, Rall + 9 * r, xe, m.X.data(), nodes, y, t, f);
+    condensed_slot_force(m.slot_K0_nodes(r), K0, partner, Rall + 9 * r, ue, m.X.data(), nodes, y, t, f);
     if (Kl) condensed_slot_stiffness(n, m.slot_K0_nodes(r), K0, partner, Rall + 9 * r, Kl);
   }
 }
@@ -473,28 +492,30 @@ inline void add_point_blocks(int n_dyn, const double* g, const double* h, double
 }
 
 // Cubature point q of element e: its force into f and, with Kl, its blocks
-// (h, t: scratch). Its F is its slot's kept in Fs where qp_slot_F says so.
+// (h, t: scratch). Its G = F - I is its slot's kept in Fs where qp_slot_F
+// says so.
 // With fv: fv += the point's part of R K0 R^T v (ve: the element's v, (n, 3)),
 // the stress of v's gradient with the same R (element_matvec's product).
 template <int NN>
 inline void point_terms(const Model& m, const AssemblyPlan& plan, int e, int q, int n, const int* nodes,
-                        const double* xe, const double* Rall, const double* Fs, double* f, double* Kl, double* h,
+                        const double* ue, const double* Rall, const double* Fs, double* f, double* Kl, double* h,
                         double* t, const double* ve, double* fv) {
   const bool linear = m.material.model == MaterialModel::Linear;
   const double mu = m.mu, lambda = m.lambda;
   const double w = m.qp_weight[q];
   const double* g = &m.qp_grad[m.qp_grad_ptr[q]];
   const double* R = Rall + 9 * m.qp_rot[q];
-  double Fq[9], P[9];
-  const double* F = Fq;
-  if (plan.qp_slot_F[q] && !linear) F = Fs + 9 * (m.qp_rot[q] - plan.elem_rot[plan.elem_rot_ptr[e]]);
-  else grad_sum<NN>(n, xe, g, Fq);
-  rotated_stress(R, F, w, mu, lambda, /*strain=*/true, P);
+  double Gq[9], P[9];
+  const double* G = Gq;
+  if (plan.qp_slot_F[q] && !linear) G = Fs + 9 * (m.qp_rot[q] - plan.elem_rot[plan.elem_rot_ptr[e]]);
+  else grad_sum<NN>(n, ue, g, Gq);
+  rotated_stress(R, G, w, mu, lambda, /*strain=*/true, P);
   add_point_force<NN>(n, nodes, P, g, f);
   if (fv) add_point_product<NN>(n, nodes, R, g, w, mu, lambda, ve, fv);
   if (!Kl) return;  // a kept element: forces only
   rotate_gradients<NN>(n, R, g, h);
-  double Y[9];
+  double F[9], Y[9];
+  add_identity(G, F);
   const bool rot = NN > 0 && plan.qp_own_rot[q] && rotation_stiffness_matrix(R, F, mu, lambda, w, Y, plan.exact_rotation_term);
   add_point_blocks<NN>(n, g, h, w * lambda, w * mu, rot ? Y : nullptr, Kl);
   if constexpr (NN == 0) {
@@ -516,15 +537,15 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
   const int b0 = m.elem_dof_ptr[e];
   const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
   const int* nodes = &m.elem_dof_node[b0];
-  double* xe = scratch;      // (n, 3) current positions
-  double* h = xe + 3 * n;    // (n, 3) rotated gradients
+  double* ue = scratch;      // (n, 3) displacements of the element's DOF nodes
+  double* h = ue + 3 * n;    // (n, 3) rotated gradients
   double* Kl = h + 3 * n;    // blocks a <= b, 9 each, row-major
   double* t = Kl + 9 * n * (n + 1) / 2;  // (n, 3, 3) rotation-mode vectors (rotation_stiffness.h)
-  double* Fs = t + 9 * n;                // (slots, 9) each slot's F, for the points that share it (qp_slot_F)
+  double* Fs = t + 9 * n;                // (slots, 9) each slot's G = F - I, for the points that share it (qp_slot_F)
   double* ve = Fs + 9 * plan.max_elem_slots;  // (n, 3) v at the element's nodes, with fv
   const int nblk = n * (n + 1) / 2;
   for (int a = 0; a < n; ++a)
-    for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
+    for (int i = 0; i < 3; ++i) ue[3 * a + i] = u[3 * nodes[a] + i];
   if (fv)
     for (int a = 0; a < n; ++a)
       for (int i = 0; i < 3; ++i) ve[3 * a + i] = v[3 * nodes[a] + i];
@@ -535,7 +556,7 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
   const bool cached = K && cache && cache->valid && !probe;
   bool keep = cached;  // every |F - F_then| entry of the element's slots <= theta (a NaN: not kept)
   bool would_keep = probe;
-  const int fallbacks = element_rotations<NN>(m, plan, e, n, xe, Rall, Fs, cache, probe, keep, would_keep);
+  const int fallbacks = element_rotations<NN>(m, plan, e, n, ue, Rall, Fs, cache, probe, keep, would_keep);
   if (keepable) *keepable = would_keep;
   if (probe) cache = nullptr;  // from here on a full assembly's element
   // The element's tangent is (re)computed without a valid cache, or when a
@@ -543,13 +564,13 @@ int element_terms(const Model& m, const AssemblyPlan& plan, int e, const double*
   if (keep) K = nullptr;
   if (updated) *updated = K != nullptr;
   double* Kout = K ? Kl : nullptr;  // the element's blocks, when they are made
-  if (K) slot_rotation_terms<NN>(m, plan, e, n, xe, Rall, cache, Kl, h, t);
+  if (K) slot_rotation_terms<NN>(m, plan, e, n, ue, Rall, cache, Kl, h, t);
   if (plan.elem_condensed[e]) {
-    condensed_element_terms(m, plan, e, n, nodes, xe, Rall, f, Kout, h, t);
+    condensed_element_terms(m, plan, e, n, nodes, ue, Rall, f, Kout, h, t);
     if (fv) condensed_element_matvec(m, plan, e, nodes, Rall, ve, fv, h, t);
   } else {
     for (int q = m.elem_qp_ptr[e]; q < m.elem_qp_ptr[e + 1]; ++q)
-      point_terms<NN>(m, plan, e, q, n, nodes, xe, Rall, Fs, f, Kout, h, t, ve, fv);
+      point_terms<NN>(m, plan, e, q, n, nodes, ue, Rall, Fs, f, Kout, h, t, ve, fv);
   }
   if (K) scatter_blocks(m, e, nblk, Kl, K, cache, cached);
   return fallbacks;
@@ -668,21 +689,22 @@ void stiffness_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, cons
 }
 
 namespace {
-// The element's positions gathered once for all its slots (a slot at a time
+// The element's displacements gathered once for all its slots (a slot at a time
 // gathered them per slot: 4 times for a tet10 per_point); each slot's angle
 // into the worker's largest and its volume-weighted sums.
 template <int NN>
 void element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, const double* u, const double* Rall,
-                             double* xe, double threshold, RotationChange& acc) {
+                             double* ue, double threshold, RotationChange& acc) {
   const int b0 = m.elem_dof_ptr[e];
   const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
   const int* nodes = &m.elem_dof_node[b0];
   for (int a = 0; a < n; ++a)
-    for (int i = 0; i < 3; ++i) xe[3 * a + i] = m.X[3 * nodes[a] + i] + u[3 * nodes[a] + i];
+    for (int i = 0; i < 3; ++i) ue[3 * a + i] = u[3 * nodes[a] + i];
   for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
     const int r = plan.elem_rot[k];
-    double F[9];
-    grad_sum<NN>(n, xe, &m.rot_grad[m.rot_grad_ptr[r]], F);
+    double G[9], F[9];
+    grad_sum<NN>(n, ue, &m.rot_grad[m.rot_grad_ptr[r]], G);
+    add_identity(G, F);
     // An inverted point's rotation (the inversion-safe one, polar.h) jumps
     // as F passes through det F = 0 and does not settle with more Newton
     // iterations; it is counted (FrameTiming::inverted_points), not checked.
@@ -707,12 +729,12 @@ RotationChange rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& p
   pool.run([&](int tid) {
     int b, e;
     ThreadPool::split(m.nelem, pool.size(), tid, b, e);
-    double* xe = plan.scratch[tid].data();
+    double* ue = plan.scratch[tid].data();
     for (int el = b; el < e; ++el) {
       const int n = m.elem_dof_ptr[el + 1] - m.elem_dof_ptr[el];
-      if (n == 10) element_rotation_change<10>(m, plan, el, u, R, xe, threshold, part[tid]);
-      else if (n == 4) element_rotation_change<4>(m, plan, el, u, R, xe, threshold, part[tid]);
-      else element_rotation_change<0>(m, plan, el, u, R, xe, threshold, part[tid]);
+      if (n == 10) element_rotation_change<10>(m, plan, el, u, R, ue, threshold, part[tid]);
+      else if (n == 4) element_rotation_change<4>(m, plan, el, u, R, ue, threshold, part[tid]);
+      else element_rotation_change<0>(m, plan, el, u, R, ue, threshold, part[tid]);
     }
   });
   for (int t = 0; t < pool.size(); ++t) {

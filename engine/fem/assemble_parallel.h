@@ -62,7 +62,7 @@ struct TangentCache {
   std::vector<int> kl_ptr;
   std::size_t kl_garbage = 0;
   const double* blocks(int e) const { return &Kl[kl_ptr[e]]; }
-  std::vector<double> F;   // (nrot, 9) deformation gradient of each slot when its element's blocks were made
+  std::vector<double> F;   // (nrot, 9) each slot's F - I when its element's blocks were made
   int updated = 0;         // elements whose blocks the last call recomputed (all, when it was a full assembly)
   int last_partial = -1;   // `updated` of the last call that had a valid cache (-1: none yet); kept across cuts
   int skipped_carries = 0; // cuts in a row whose carry was skipped (cut_apply.cpp); kept across cuts

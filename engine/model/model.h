@@ -75,7 +75,7 @@ struct Model {
   std::vector<double> qp_grad;     // dN_a/dX of the element's DOF nodes at the point
   std::vector<int> qp_rot;         // (nqp) rotation slot used by the point
 
-  // Rotation slots: F = sum_a (X_a + u_a) (x) rot_grad_a, R = rotation part of F
+  // Rotation slots: F = sum_a (X_a + u_a) (x) rot_grad_a (computed as I + sum_a u_a (x) rot_grad_a), R its rotation
   int nrot = 0;
   std::vector<int> rot_elem;       // (nrot) element of the slot
   std::vector<int> rot_grad_ptr;   // (nrot + 1) into rot_grad
