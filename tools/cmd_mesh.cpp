@@ -27,6 +27,7 @@ struct TetOptions {
   std::string in, out;
   double size = 0, quality = 1.4;
   int order = 2;
+  bool fill_cavities = false;
 };
 
 void report(const Mesh& m, const std::string& path) {
@@ -87,8 +88,13 @@ void add_mesh_command(CLI::App& app) {
   tet->add_option("--quality", t->quality, "Largest radius-edge ratio TetGen may leave (default 1.4; 1.1 to 10)")
       ->check(finite_in(1.1, 10));
   tet->add_option("--out", t->out, "Output mesh (.vtu, .vtk, .msh)")->required();
+  tet->add_flag("--fill-cavities", t->fill_cavities,
+                "Fill the inside of inner closed shells with tissue too (by default a region no outer face bounds is "
+                "a cavity, left empty)");
   tet->callback([t] {
-    Mesh m = tetrahedralize(t->in, t->size, t->quality);
+    std::string note;
+    Mesh m = tetrahedralize(t->in, t->size, t->quality, t->fill_cavities, &note);
+    std::printf("%s", note.c_str());
     check_mesh(m);
     if (t->order == 2) m = raise_to_tet10(m);
     write_mesh(m, t->out);

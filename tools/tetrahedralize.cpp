@@ -1,5 +1,7 @@
 #include "tools/tetrahedralize.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -13,6 +15,7 @@
 #include "engine/mesh/mesh_io.h"
 #include "engine/util/error.h"
 #include "engine/util/file_io.h"
+#include "tools/option_checks.h"
 #include "tools/spawn.h"
 
 namespace incise {
@@ -82,9 +85,102 @@ std::string tail_of(const std::string& path, int lines) {
   return out;
 }
 
+// Volume of a tet4 mesh (TetGen's tetrahedra are positively oriented).
+double tet4_volume(const Mesh& m) {
+  double vol = 0.0;
+  for (int e = 0; e < m.ntet(); ++e) {
+    const int* t = &m.tet[4 * static_cast<size_t>(e)];
+    double d[3][3];
+    for (int k = 0; k < 3; ++k)
+      for (int c = 0; c < 3; ++c) d[k][c] = m.X[3 * t[k + 1] + c] - m.X[3 * t[0] + c];
+    vol += (d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1]) - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0]) +
+            d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0])) / 6.0;
+  }
+  return vol;
+}
+
+// The region attribute TetGen's -A gives each tetrahedron of `ele` (the
+// last value of its line; one per closed region of the surface), in order.
+std::vector<double> region_of_tets(const std::string& ele, int ntet) {
+  std::ifstream in(ele);
+  std::vector<double> region;
+  region.reserve(static_cast<size_t>(ntet));
+  std::string line;
+  bool header = true;
+  while (std::getline(in, line) && static_cast<int>(region.size()) < ntet) {
+    const size_t hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    std::istringstream ls(line);
+    std::vector<double> v;
+    for (double x; ls >> x;) v.push_back(x);
+    if (v.empty()) continue;
+    if (header) {
+      header = false;
+      continue;
+    }
+    region.push_back(v.size() >= 6 ? v.back() : 0.0);
+  }
+  if (static_cast<int>(region.size()) != ntet) region.assign(static_cast<size_t>(ntet), 0.0);
+  return region;
+}
+
+// Drops the tetrahedra of regions that no face on the outside bounds (the
+// inside of an inner closed shell: a cavity) and the nodes only they used.
+// Returns the volume dropped and the number of such regions.
+std::pair<double, int> drop_enclosed_regions(Mesh& m, const std::vector<double>& region) {
+  struct Face {
+    std::array<int, 3> v;
+    int tet;
+  };
+  std::vector<Face> faces;
+  faces.reserve(4 * static_cast<size_t>(m.ntet()));
+  for (int e = 0; e < m.ntet(); ++e)
+    for (const auto& f : kTetFace) {
+      std::array<int, 3> v = {m.tet[4 * e + f[0]], m.tet[4 * e + f[1]], m.tet[4 * e + f[2]]};
+      std::sort(v.begin(), v.end());
+      faces.push_back({v, e});
+    }
+  std::sort(faces.begin(), faces.end(), [](const Face& a, const Face& b) { return a.v < b.v; });
+  std::vector<double> outside;  // regions with a face on the outside
+  for (size_t i = 0; i < faces.size();) {
+    size_t j = i + 1;
+    while (j < faces.size() && faces[j].v == faces[i].v) ++j;
+    if (j - i == 1) outside.push_back(region[static_cast<size_t>(faces[i].tet)]);
+    i = j;
+  }
+  std::sort(outside.begin(), outside.end());
+  outside.erase(std::unique(outside.begin(), outside.end()), outside.end());
+  std::vector<double> all(region);
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  const int enclosed = static_cast<int>(all.size() - outside.size());
+  if (enclosed == 0) return {0.0, 0};
+  const auto keep = [&](int e) { return std::binary_search(outside.begin(), outside.end(), region[static_cast<size_t>(e)]); };
+  Mesh kept;
+  kept.order = 1;
+  kept.source = m.source;
+  std::vector<int> id(static_cast<size_t>(m.nnode()), -1);
+  for (int e = 0; e < m.ntet(); ++e) {
+    if (!keep(e)) continue;
+    for (int k = 0; k < 4; ++k) {
+      int& n = id[static_cast<size_t>(m.tet[4 * e + k])];
+      if (n < 0) {
+        n = kept.nnode();
+        kept.X.insert(kept.X.end(), m.X.begin() + 3 * m.tet[4 * e + k], m.X.begin() + 3 * m.tet[4 * e + k] + 3);
+      }
+      kept.tet.push_back(n);
+    }
+    if (!m.elem_file_id.empty()) kept.elem_file_id.push_back(m.elem_file_id[static_cast<size_t>(e)]);
+    if (!m.elem_line.empty()) kept.elem_line.push_back(m.elem_line[static_cast<size_t>(e)]);
+  }
+  const double dropped = tet4_volume(m) - tet4_volume(kept);
+  m = std::move(kept);
+  return {dropped, enclosed};
+}
+
 }  // namespace
 
-Mesh tetrahedralize(const std::string& surface, double size, double quality) {
+Mesh tetrahedralize(const std::string& surface, double size, double quality, bool fill_cavities, std::string* note) {
   if (!(size > 0.0) || !std::isfinite(size)) throw Error("mesh tetrahedralize: --size must be a finite length > 0");
   if (!(quality >= 1.1) || !std::isfinite(quality)) throw Error("mesh tetrahedralize: --quality must be >= 1.1 (TetGen's bound)");
   const std::string ext = lower_ext(surface);
@@ -119,27 +215,60 @@ Mesh tetrahedralize(const std::string& surface, double size, double quality) {
   const fs::path in = tmp / (std::string("surface") + (ext == ".obj" ? ".off" : ext));
   if (ext == ".obj") obj_to_off(surface, in.string());
   else fs::copy_file(surface, in);
-  // A regular tetrahedron of edge `size`: volume size^3 / (6 sqrt 2).
-  char switches[96];
-  std::snprintf(switches, sizeof switches, "-pq%ga%g", quality, size * size * size / (6.0 * std::sqrt(2.0)));
-  const std::string log = (tmp / "tetgen.log").string();
-  int rc = 0;
-  try {
-    rc = spawn_and_wait({"tetgen", switches, in.string()}, log);
-  } catch (const Error&) {
-    throw Error(surface + ": cannot run TetGen (apt-get install tetgen)");
-  }
   const fs::path ele = tmp / "surface.1.ele";
-  if (rc != 0)
-    throw Error(surface + ": TetGen failed (exit " + std::to_string(rc) +
-                "); the surface must be closed, manifold and not self-intersecting. TetGen said:" + tail_of(log, 6));
-  std::ifstream e(ele);
-  long n = 0;
-  if (!(e >> n)) n = 0;
-  if (n <= 0)
-    throw Error(surface + ": TetGen made no tetrahedra: the surface is not closed (or not manifold). TetGen said:" + tail_of(log, 6));
-  Mesh m = read_mesh(ele.string());
-  m.source = surface;
+  // -p: the surface's constrained tetrahedralization; -A: a region
+  // attribute per closed region; -Q: quiet.
+  const auto run_tetgen = [&](const std::string& switches) {
+    const std::string log = (tmp / "tetgen.log").string();
+    int rc = 0;
+    try {
+      rc = spawn_and_wait({"tetgen", switches, in.string()}, log);
+    } catch (const Error&) {
+      throw Error(surface + ": cannot run TetGen (apt-get install tetgen)");
+    }
+    if (rc != 0)
+      throw Error(surface + ": TetGen failed (exit " + std::to_string(rc) +
+                  "); the surface must be closed, manifold and not self-intersecting. TetGen said:" + tail_of(log, 6));
+    std::ifstream e(ele);
+    long n = 0;
+    if (!(e >> n)) n = 0;
+    if (n <= 0)
+      throw Error(surface + ": TetGen made no tetrahedra: the surface is not closed (or not manifold). TetGen said:" +
+                  tail_of(log, 6));
+    Mesh m = read_mesh(ele.string());
+    m.source = surface;
+    return m;
+  };
+  // First the surface's own tetrahedra (no refinement, seconds even for a
+  // large surface): the volume it encloses, so that a --size that would ask
+  // TetGen for billions of tetrahedra is refused before it runs out of
+  // memory. TetGen's quality mesh has 2.4-3.5 tetrahedra per volume bound
+  // (a sphere at 10 and 20 edges across); 3 is the estimate.
+  const double bound = size * size * size / (6.0 * std::sqrt(2.0));  // a regular tetrahedron of edge `size`
+  const double volume = tet4_volume(run_tetgen("-pQA"));
+  const double estimate = 3.0 * volume / bound;
+  if (estimate > static_cast<double>(kMaxBeamTets)) {
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  ": --size %g asks for about %.2g tetrahedra (the surface encloses %.3g cubic units); at most %lld: "
+                  "use --size %.3g or larger",
+                  size, estimate, volume, kMaxBeamTets, size * std::cbrt(estimate / static_cast<double>(kMaxBeamTets)));
+    throw Error(surface + buf);
+  }
+  char switches[96];
+  std::snprintf(switches, sizeof switches, "-pQAq%ga%g", quality, bound);
+  Mesh m = run_tetgen(switches);
+  if (!fill_cavities) {
+    const auto [dropped, regions] = drop_enclosed_regions(m, region_of_tets(ele.string(), m.ntet()));
+    if (regions > 0 && note) {
+      char buf[320];
+      std::snprintf(buf, sizeof buf,
+                    "left %d enclosed region(s) empty (%.3g cubic units, %.2g%% of the volume): the inside of an inner "
+                    "closed shell is a cavity; --fill-cavities fills it with tissue\n",
+                    regions, dropped, 100.0 * dropped / volume);
+      *note = buf;
+    }
+  }
   return m;
 }
 

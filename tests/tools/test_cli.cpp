@@ -61,10 +61,10 @@ TEST_F(Cli, MeshBeamWritesAReadableMesh) {
   EXPECT_NE(r.out.find("dihedral"), std::string::npos) << "quality report expected: " << r.out;
 }
 
-// A closed sphere (an icosahedron subdivided 4 times, radius 0.05, its
+// A closed sphere (an icosahedron subdivided 4 times, radius r, its
 // polyhedral volume 0.2% under the sphere's) as ASCII STL; `open` drops one
 // triangle.
-std::string sphere_stl(bool open, bool obj = false) {
+std::string sphere_stl(bool open, bool obj = false, double r = 0.05) {
   const double t = (1 + std::sqrt(5.0)) / 2;
   std::vector<std::array<double, 3>> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
                                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
@@ -94,14 +94,14 @@ std::string sphere_stl(bool open, bool obj = false) {
   }
   std::ostringstream os;
   if (obj) {  // the same surface as an indexed OBJ
-    for (const auto& p : v) os << "v " << 0.05 * p[0] << ' ' << 0.05 * p[1] << ' ' << 0.05 * p[2] << '\n';
+    for (const auto& p : v) os << "v " << r * p[0] << ' ' << r * p[1] << ' ' << r * p[2] << '\n';
     for (size_t k = open ? 1 : 0; k < f.size(); ++k) os << "f " << f[k][0] + 1 << ' ' << f[k][1] + 1 << ' ' << f[k][2] + 1 << '\n';
     return os.str();
   }
   os << "solid sphere\n";
   for (size_t k = open ? 1 : 0; k < f.size(); ++k) {
     os << " facet normal 0 0 0\n  outer loop\n";
-    for (int i : f[k]) os << "   vertex " << 0.05 * v[i][0] << ' ' << 0.05 * v[i][1] << ' ' << 0.05 * v[i][2] << '\n';
+    for (int i : f[k]) os << "   vertex " << r * v[i][0] << ' ' << r * v[i][1] << ' ' << r * v[i][2] << '\n';
     os << "  endloop\n endfacet\n";
   }
   os << "endsolid sphere\n";
@@ -110,7 +110,8 @@ std::string sphere_stl(bool open, bool obj = false) {
 
 // incise mesh tetrahedralize (TetGen): a closed sphere becomes a tet10 mesh
 // of its volume (within 1% of the sphere's) without an inverted element; an
-// open surface is an error saying so.
+// open surface is an error saying so; an inner shell's inside is a cavity;
+// a size that would make too many tetrahedra is refused before TetGen runs.
 TEST_F(Cli, TetrahedralizeFillsAClosedSurfaceAndRefusesAnOpenOne) {
   if (std::system("command -v tetgen > /dev/null 2>&1") != 0) GTEST_SKIP() << "tetgen not installed";
   write("sphere.stl", sphere_stl(false));
@@ -160,6 +161,25 @@ TEST_F(Cli, TetrahedralizeFillsAClosedSurfaceAndRefusesAnOpenOne) {
   EXPECT_NE(binary.out.find("bin.stl: a binary STL (1 triangles); TetGen reads ASCII STL only"), std::string::npos)
       << binary.out;
   EXPECT_FALSE(fs::exists(path("b.msh")));
+  // A sphere inside a sphere: the inner one's inside is a cavity, left
+  // empty unless --fill-cavities (TetGen fills every closed region).
+  const double inner = 4.0 / 3.0 * M_PI * 0.02 * 0.02 * 0.02;
+  write("hollow.stl", sphere_stl(false, false, 0.05) + sphere_stl(false, false, 0.02));
+  const Result h = incise("mesh tetrahedralize " + path("hollow.stl") + " --size 0.01 --order 1 --out " + path("h.vtu"));
+  ASSERT_EQ(h.code, 0) << h.out;
+  EXPECT_NE(h.out.find("left 1 enclosed region(s) empty"), std::string::npos) << h.out;
+  EXPECT_NEAR(volume(incise::read_mesh(path("h.vtu"))) / (sphere - inner), 1.0, 0.01);
+  const Result hf = incise("mesh tetrahedralize " + path("hollow.stl") + " --size 0.01 --order 1 --fill-cavities --out " +
+                           path("hf.vtu"));
+  ASSERT_EQ(hf.code, 0) << hf.out;
+  EXPECT_NEAR(volume(incise::read_mesh(path("hf.vtu"))) / sphere, 1.0, 0.01);
+  // A --size that would ask TetGen for 1e13 tetrahedra is refused before it
+  // runs (it used to run out of memory, and the error blamed the surface).
+  const Result huge = incise("mesh tetrahedralize " + path("sphere.stl") + " --size 1e-5 --out " + path("x.msh"));
+  EXPECT_NE(huge.code, 0);
+  EXPECT_NE(huge.out.find("sphere.stl: --size 1e-05 asks for about 1.3e+13 tetrahedra"), std::string::npos) << huge.out;
+  EXPECT_NE(huge.out.find("use --size 0.0011 or larger"), std::string::npos) << huge.out;
+  EXPECT_FALSE(fs::exists(path("x.msh")));
 }
 
 TEST_F(Cli, MeshConvertRaisesToTet10) {
