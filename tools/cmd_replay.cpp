@@ -107,6 +107,9 @@ void replay(const ReplayOptions& o) {
     s.pipeline.set(kStageToolPoses, [&r](Simulation& sm) {
       sm.tools = r.frames[static_cast<size_t>(sm.state.frame)].tools;
     });
+  // --out asks for the series: written even where the scene says output.vtu
+  // false (it used to write nothing, in silence).
+  if (!o.out.empty()) s.scene.output.write_vtu = true;
   FrameOutputs outputs(s, std::filesystem::path(m.scene_path).stem().string(), o.out, o.render_dir, o.platform);
   const int frames = o.frames > 0 ? std::min<int>(o.frames, static_cast<int>(r.frames.size()))
                                   : static_cast<int>(r.frames.size());
@@ -208,7 +211,7 @@ void add_replay_command(CLI::App& app) {
       ->check(finite_in(0, 1e6));
   cmd->add_option("--frames", opts->frames, "Replay only the first N frames")
       ->check(integer_in(1, kMaxOptionFrames, kFramesWhy));
-  cmd->add_option("--out", opts->out, "Output folder for a .pvd/.vtu series of the replay");
+  cmd->add_option("--out", opts->out, "Output folder for a .pvd/.vtu series of the replay (written whatever the scene's output.vtu says)");
   cmd->add_option("--render", opts->render_dir, "Render every frame offscreen to DIR/frame_00000.png ... (+ MP4)");
   add_egl_platform_option(*cmd, opts->platform);
   cmd->callback([opts] { replay(*opts); });

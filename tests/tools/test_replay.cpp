@@ -82,6 +82,15 @@ TEST_F(Replay, ARecordedRunWithCutContactAndHapticsReplaysBitForBit) {
   EXPECT_NE(t.out.find("replay: 24 of 24 frames equal bit for bit; largest relative difference over 3 snapshots 0"),
             std::string::npos)
       << t.out;
+
+  // --out writes the series though the scene says output.vtu false (it
+  // wrote nothing).
+  const Result o = incise("replay " + path("r.replay") + " --frames 3 --out " + path("series"));
+  ASSERT_EQ(o.code, 0) << o.out;
+  EXPECT_TRUE(std::filesystem::exists(path("series/scene.pvd"))) << o.out;
+  int vtu = 0;
+  for (const auto& e : std::filesystem::directory_iterator(path("series"))) vtu += e.path().extension() == ".vtu";
+  EXPECT_EQ(vtu, 4) << "frames 0-3";
 }
 
 // One recorded pose of the pressing probe moved by 1 mm: the replay differs
