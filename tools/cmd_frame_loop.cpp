@@ -12,7 +12,7 @@ std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_pat
   return load_checked_simulation(load_scene(scene_path, patches));
 }
 
-std::unique_ptr<Simulation> load_checked_simulation(Scene scene) {
+std::unique_ptr<Simulation> load_checked_simulation(Scene scene, const std::vector<ToolFrame>* recorded_tools) {
   auto sim = load_simulation(std::move(scene));
   for (const CutSpec& c : sim->scene.cuts) {
     try {
@@ -21,7 +21,7 @@ std::unique_ptr<Simulation> load_checked_simulation(Scene scene) {
       throw Error(sim->scene.path + ": " + e.what());
     }
   }
-  install_instrument_stage(*sim);  // before collision and cutting: they read sim.tools
+  install_instrument_stage(*sim, recorded_tools);  // before collision and cutting: they read sim.tools
   install_collision_stage(*sim);
   install_cutting_stage(*sim);
   return sim;

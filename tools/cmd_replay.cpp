@@ -88,7 +88,7 @@ void replay(const ReplayOptions& o) {
                 engine_version().c_str(), here.c_str());
   std::vector<ScenePatch> patches;
   for (const auto& p : m.patches) patches.push_back({p[0], p[1], p[2]});
-  Scene scene = parse_scene(m.scene_text, m.scene_path, patches);
+  Scene scene = parse_scene(m.scene_text, m.scene_path, patches, /*trajectories_needed=*/r.frames.empty());
   // The mesh is not embedded (it can be large): the recorded hash says whether it is the same file.
   const std::uint64_t mesh_hash = replay_file_hash(scene.mesh_file, "mesh");
   if (mesh_hash != m.mesh_hash)
@@ -96,7 +96,9 @@ void replay(const ReplayOptions& o) {
   for (const auto& [file, hash] : m.files)
     if (replay_file_hash(file, "cut surface") != hash)
       throw Error(o.file + ": the cut surface " + file + " has changed since the recording (its hash differs)");
-  auto sim = load_checked_simulation(std::move(scene));
+  // The recorded poses stand in for the trajectories: their files are not
+  // needed (a replay used to fail without them).
+  auto sim = load_checked_simulation(std::move(scene), r.frames.empty() ? nullptr : &r.frames[0].tools);
   Simulation& s = *sim;
   if (m.compliance.size() != s.scene.instruments.size())
     throw Error(o.file + ": recorded with " + std::to_string(m.compliance.size()) + " instruments, the scene has " +

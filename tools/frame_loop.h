@@ -19,7 +19,10 @@ namespace incise {
 // `patches`: command-line overrides of scene keys (load_scene).
 std::unique_ptr<Simulation> load_checked_simulation(const std::string& scene_path,
                                                     const std::vector<ScenePatch>& patches = {});
-// The same from a scene already parsed (parse_scene).
-std::unique_ptr<Simulation> load_checked_simulation(Scene scene);
+// The same from a scene already parsed (parse_scene). With `recorded_tools`
+// (a replay's poses at its first frame) the instruments' trajectories are
+// not read (install_instrument_stage).
+std::unique_ptr<Simulation> load_checked_simulation(Scene scene,
+                                                    const std::vector<ToolFrame>* recorded_tools = nullptr);
 
 }  // namespace incise

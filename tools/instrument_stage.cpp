@@ -84,13 +84,16 @@ void tool_poses_stage(Simulation& sim) {
   }
 }
 
-void install_instrument_stage(Simulation& sim) {
+void install_instrument_stage(Simulation& sim, const std::vector<ToolFrame>* recorded) {
   const std::vector<InstrumentSpec>& specs = sim.scene.instruments;
   if (specs.empty()) return;
+  if (recorded && recorded->size() != specs.size())
+    throw Error(sim.scene.path + ": recorded poses of " + std::to_string(recorded->size()) + " instruments, the scene has " +
+                std::to_string(specs.size()));
   auto paths = std::make_shared<InstrumentPaths>();
   paths->trajectory.resize(specs.size());
   for (size_t i = 0; i < specs.size(); ++i) {
-    if (specs[i].trajectory.empty()) continue;
+    if (specs[i].trajectory.empty() || recorded) continue;
     try {
       paths->trajectory[i] = Trajectory::read(specs[i].trajectory);
     } catch (const Error& e) {
@@ -101,7 +104,8 @@ void install_instrument_stage(Simulation& sim) {
   sim.module_data[kStageToolPoses] = paths;
   sim.tools.assign(specs.size(), ToolFrame{});
   for (size_t i = 0; i < specs.size(); ++i)
-    sim.tools[i].before = sim.tools[i].after = instrument_pose(sim, static_cast<int>(i), sim.state.time);
+    sim.tools[i].before = sim.tools[i].after =
+        recorded ? (*recorded)[i].before : instrument_pose(sim, static_cast<int>(i), sim.state.time);
   sim.pipeline.set(kStageToolPoses, tool_poses_stage);
 }
 

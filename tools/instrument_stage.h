@@ -20,7 +20,11 @@ void tool_poses_stage(Simulation& sim);
 // before = after = the pose at sim.state.time (0 at set-up) and fills the
 // slot. Throws incise::Error naming the scene, the JSON path and the file
 // line ("scene.json: instruments[0].trajectory: traj.csv:5: ...").
-void install_instrument_stage(Simulation& sim);
+// With `recorded` (a replay, whose recorded poses stand in for trajectories
+// and devices: one ToolFrame per instrument) no trajectory is read, so a
+// replay does not need their files; sim.tools = *recorded and the slot's
+// stage is the caller's to replace.
+void install_instrument_stage(Simulation& sim, const std::vector<ToolFrame>* recorded = nullptr);
 
 // Instrument i (scene.instruments index) at time t: its trajectory's sample
 // (jaw from the trajectory's jaw column, else the scene's jaw) or its fixed

@@ -212,6 +212,12 @@ class Parser {
     if (!v.is_array() || v.size() != 2) fail(where, " must be two points [[x, y, z], [x, y, z]], got " + describe(v));
     return {vec3(v[0], index(where, 0)), vec3(v[1], index(where, 1))};
   }
+  // Trajectory files are not read by a replay (its recorded poses stand in).
+  void set_trajectories_needed(bool needed) { trajectories_needed_ = needed; }
+  // A trajectory file: existing_file, or only resolved where not needed.
+  std::string trajectory_file(const json& v, const std::string& where) const {
+    return trajectories_needed_ ? existing_file(v, where) : resolve(nonempty_string(v, where));
+  }
   // A file named relative to the scene's folder that must exist (cut
   // surfaces, trajectories): its resolved path.
   std::string existing_file(const json& v, const std::string& where) const {
@@ -250,6 +256,7 @@ class Parser {
   const std::vector<AppliedPatch>* patches_ = nullptr;
   std::string preset_;
   std::vector<std::string> preset_keys_;
+  bool trajectories_needed_ = true;
 };
 
 // --- sections ----------------------------------------------------------------
@@ -669,7 +676,7 @@ void parse_instruments(const Parser& p, const json& v, Scene& s) {
     t.kind = static_cast<InstrumentSpec::Kind>(type);
     if (auto it = e.find("name"); it != e.end()) t.name = p.nonempty_string(*it, at + ".name");
     if (auto it = e.find("trajectory"); it != e.end()) {
-      t.trajectory = p.existing_file(*it, at + ".trajectory");
+      t.trajectory = p.trajectory_file(*it, at + ".trajectory");
       if (e.contains("pose"))
         p.fail(at + ".pose", ": give either pose or trajectory (the trajectory sets the pose of every frame), not both");
     }
@@ -758,7 +765,7 @@ void parse_haptics(const Parser& p, const json& v, Scene& s) {
   }
   const InstrumentSpec& tool = s.instruments[static_cast<size_t>(h.instrument)];
   if (h.device == HapticsSpec::Device::Scripted) {
-    if (auto it = v.find("trajectory"); it != v.end()) h.trajectory = p.existing_file(*it, at + ".trajectory");
+    if (auto it = v.find("trajectory"); it != v.end()) h.trajectory = p.trajectory_file(*it, at + ".trajectory");
     else h.trajectory = tool.trajectory;
     if (h.trajectory.empty())
       p.fail(at + ".trajectory", ": required key is missing (a scripted device follows a keyframe CSV; " + tool.json_path +
@@ -934,11 +941,13 @@ bool solver_key_used_by(const std::string& key, SolverPolicy policy) {
   return true;
 }
 
-Scene parse_scene(const std::string& json_text, const std::string& path, const std::vector<ScenePatch>& patches) {
+Scene parse_scene(const std::string& json_text, const std::string& path, const std::vector<ScenePatch>& patches,
+                  bool trajectories_needed) {
   json root = parse_text(json_text, path);
   if (!root.is_object()) throw Error(path + ": the scene must be a JSON object, got " + describe(root));
   const std::vector<AppliedPatch> applied = apply_scene_patches(root, patches);
   Parser p(path, &applied);
+  p.set_trajectories_needed(trajectories_needed);
   p.allowed_keys(root, "",
                  {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
                   "solver", "static", "run", "output", "cuts", "cut_front", "render", "instruments", "contact", "haptics",

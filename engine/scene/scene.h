@@ -329,7 +329,10 @@ struct Scene {
 // ("--set solver.policy=lagged2: solver.policy must be one of ...").
 Scene load_scene(const std::string& path, const std::vector<ScenePatch>& patches = {});
 // Same, from text already read (path used for messages and relative paths).
-Scene parse_scene(const std::string& json_text, const std::string& path, const std::vector<ScenePatch>& patches = {});
+// `trajectories_needed` false (a replay): trajectory files are named, not
+// required to exist.
+Scene parse_scene(const std::string& json_text, const std::string& path, const std::vector<ScenePatch>& patches = {},
+                  bool trajectories_needed = true);
 
 // One resolved setting for print-outs: every solver.* and integrator.* key
 // the resolved solver.policy uses, in the parser's order.
