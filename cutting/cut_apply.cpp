@@ -171,7 +171,14 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   carry_workspace_over_cut(*old_model, sim.model, p.map, p.changed, &p.plan, st.frame, sim.ws);
   sim.retired_model = std::move(old_model);  // freed by the next cut-ahead task, off this thread
   up.part_ms[kCutSolverSetup] = part.lap();
-  consistent_acceleration_near(sim.model, st, sim.ws, p.changed);
+  // The whole body's equilibrium acceleration, not only near the cut:
+  // Newmark's acceleration carries each step's Newton residual (M a differs
+  // from f_ext - f_int - D v), a field that sums to ~0 over the body but not
+  // over a piece the cut severs; kept on the piece, it is a net force on it.
+  // A stiff beam's severed end (E = 1e8 Pa) was shot off at 2.9 m/s that way
+  // when only the elements the cut changed were reset (3.1 ms cheaper a cut
+  // frame on the 10k incision; docs/benchmarks.md).
+  consistent_acceleration(sim.model, st, sim.ws);
   up.part_ms[kCutAcceleration] = part.lap();
   up.changed = true;
   up.ms = clock.ms();

@@ -77,13 +77,6 @@ const double* internal_forces(const Model& model, State& state, Workspace& ws, c
 // mismatch into an energy jump.
 void consistent_acceleration(const Model& model, State& state, Workspace& ws);
 
-// consistent_acceleration where a cut rebuild changed the equations: on the
-// DOF nodes of the `changed` elements, their mesh nodes' other enriched DOF
-// nodes (the lumped (u, q) blocks couple them), and nothing else; elsewhere
-// state.a keeps its value. Needs only the forces of the elements around those
-// nodes. Lumped mass only: with a consistent mass it is the global version.
-void consistent_acceleration_near(const Model& model, State& state, Workspace& ws, const std::vector<int>& changed);
-
 // Kinetic + elastic - gravity potential energy (for verification): for the
 // linear model 1/2 v'Mv + 1/2 u'K0u - f'u.
 double total_energy(const Model& model, const State& state);

@@ -678,11 +678,12 @@ TEST(Xfem, BranchElementsAssembleFromTheirPiecesRestStiffness) {
   }
 }
 
-// A cut rebuild recomputes the consistent acceleration only near the
-// elements whose pieces changed (consistent_acceleration_near): on their DOF
-// nodes it must equal the global M^-1 (f_ext - f_int - D v), and every other
-// DOF must keep the acceleration transferred from the old model.
-TEST(Xfem, CutFrameAccelerationIsRecomputedNearTheChangedElementsOnly) {
+// A cut rebuild sets the acceleration to the whole body's equilibrium
+// M^-1 (f_ext - f_int - D v) (cut_apply.cpp, commit_cut; resetting it only
+// near the changed elements kicked a severed piece:
+// HardCases.AStiffBeamsSeveredEndFallsWithoutAKickAlongTheBeam), and
+// carries the last increment by the displacement's map.
+TEST(Xfem, CutFrameAccelerationIsTheWholeBodysEquilibrium) {
   Scene s = test::block_scene(2);
   s.material.rayleigh_mass = 0.5;
   s.material.rayleigh_stiffness = 0.002;
@@ -695,7 +696,7 @@ TEST(Xfem, CutFrameAccelerationIsRecomputedNearTheChangedElementsOnly) {
   const Kinematics moved = transfer_kinematics(before, sim->state, before);
   ASSERT_TRUE(update_cuts(*sim, 0.0, 0.75).changed);  // deeper: new split elements
   const Model& m = sim->model;
-  const std::vector<double> near = sim->state.a;
+  const std::vector<double> after = sim->state.a;
   State moved_state;
   moved_state.u = moved.u;
   moved_state.v = moved.v;
@@ -709,31 +710,12 @@ TEST(Xfem, CutFrameAccelerationIsRecomputedNearTheChangedElementsOnly) {
   double amax = 0;
   for (double x : global) amax = std::max(amax, std::abs(x));
   ASSERT_GT(amax, 0.0);
-  std::vector<char> on_changed(m.ndofnode, 0);
-  int changed = 0;
-  for (int e = 0; e < m.nelem; ++e)
-    if (!same_element_pieces(m, before, e)) {
-      ++changed;
-      for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) on_changed[m.elem_dof_node[k]] = 1;
-    }
-  // The lumped (u, q) blocks couple a mesh node to all its enriched nodes:
-  // where a_u is recomputed, so is every a_q of that node.
-  for (int q = m.nnode; q < m.ndofnode; ++q)
-    if (on_changed[m.cuts.enr_node[q - m.nnode]] == 1) on_changed[q] |= 2;
-  EXPECT_GT(changed, 0);
-  EXPECT_LT(changed, m.nelem / 4) << "a deeper blade changes a few elements, not the beam";
-  int recomputed = 0, kept = 0;
+  int differ = 0;  // from the carried acceleration: every DOF, not only near the cut
   for (int d = 0; d < m.ndof(); ++d) {
-    const bool same_as_global = std::abs(near[d] - global[d]) <= 1e-9 * amax;
-    if (on_changed[d / 3]) {
-      EXPECT_TRUE(same_as_global) << "DOF " << d << ": " << near[d] << " vs " << global[d];
-    }
-    if (near[d] == carried.a[d] && !same_as_global) ++kept;
-    else if (same_as_global) ++recomputed;
-    else ADD_FAILURE() << "DOF " << d << " is neither the global nor the carried acceleration";
+    EXPECT_NEAR(after[d], global[d], 1e-12 * amax) << "DOF " << d;
+    differ += std::abs(carried.a[d] - global[d]) > 1e-9 * amax;
   }
-  EXPECT_GT(kept, m.ndof() / 2) << "far from the cut the acceleration is left alone";
-  EXPECT_GT(recomputed, 0);
+  EXPECT_GT(differ, m.ndof() / 2) << "Newmark's acceleration is not the equilibrium one away from the cut either";
 }
 
 }  // namespace
