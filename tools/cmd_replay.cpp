@@ -115,6 +115,8 @@ void replay(const ReplayOptions& o) {
   FrameOutputs outputs(s, std::filesystem::path(m.scene_path).stem().string(), o.out, o.render_dir, o.platform);
   const int frames = o.frames > 0 ? std::min<int>(o.frames, static_cast<int>(r.frames.size()))
                                   : static_cast<int>(r.frames.size());
+  if (o.frames > static_cast<int>(r.frames.size()))
+    std::printf("  --frames %d: the recording has %zu frames; replaying those\n", o.frames, r.frames.size());
   const bool compare = o.verify || o.tolerance >= 0.0;
   int matched = 0, snapshots = 0;
   double worst = 0.0;
@@ -156,7 +158,7 @@ void replay(const ReplayOptions& o) {
     }
   }
   progress.finish();
-  outputs.finish(frames, 1.0 / s.model.dt);
+  outputs.finish(s, frames, 1.0 / s.model.dt);
   if (o.tolerance >= 0.0) {
     std::printf("replay: %d of %d frames equal bit for bit; largest relative difference over %d snapshots %.3g "
                 "(tolerance %g)\n",

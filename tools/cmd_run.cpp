@@ -175,7 +175,7 @@ void run(const RunOptions& o) {
   std::printf("%d frames in %.1f ms (%.2fx real time); %d numeric factorizations\n", done, run_ms,
               done * sim->model.dt * 1000.0 / run_ms, sim->ws.refactorizations);
   std::printf("%s", format_summary(summary).c_str());
-  outputs.finish(done, 1.0 / sim->model.dt);
+  outputs.finish(*sim, done, 1.0 / sim->model.dt);
   if (!out.empty()) {
     std::filesystem::create_directories(out);
     const std::string json = (std::filesystem::path(out) / "timing.json").string();
@@ -201,13 +201,14 @@ void add_run_command(CLI::App& app) {
       ->needs(haptics);  // without the thread there are no logs (it was ignored in silence)
   cmd->add_option("--pace", opts->pace_hz, "Start frames at this rate in Hz (default: 1/dt with --haptics, else back to back; 0: back to back)")
       ->check(pace_rate());
-  cmd->add_option("--record", opts->record,
+  auto* record = cmd->add_option("--record", opts->record,
                   "Record the run to a replay file F (the scene, every instrument pose and device sample, the "
                   "clock's solver choices, the State's hash after every frame): incise replay F --verify");
   cmd->add_option("--record-states", opts->record_states,
                   "With --record: a full State snapshot every N frames (default 30; 0: only the last), for "
                   "replay --tolerance and for naming the largest difference")
-      ->check(integer_in(0, kMaxOptionFrames));
+      ->check(integer_in(0, kMaxOptionFrames))
+      ->needs(record);  // without a recording it did nothing, in silence
   add_set_option(*cmd, opts->patches);
   cmd->callback([opts] { run(*opts); });
 }

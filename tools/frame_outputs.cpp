@@ -89,7 +89,8 @@ void FrameOutputs::after_frame(const Simulation& sim) {
   if (series_ && sim.state.frame % sim.scene.output.every == 0) add_to_series(sim);
 }
 
-void FrameOutputs::finish(int frames, double fps) {
+void FrameOutputs::finish(const Simulation& sim, int frames, double fps) {
+  if (series_ && sim.state.frame % sim.scene.output.every != 0) add_to_series(sim);
   finished_ = true;
   if (!renderer_) return;
   std::printf("wrote %d frames %s\n", frames + 1, frame_png(render_dir_, 0).c_str());

@@ -26,8 +26,10 @@ class FrameOutputs {
   FrameOutputs(const FrameOutputs&) = delete;
   FrameOutputs& operator=(const FrameOutputs&) = delete;
   void after_frame(const Simulation& sim);  // after each advance_frame
-  // The PNG count and the video (when ffmpeg is there), printed; the files are kept.
-  void finish(int frames, double fps);
+  // The last frame into the series when output.every skipped it (a run of
+  // 10 frames at every 3 ended at frame 9), the PNG count and the video
+  // (when ffmpeg is there), printed; the files are kept.
+  void finish(const Simulation& sim, int frames, double fps);
   bool writes_series() const { return static_cast<bool>(series_); }
 
  private:

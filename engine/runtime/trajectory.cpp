@@ -79,6 +79,10 @@ Trajectory Trajectory::parse(const std::string& text, const std::string& path) {
       if (s.empty() || end != s.c_str() + s.size())
         throw fail(line_no, std::string(kNames[k]) + " must be a number, got \"" + s + "\"");
       if (!std::isfinite(v[k])) throw fail(line_no, std::string(kNames[k]) + " must be a finite number, got " + s);
+      // Interpolating between +-1.7e308 overflowed to an infinite pose (and
+      // times that far apart froze it): no scene unit makes such sizes sense.
+      if (k < 4 && !(std::abs(v[k]) <= 1e12))
+        throw fail(line_no, std::string(kNames[k]) + " must be within [-1e12, 1e12], got " + s);
     }
     if (!tr.t_.empty() && !(v[0] > tr.t_.back()))
       throw fail(line_no, "time must increase strictly: t = " + f[0] + " follows t = " + prev_t + " (line " +

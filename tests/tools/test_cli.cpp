@@ -231,6 +231,20 @@ TEST_F(Cli, RunWritesSeriesAndTimingJson) {
   const auto j = nlohmann::json::parse(js);
   EXPECT_EQ(j["frames"], 3);
   EXPECT_EQ(j["refactorizations"], 1) << "a linear scene factors once";
+  // output.every 3 over 4 frames: frames 0, 3 and the last (it
+  // was left out), the series' files numbered in order.
+  const Result e = incise("run " + path("scene.json") + " --frames 4 --set output.every=3 --out " + path("every"));
+  ASSERT_EQ(e.code, 0) << e.out;
+  std::ifstream pvd(path("every/scene.pvd"));
+  const std::string listed((std::istreambuf_iterator<char>(pvd)), std::istreambuf_iterator<char>());
+  int datasets = 0;
+  for (size_t at = listed.find("<DataSet"); at != std::string::npos; at = listed.find("<DataSet", at + 1)) ++datasets;
+  EXPECT_EQ(datasets, 3) << listed;
+  EXPECT_NE(listed.find("file=\"scene_000002.vtu\""), std::string::npos) << listed;
+  // --record-states without --record did nothing, in silence.
+  const Result rs = incise("run " + path("scene.json") + " --frames 1 --record-states 3");
+  EXPECT_NE(rs.code, 0);
+  EXPECT_NE(rs.out.find("--record-states requires --record"), std::string::npos) << rs.out;
 }
 
 TEST_F(Cli, BenchJsonHasTheDocumentedFields) {

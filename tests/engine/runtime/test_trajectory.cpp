@@ -136,6 +136,14 @@ TEST_F(TrajectoryTest, NotANumberOrNaN) {
   expect_error(kHeader + "0,0,0,0,1,0,0,inf\n", 2, "qz must be a finite number, got inf");
 }
 
+// Finite but huge: interpolating from x = 1.7e308 to -1.7e308 gave an
+// infinite pose, and times that far apart froze it at the first keyframe.
+TEST_F(TrajectoryTest, HugeTimesOrPositions) {
+  expect_error(kHeader + "0,1.7e308,0,0,1,0,0,0\n1,-1.7e308,0,0,1,0,0,0\n", 2,
+               "x must be within [-1e12, 1e12], got 1.7e308");
+  expect_error(kHeader + "-1.7e308,0,0,0,1,0,0,0\n", 2, "t must be within [-1e12, 1e12], got -1.7e308");
+}
+
 TEST_F(TrajectoryTest, DecreasingOrRepeatedTime) {
   expect_error(kHeader + "0,0,0,0,1,0,0,0\n1,0,0,0,1,0,0,0\n# back in time\n0.5,0,0,0,1,0,0,0\n", 5,
                "time must increase strictly: t = 0.5 follows t = 1 (line 3)");
