@@ -31,7 +31,7 @@ void check_sizes(const Simulation& sim) {
   const double lo = 1e-4 * diag, hi = 10.0 * diag;
   auto check = [&](const std::string& where, double value) {
     if (value >= lo && value <= hi) return;
-    throw Error(sim.scene.path + ": " + where + " = " + number_text(value) + " is outside [" + number_text(lo) + ", " +
+    throw Error(key_origin(sim.scene, where) + ": " + where + " = " + number_text(value) + " is outside [" + number_text(lo) + ", " +
                 number_text(hi) + "], 1e-4 to 10 times the mesh's bounding-box diagonal " + number_text(diag) +
                 ": an instrument outside any sensible scale (check the units)");
   };

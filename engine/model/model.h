@@ -122,6 +122,7 @@ struct Model {
                                    // as the diagonal they are the whole matrix (mass_matvec, form_matrix)
   std::vector<int> mass_coupling_col;  // the column of each
   std::vector<double> f_gravity;   // (ndof) M g: exact free fall for either mass
+  double gravity[3] = {0.0, 0.0, 0.0};  // the scene's g (for failure messages)
   std::vector<double> K0_csc;      // (nnz) rest stiffness (R = I): filled for the linear model, the warped
                                    // policies and every model built without a base; a cut rebuild of
                                    // another corotated model leaves it empty (rest_stiffness() makes it)

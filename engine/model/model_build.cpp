@@ -915,6 +915,7 @@ void collect_mass_couplings(Model& m, bool lumped_sparse) {
 // Gravity load f = M g with g on the standard DOFs only: the field u = g t^2/2,
 // q = 0 is exact free fall for every piece.
 void build_gravity(Model& m, const Scene& scene) {
+  for (int d = 0; d < 3; ++d) m.gravity[d] = scene.gravity[d];
   m.f_gravity.assign(m.ndof(), 0.0);
   if (m.mass_kind == MassKind::Lumped) {
     // Lumped with enrichment, M couples only u_a and q of the same node and

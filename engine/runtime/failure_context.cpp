@@ -35,6 +35,7 @@ std::string likely_inputs(const Model& m) {
   };
   const Material& mat = m.material;
   const auto band = [](double x, double lo, double hi) { return !(x >= lo && x <= hi); };
+  const double g = std::sqrt(m.gravity[0] * m.gravity[0] + m.gravity[1] * m.gravity[1] + m.gravity[2] * m.gravity[2]);
   std::vector<Value> v = {
       {"material.young = " + number_text(mat.young) +
            (band(mat.young, 1.0, 1e12) ? " (extreme: tissues to steel are 1e2 to 2e11 Pa)" : ""),
@@ -48,6 +49,9 @@ std::string likely_inputs(const Model& m) {
        band(mat.density, 1e-3, 1e5)},
       {"integrator.dt = " + number_text(m.dt) + (band(m.dt, 1e-7, 1.0) ? " (extreme: frames are 1e-4 to 0.1 s)" : ""),
        band(m.dt, 1e-7, 1.0)},
+      {"gravity = [" + number_text(m.gravity[0]) + ", " + number_text(m.gravity[1]) + ", " + number_text(m.gravity[2]) +
+           "]" + (g > 1e5 ? " (extreme: Earth's is 9.81 m/s^2, 9810 mm/s^2)" : ""),
+       g > 1e5},
   };
   std::string out;
   for (bool extreme : {true, false})

@@ -955,6 +955,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
 
   Scene s;
   s.path = path;
+  for (const AppliedPatch& a : applied) s.patched.emplace_back(a.path, a.patch->given);
   // solver.preset fills the solver.* and integrator.* keys left unset.
   std::vector<std::string> from_preset;
   std::string preset;

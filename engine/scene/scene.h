@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 #include <vector>
+#include <utility>
 
 namespace incise {
 
@@ -247,6 +248,10 @@ inline constexpr int kMaxFrames = 1000000;
 
 struct Scene {
   std::string path;       // the scene file as given
+  // The --set patches applied: (the JSON path each set, in the parser's
+  // notation "cuts[0].at_time"; the patch as given), for checks made after
+  // parsing (key_origin).
+  std::vector<std::pair<std::string, std::string>> patched;
   std::string mesh_file;  // resolved relative to the scene file's folder
   int order = 2;          // element order the model uses (a tet4 mesh is raised to 2)
   Material material;
@@ -333,6 +338,11 @@ Scene load_scene(const std::string& path, const std::vector<ScenePatch>& patches
 // required to exist.
 Scene parse_scene(const std::string& json_text, const std::string& path, const std::vector<ScenePatch>& patches = {},
                   bool trajectories_needed = true);
+
+// Where a scene value came from, to start an error message with: the --set
+// patch that set the JSON path `where` (or an object around it), else the
+// scene file ("--set instruments.0.radius=1e-9: instruments[0].radius ...").
+std::string key_origin(const Scene& scene, const std::string& where);
 
 // One resolved setting for print-outs: every solver.* and integrator.* key
 // the resolved solver.policy uses, in the parser's order.

@@ -118,6 +118,12 @@ const ScenePatch* patch_for(const std::vector<AppliedPatch>& applied, const std:
   return nullptr;
 }
 
+std::string key_origin(const Scene& scene, const std::string& where) {
+  for (auto it = scene.patched.rbegin(); it != scene.patched.rend(); ++it)
+    if (within(where, it->first) || (!where.empty() && within(it->first, where))) return it->second;
+  return scene.path;
+}
+
 const std::vector<std::string>& solver_preset_names() {
   static const std::vector<std::string> names{"realtime", "reference"};
   return names;

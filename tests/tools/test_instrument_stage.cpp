@@ -124,6 +124,14 @@ TEST_F(InstrumentStage, AnInstrumentOutsideAnySensibleScaleIsRefused) {
   EXPECT_EQ(error_of(s), s + ": instruments[0].blade[1] = 1e-05" + range);
   s = scene(R"([{"type": "grasper", "jaw_size": [0.02, 0.01, 0.1], "opening": 40}])");
   EXPECT_EQ(error_of(s), s + ": instruments[0].opening = 40" + range);
+  // A size set by --set names the patch (it named the scene file).
+  s = scene(R"([{"type": "probe", "radius": 0.05}])");
+  try {
+    load_checked_simulation(s, {parse_scene_patch("instruments.0.radius=1e-9")});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "--set instruments.0.radius=1e-9: instruments[0].radius = 1e-09" + range);
+  }
 }
 
 TEST_F(InstrumentStage, TrajectoryErrorsNameTheSceneTheKeyAndTheLine) {

@@ -36,9 +36,15 @@ TEST(FailureContext, ExtremeValuesComeFirst) {
   EXPECT_EQ(with_failure_context(e, m),
             "CHOLMOD: the system matrix is not positive definite at DOF 4; at node 1 component y (x = 1, 2, 3); check "
             "material.poisson = 0.4995 (extreme: nearly incompressible, the volumetric stiffness dwarfs the rest), "
-            "material.young = 3000, material.density = 1000, integrator.dt = 0.01");
+            "material.young = 3000, material.density = 1000, integrator.dt = 0.01, gravity = [0, 0, 0]");
   m.material.poisson = 0.3;
-  EXPECT_EQ(likely_inputs(m), "material.young = 3000, material.poisson = 0.3, material.density = 1000, integrator.dt = 0.01");
+  EXPECT_EQ(likely_inputs(m), "material.young = 3000, material.poisson = 0.3, material.density = 1000, integrator.dt = "
+                              "0.01, gravity = [0, 0, 0]");
+  // Gravity is listed too, first when extreme (a run with g = 1e8 diverged
+  // and the message named everything but it).
+  m.gravity[2] = -1e8;
+  EXPECT_EQ(likely_inputs(m), "gravity = [0, 0, -1e+08] (extreme: Earth's is 9.81 m/s^2, 9810 mm/s^2), material.young = "
+                              "3000, material.poisson = 0.3, material.density = 1000, integrator.dt = 0.01");
 }
 
 }  // namespace
