@@ -3,6 +3,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <regex>
+
+#include <unistd.h>
 
 #include "engine/output/result_grid.h"
 #include "engine/util/error.h"
@@ -35,8 +38,16 @@ FrameOutputs::FrameOutputs(Simulation& sim, const std::string& stem, const std::
     : render_dir_(render_dir) {
   try {
     if (!out.empty() && sim.scene.output.write_vtu) {
-      std::filesystem::create_directories(out);
-      pvd_path_ = (std::filesystem::path(out) / (stem + ".pvd")).string();
+      // The series is written into a staging folder inside `out` and moved
+      // in by finish(): a run that fails leaves an earlier run's series of
+      // the same name whole (it deleted that run's first files), and one
+      // that succeeds replaces it whole (no stale .vtu of a longer run).
+      std::filesystem::create_directories(out);  // (an error names `out` itself)
+      out_dir_ = out;
+      stem_ = stem;
+      stage_dir_ = (std::filesystem::path(out) / (".incise-partial-" + stem + "-" + std::to_string(getpid()))).string();
+      std::filesystem::create_directories(stage_dir_);
+      pvd_path_ = (std::filesystem::path(stage_dir_) / (stem + ".pvd")).string();
       series_ = std::make_unique<PvdSeries>(pvd_path_, sim.scene.output.vtu_ascii ? VtuEncoding::Ascii : VtuEncoding::Binary);
       add_to_series(sim);
     }
@@ -68,9 +79,34 @@ void FrameOutputs::remove_files() {
     std::error_code ec;
     removed += std::filesystem::remove(f, ec) ? 1 : 0;
   }
+  if (!stage_dir_.empty()) {
+    std::error_code ec;
+    std::filesystem::remove_all(stage_dir_, ec);
+  }
   if (removed > 0)
     std::fprintf(stderr, "incise: removed the %d output file(s) of the failed run (%s%s)\n", removed,
                  series_ ? pvd_path_.c_str() : "", series_ && !pngs_.empty() ? ", PNG frames" : !pngs_.empty() ? "PNG frames" : "");
+}
+
+// The staged series replaces the folder's series of the same stem: its
+// .pvd and every STEM_NNNNNN.vtu (also those of a longer earlier run).
+void FrameOutputs::commit_series() {
+  namespace fs = std::filesystem;
+  const std::regex numbered(std::regex_replace(stem_, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") + R"(_\d{6}\.vtu)");
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(out_dir_, ec)) {
+    const std::string name = e.path().filename().string();
+    if (e.is_regular_file() && (name == stem_ + ".pvd" || std::regex_match(name, numbered))) fs::remove(e.path(), ec);
+  }
+  std::vector<std::string> names = series_->files();
+  names.push_back(stem_ + ".pvd");
+  for (const std::string& f : names) {
+    fs::rename(fs::path(stage_dir_) / f, fs::path(out_dir_) / f, ec);
+    if (ec) throw Error(out_dir_ + ": cannot move " + f + " out of " + stage_dir_ + ": " + ec.message());
+  }
+  fs::remove_all(stage_dir_, ec);
+  stage_dir_.clear();
+  pvd_path_ = (fs::path(out_dir_) / (stem_ + ".pvd")).string();
 }
 
 void FrameOutputs::add_to_series(const Simulation& sim) {
@@ -91,6 +127,7 @@ void FrameOutputs::after_frame(const Simulation& sim) {
 
 void FrameOutputs::finish(const Simulation& sim, int frames, double fps) {
   if (series_ && sim.state.frame % sim.scene.output.every != 0) add_to_series(sim);
+  if (series_) commit_series();
   finished_ = true;
   if (!renderer_) return;
   std::printf("wrote %d frames %s\n", frames + 1, frame_png(render_dir_, 0).c_str());

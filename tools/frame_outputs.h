@@ -34,9 +34,11 @@ class FrameOutputs {
 
  private:
   void add_to_series(const Simulation& sim);
+  void commit_series();
   void remove_files();
   void write_frame_png(const Image& image, int frame);
   std::string pvd_path_;
+  std::string out_dir_, stem_, stage_dir_;  // the series' folder, its name, the staging folder while it runs
   std::vector<std::string> pngs_;  // written by this run
   bool finished_ = false;
 

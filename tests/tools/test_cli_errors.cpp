@@ -141,6 +141,31 @@ TEST_F(CliErrors, FailedRunRemovesItsOutputsAndNamesTheInput) {
   EXPECT_TRUE(fs::is_empty(path("out"))) << fs::directory_iterator(path("out"))->path();
 }
 
+// Runs into a folder that holds an earlier run's series of the same name:
+// one that fails leaves it whole (it removed that run's first files, and
+// the .pvd listing the rest); one that succeeds replaces it whole (a
+// shorter run left the longer one's last .vtu files beside its own).
+TEST_F(CliErrors, AFailedRunLeavesAnEarlierSeriesWholeAndASuccessfulOneReplacesIt) {
+  beam_scene();
+  const auto vtus = [&] {
+    int n = 0;
+    for (const auto& e : fs::directory_iterator(path("out"))) n += e.path().extension() == ".vtu";
+    return n;
+  };
+  ASSERT_EQ(incise("run " + path("scene.json") + " --frames 4 --out " + path("out")).code, 0);
+  ASSERT_EQ(vtus(), 5);
+  const Result bad = incise("run " + path("scene.json") + " --frames 3 --set material.density=1e300 --out " + path("out"));
+  EXPECT_EQ(bad.code, 1) << bad.out;
+  EXPECT_EQ(vtus(), 5);
+  EXPECT_TRUE(fs::exists(path("out/scene.pvd")));
+  EXPECT_TRUE(files_with("incise-partial").empty()) << "the failed run's staging folder is removed";
+  ASSERT_EQ(incise("run " + path("scene.json") + " --frames 2 --out " + path("out")).code, 0);
+  EXPECT_EQ(vtus(), 3);
+  std::ifstream pvd(path("out/scene.pvd"));
+  const std::string listed((std::istreambuf_iterator<char>(pvd)), std::istreambuf_iterator<char>());
+  EXPECT_NE(listed.find("scene_000002.vtu"), std::string::npos) << listed;
+}
+
 // The initial static solve (initial: "static") names the value too.
 TEST_F(CliErrors, InitialStaticFailureNamesTheInput) {
   beam_scene(R"("young": 1e5, "poisson": 0.3, "density": 1e300)", R"(, "initial": "static")");
