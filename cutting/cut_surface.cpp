@@ -6,7 +6,11 @@
 #include <cstdio>
 #include <functional>
 #include <fstream>
+#include <map>
+#include <mutex>
+#include <set>
 #include <sstream>
+#include <utility>
 
 #include <Eigen/Dense>
 
@@ -243,6 +247,19 @@ CutSurface::Value CutSurface::value(const double x[3]) const {
   return {ph, s};
 }
 
+bool CutSurface::crosses_segment(const double a[3], const double b[3], double tol) const {
+  const V xa(a[0], a[1], a[2]), xb(b[0], b[1], b[2]);
+  for (const Facet& f : facets_) {
+    if (f.unbounded) return true;
+    const V n = vec(f.n), p = vec(f.p);
+    const double da = (xa - p).dot(n), db = (xb - p).dot(n);
+    if ((da > 0 && db > 0) || (da < 0 && db < 0) || da == db) continue;
+    const V y = xa + da / (da - db) * (xb - xa);
+    if (triangle_distance(y, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol) return true;
+  }
+  return false;
+}
+
 bool CutSurface::covers(const double y[3], double tol) const {
   const V x(y[0], y[1], y[2]);
   tol *= 1.0 + slack_;
@@ -251,6 +268,61 @@ bool CutSurface::covers(const double y[3], double tol) const {
     if (triangle_distance(x, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol) return true;
   }
   return false;
+}
+
+// Turns the triangles of each connected patch (neighbours across edges that
+// exactly two triangles share, vertices matched exactly) to the winding of
+// its first triangle in the file. The level set's sign is each facet's
+// normal: a surface exported with mixed winding (as meshing tools do) put
+// neighbouring facets' sides opposite, so the sign flipped from node to node
+// and a plane written that way separated nothing. Returns how many were
+// turned; throws for a surface with no consistent winding (a Moebius strip).
+int orient_consistently(std::vector<Facet>& facets, const std::string& path) {
+  std::map<Vec3, int> ids;
+  std::vector<std::array<int, 3>> tri(facets.size());
+  for (size_t f = 0; f < facets.size(); ++f)
+    for (int k = 0; k < 3; ++k) tri[f][k] = ids.emplace(facets[f].v[k], static_cast<int>(ids.size())).first->second;
+  // Each undirected edge's triangles, and the direction each runs it in.
+  std::map<std::pair<int, int>, std::vector<std::pair<int, bool>>> edges;
+  for (size_t f = 0; f < facets.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = tri[f][k], b = tri[f][(k + 1) % 3];
+      edges[{std::min(a, b), std::max(a, b)}].emplace_back(static_cast<int>(f), a < b);
+    }
+  std::vector<signed char> flip(facets.size(), -1);  // -1 unvisited, 0 kept, 1 turned
+  int turned = 0;
+  for (size_t seed = 0; seed < facets.size(); ++seed) {
+    if (flip[seed] >= 0) continue;
+    flip[seed] = 0;
+    std::vector<int> stack{static_cast<int>(seed)};
+    while (!stack.empty()) {
+      const int f = stack.back();
+      stack.pop_back();
+      for (int k = 0; k < 3; ++k) {
+        const int a = tri[f][k], b = tri[f][(k + 1) % 3];
+        const auto& users = edges[{std::min(a, b), std::max(a, b)}];
+        if (users.size() != 2) continue;  // a boundary or non-manifold edge: no neighbour to follow
+        const auto& [g, g_forward] = users[0].first == f ? users[1] : users[0];
+        const bool f_forward = (a < b) != (flip[f] == 1);
+        // Consistent neighbours run a shared edge in opposite directions.
+        const signed char want = (g_forward == f_forward) ? 1 : 0;
+        if (flip[g] < 0) {
+          flip[g] = want;
+          turned += want;
+          stack.push_back(g);
+        } else if (flip[g] != want) {
+          throw Error(path + ": the triangles have no consistent winding (a non-orientable surface, such as a Moebius "
+                             "strip): a cut needs two sides");
+        }
+      }
+    }
+  }
+  for (size_t f = 0; f < facets.size(); ++f)
+    if (flip[f] == 1) {
+      std::swap(facets[f].v[1], facets[f].v[2]);
+      for (double& c : facets[f].n) c = -c;
+    }
+  return turned;
 }
 
 std::vector<Facet> read_triangle_surface(const std::string& path) {
@@ -347,6 +419,16 @@ std::vector<Facet> read_triangle_surface(const std::string& path) {
     throw Error(path + ":" + std::to_string(tri_line) + ": the file ends inside a facet (" + std::to_string(tri.size()) +
                 " of 3 vertices, no endloop)");
   if (facets.empty()) throw Error(path + ": no triangles found");
+  if (const int turned = orient_consistently(facets, path); turned > 0) {
+    static std::mutex m;
+    static std::set<std::string> told;  // once per file (it is read at load and again when it cuts)
+    const std::lock_guard<std::mutex> lock(m);
+    if (told.insert(path).second)
+      std::fprintf(stderr,
+                   "warning: %s: %d of %zu triangles were wound against their neighbours and were turned to match "
+                   "(each connected patch takes its first triangle's winding, which sets the cut's sides)\n",
+                   path.c_str(), turned, facets.size());
+  }
   return facets;
 }
 

@@ -35,6 +35,11 @@ class CutSurface {
   // Whether y (a point on the zero set near an element) lies on the surface's
   // extent, within tol: distance to the nearest facet triangle <= tol.
   bool covers(const double y[3], double tol) const;
+  // Whether the segment a-b passes through one of the facets (within tol of
+  // its triangle where it crosses the facet's plane). For a curved or kinked
+  // surface the zero of the nearest-facet level set interpolated along an
+  // edge lies off the facets although the edge is cut.
+  bool crosses_segment(const double a[3], const double b[3], double tol) const;
   const std::string& name() const { return name_; }
   // Extra reach of covers(), in multiples of the caller's tolerance. 0 for
   // the scene's cuts (their extent is exact); an instrument's sweep is a

@@ -157,7 +157,10 @@ bool find_crossings(const LevelSets& ls, int e, int c, double tol, std::vector<C
       for (int d = 0; d < 3; ++d) x.y[d] = X[3 * ia + d] + t * (X[3 * ib + d] - X[3 * ia + d]);
       x.l[a] = 1.0 - t;
       x.l[b] = t;
-      x.covered = ls.cuts[c]->covers(x.y, tol);
+      // On the surface, or (a curved or kinked surface, whose nearest-facet
+      // zero strays from its facets) the edge passes through a facet: a
+      // cylinder's arc or a plane bent by 1 degree cut nothing before.
+      x.covered = ls.cuts[c]->covers(x.y, tol) || ls.cuts[c]->crosses_segment(&X[3 * ia], &X[3 * ib], tol);
       all = all && x.covered;
       xs.push_back(x);
     }

@@ -274,6 +274,83 @@ TEST(Xfem, TriangleMeshCutFromObjAndStlMatchesThePlane) {
   std::filesystem::remove(stl);
 }
 
+// Triangle surfaces as exported by meshing tools, through the 4 x 1 x 1
+// beam: a plane with mixed winding, a plane bent by 10 degrees along a line
+// inside the body, and a cylinder's arc. Each severs the beam (two bodies,
+// no front element). Mixed winding flipped the nearest-facet level set's
+// sign from facet to facet; the bent and curved surfaces left their crossed
+// elements as "front" elements (the level set's zero, interpolated along an
+// edge, strays from the facets) and separated nothing. A Moebius strip has
+// no two sides: refused.
+TEST(Xfem, TriangleSurfacesWithMixedWindingBendsAndCurvesSever) {
+  const auto dir = std::filesystem::temp_directory_path();
+  // Rows of vertices along y at each (x, z) of a profile, as triangles;
+  // `mixed` winds every other triangle the other way.
+  const auto sheet = [&](const std::string& name, const std::vector<std::array<double, 2>>& xz, bool mixed) {
+    const std::string f = (dir / name).string();
+    std::ofstream os(f);
+    os.precision(17);
+    const double ys[3] = {-1.0, 0.5, 2.0};
+    for (const auto& p : xz)
+      for (double y : ys) os << "v " << p[0] << ' ' << y << ' ' << p[1] << '\n';
+    int t = 0;
+    for (size_t i = 0; i + 1 < xz.size(); ++i)
+      for (int j = 0; j < 2; ++j) {
+        const size_t a = 3 * i + j + 1, b = a + 1, c = a + 3, d = a + 4;  // 1-based
+        for (const auto& tri : {std::array<size_t, 3>{a, b, d}, std::array<size_t, 3>{a, d, c}})
+          if (mixed && t++ % 2) os << "f " << tri[0] << ' ' << tri[2] << ' ' << tri[1] << '\n';
+          else os << "f " << tri[0] << ' ' << tri[1] << ' ' << tri[2] << '\n';
+      }
+    return f;
+  };
+  const double bend = std::tan(10.0 * M_PI / 180.0);
+  std::vector<std::array<double, 2>> arc;
+  for (int k = 0; k <= 12; ++k) {
+    const double th = (-60.0 + 10.0 * k) * M_PI / 180.0;
+    arc.push_back({0.3 + 2.0 * std::cos(th), 0.5 + 2.0 * std::sin(th)});
+  }
+  const std::string files[3] = {
+      sheet("incise_cut_mixed.obj", {{2.3, -1.0}, {2.3, 0.0}, {2.3, 1.0}, {2.3, 2.0}}, true),
+      sheet("incise_cut_bent.obj", {{2.3, -1.0}, {2.3, 0.6}, {2.3 + 1.4 * bend, 2.0}}, false),
+      sheet("incise_cut_arc.obj", arc, false)};
+  for (const std::string& f : files) {
+    CutSpec c;
+    c.type = CutSpec::Type::Mesh;
+    c.file = f;
+    c.json_path = "cuts[0]";
+    auto sim = cantilever(2, {c});
+    const CutUpdate up = update_cuts(*sim, 0.0, 0.0);
+    EXPECT_EQ(up.report.bodies, 2) << f;
+    EXPECT_EQ(up.report.front_elements, 0) << f;
+    EXPECT_GT(up.report.cut_elements, 0) << f;
+    std::filesystem::remove(f);
+  }
+  // A Moebius strip: a band along x, its two ends joined with a half turn.
+  const std::string moebius = (dir / "incise_cut_moebius.obj").string();
+  {
+    std::ofstream os(moebius);
+    const int n = 12;
+    for (int k = 0; k < n; ++k) {
+      const double u = 2.0 * M_PI * k / n, w = 0.3;
+      for (double s : {-w, w})
+        os << "v " << (1 + s * std::cos(u / 2)) * std::cos(u) << ' ' << (1 + s * std::cos(u / 2)) * std::sin(u) << ' '
+           << s * std::sin(u / 2) << '\n';
+    }
+    for (int k = 0; k < n; ++k) {
+      const int a = 2 * k + 1, b = a + 1;
+      const int c = k + 1 < n ? a + 2 : 2, d = k + 1 < n ? b + 2 : 1;  // the last band joins the first turned over
+      os << "f " << a << ' ' << b << ' ' << d << "\nf " << a << ' ' << d << ' ' << c << '\n';
+    }
+  }
+  try {
+    read_triangle_surface(moebius);
+    ADD_FAILURE() << "a Moebius strip was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("the triangles have no consistent winding"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(moebius);
+}
+
 TEST(Xfem, CutAlongAnEdgeAndAFlapCutTwice) {
   // A plane containing the vertical mesh edge x = 2, y = 0 but no face.
   auto sim = cantilever(2, {test::plane_cut({2.0, 0.0, 0.0}, {1, 0.37, 0})});
