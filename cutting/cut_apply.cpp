@@ -158,6 +158,20 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   Model& next = *p.next;
   State& st = sim.state;
   Kinematics k = transfer_kinematics(sim.model, st, next);  // (reads st: no copy of u, v, a)
+  // The instruments' force of the last frame on the new DOFs (mesh nodes
+  // keep theirs; an old enriched node's goes to the first new one mapped to
+  // it), for the acceleration below.
+  std::vector<double> contact_force;
+  if (sim.ws.contact_force.size() == static_cast<size_t>(sim.model.ndof())) {
+    contact_force.assign(next.ndof(), 0.0);
+    std::vector<char> given(sim.model.ndofnode, 0);
+    for (int q = 0; q < next.ndofnode; ++q) {
+      const int o = p.map[q];
+      if (o < 0 || given[o]) continue;
+      given[o] = 1;
+      for (int c = 0; c < 3; ++c) contact_force[3 * q + c] = sim.ws.contact_force[3 * o + c];
+    }
+  }
   std::vector<double> R = carried_rotations(sim.model, st.R, next);
   std::unique_ptr<Model> old_model = std::make_unique<Model>(std::move(sim.model));
   sim.model = std::move(next);
@@ -178,7 +192,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   // A stiff beam's severed end (E = 1e8 Pa) was shot off at 2.9 m/s that way
   // when only the elements the cut changed were reset (3.1 ms cheaper a cut
   // frame on the 10k incision; docs/benchmarks.md).
-  consistent_acceleration(sim.model, st, sim.ws);
+  consistent_acceleration(sim.model, st, sim.ws, contact_force.empty() ? nullptr : &contact_force);
   up.part_ms[kCutAcceleration] = part.lap();
   up.changed = true;
   up.ms = clock.ms();

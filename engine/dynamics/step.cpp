@@ -439,7 +439,7 @@ const double* internal_forces(const Model& m, State& s, Workspace& ws, const dou
   return ws.K.data();
 }
 
-void consistent_acceleration(const Model& m, State& s, Workspace& ws) {
+void consistent_acceleration(const Model& m, State& s, Workspace& ws, const std::vector<double>* contact_force) {
   const int n = m.ndof();
   // Forces and rotations only: the damping product K v is taken matrix-free
   // (R K0 R^T v, without the rotation term of a consistent tangent: this is an
@@ -456,7 +456,8 @@ void consistent_acceleration(const Model& m, State& s, Workspace& ws) {
   for (int d = 0; d < n; ++d) {
     r[d] = m.constrained[d] ? 0.0
                             : m.f_gravity[d] - ws.f_int[d] - m.material.rayleigh_mass * Mv[d] -
-                                  m.material.rayleigh_stiffness * Kv[d];
+                                  m.material.rayleigh_stiffness * Kv[d] +
+                                  (contact_force ? (*contact_force)[d] : 0.0);
     diag[d] = m.mass_csc.empty() ? m.mass_lumped[d] : m.mass_csc[m.diag[d]];
   }
   if (lumped_mass_solve(m, r, s.a)) return;  // with enrichment too: a direct solve

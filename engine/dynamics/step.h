@@ -75,7 +75,11 @@ const double* internal_forces(const Model& model, State& state, Workspace& ws, c
 // Needed after a cut: the old acceleration does not satisfy the new
 // model's equations, and Newmark's trapezoidal update would turn that
 // mismatch into an energy jump.
-void consistent_acceleration(const Model& model, State& state, Workspace& ws);
+// `contact_force` (ndof, or null): an external force held in the balance
+// too (the instruments' force of the last frame, after a cut: without it a
+// probe's region got the acceleration of tissue the probe let go).
+void consistent_acceleration(const Model& model, State& state, Workspace& ws,
+                             const std::vector<double>* contact_force = nullptr);
 
 // Kinetic + elastic - gravity potential energy (for verification): for the
 // linear model 1/2 v'Mv + 1/2 u'K0u - f'u.
