@@ -590,7 +590,8 @@ TEST_F(Cli, BenchAndRunPrintTheResolvedSettings) {
 TEST_F(Cli, TheIncrementPredictorWithOneFrozenSolveIsWarnedAbout) {
   ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 4 1 1 --out " + path("beam.vtu")).code, 0);
   write("scene.json", incise::test::beam_scene_json(2, R"("model": "corotated", "young": 1e5, "poisson": 0.3, "density": 1)",
-                                                    R"(, "integrator": {"predictor": "increment", "rotation_tolerance": 0})"));
+                                                    R"(, "integrator": {"predictor": "increment", "rotation_tolerance": 0, )"
+                                                    R"("tangent": "frozen_rotation"})"));
   const std::string warning = "warning: integrator.predictor \"increment\" with the frozen-rotation tangent";
   const Result r = incise("run " + path("scene.json") + " --frames 1");
   ASSERT_EQ(r.code, 0) << r.out;

@@ -235,7 +235,18 @@ TEST_F(ScenePatchTest, ReferencePresetIsExact) {
   const Scene s = load(scene(R"("solver": {"preset": "reference"})"), {});
   EXPECT_EQ(s.solver.policy, SolverPolicy::Exact);
   EXPECT_EQ(s.tangent_reuse, 0.0);
-  EXPECT_FALSE(s.consistent_tangent) << "the scene's tangent (default)";
+  EXPECT_TRUE(s.consistent_tangent) << "the scene's tangent (the default at poisson 0.45)";
+}
+
+// integrator.tangent left unset: consistent for compressible tissue (poisson
+// <= 0.45), frozen_rotation above (the consistent one diverges at 0.49 at
+// 30 Hz); a scene's own choice stands.
+TEST_F(ScenePatchTest, TheDefaultTangentFollowsPoissonsRatio) {
+  EXPECT_TRUE(load(scene(), {}).consistent_tangent);
+  EXPECT_FALSE(load(scene(), sets({"material.poisson=0.46"})).consistent_tangent);
+  EXPECT_FALSE(load(scene(), sets({"material.poisson=0.499"})).consistent_tangent);
+  EXPECT_FALSE(load(scene(R"("integrator": {"tangent": "frozen_rotation"})"), {}).consistent_tangent);
+  EXPECT_TRUE(load(scene(R"("integrator": {"tangent": "consistent"})"), sets({"material.poisson=0.49"})).consistent_tangent);
 }
 
 // A key the scene or a patch sets wins over the preset's.
