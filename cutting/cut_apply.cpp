@@ -172,6 +172,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
       for (int c = 0; c < 3; ++c) contact_force[3 * q + c] = sim.ws.contact_force[3 * o + c];
     }
   }
+  const bool severed = next.cuts.bodies != sim.model.cuts.bodies;
   std::vector<double> R = carried_rotations(sim.model, st.R, next);
   std::unique_ptr<Model> old_model = std::make_unique<Model>(std::move(sim.model));
   sim.model = std::move(next);
@@ -185,14 +186,16 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   carry_workspace_over_cut(*old_model, sim.model, p.map, p.changed, &p.plan, st.frame, sim.ws);
   sim.retired_model = std::move(old_model);  // freed by the next cut-ahead task, off this thread
   up.part_ms[kCutSolverSetup] = part.lap();
-  // The whole body's equilibrium acceleration, not only near the cut:
-  // Newmark's acceleration carries each step's Newton residual (M a differs
-  // from f_ext - f_int - D v), a field that sums to ~0 over the body but not
-  // over a piece the cut severs; kept on the piece, it is a net force on it.
-  // A stiff beam's severed end (E = 1e8 Pa) was shot off at 2.9 m/s that way
-  // when only the elements the cut changed were reset (3.1 ms cheaper a cut
-  // frame on the 10k incision; docs/benchmarks.md).
-  consistent_acceleration(sim.model, st, sim.ws, contact_force.empty() ? nullptr : &contact_force);
+  // The acceleration consistent with the new model near the elements the cut
+  // changed; the whole body's when the cut severs a piece. Newmark's
+  // acceleration carries each step's Newton residual (M a differs from
+  // f_ext - f_int - D v), a field that sums to ~0 over a body but not over a
+  // piece the cut severs: kept on the piece, it is a net force on it (a stiff
+  // beam's severed end, E = 1e8 Pa, was shot off at 2.9 m/s). Not always the
+  // whole body's: 3.1 ms more a cut frame on the 10k incision, and beside a
+  // probe it cost cut frames a second Newton iteration (docs/benchmarks.md).
+  if (severed) consistent_acceleration(sim.model, st, sim.ws, contact_force.empty() ? nullptr : &contact_force);
+  else consistent_acceleration_near(sim.model, st, sim.ws, p.changed);
   up.part_ms[kCutAcceleration] = part.lap();
   up.changed = true;
   up.ms = clock.ms();

@@ -620,6 +620,7 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
   const PieceSet ps = make_pieces(ls, cuts_of, tip, L, rep);
   const std::vector<std::vector<int>> adj = connect_pieces(ls, pairs, separated, cuts_of, ps);
   rep.bodies = count_bodies(adj);
+  L.bodies = rep.bodies;
   // Regions of each node's support; only candidates can have more than one.
   const std::vector<char> candidate = region_candidates(ls, cuts_of, pairs, separated);
   L.piece_enr.assign(ps.pieces.size() * ls.npe, -1);

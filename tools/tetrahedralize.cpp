@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
 #include "engine/util/error.h"
 #include "engine/util/file_io.h"
 #include "tools/option_checks.h"
@@ -83,20 +84,6 @@ std::string tail_of(const std::string& path, int lines) {
   std::string out;
   for (size_t i = all.size() > static_cast<size_t>(lines) ? all.size() - lines : 0; i < all.size(); ++i) out += "\n  " + all[i];
   return out;
-}
-
-// Volume of a tet4 mesh (TetGen's tetrahedra are positively oriented).
-double tet4_volume(const Mesh& m) {
-  double vol = 0.0;
-  for (int e = 0; e < m.ntet(); ++e) {
-    const int* t = &m.tet[4 * static_cast<size_t>(e)];
-    double d[3][3];
-    for (int k = 0; k < 3; ++k)
-      for (int c = 0; c < 3; ++c) d[k][c] = m.X[3 * t[k + 1] + c] - m.X[3 * t[0] + c];
-    vol += (d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1]) - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0]) +
-            d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0])) / 6.0;
-  }
-  return vol;
 }
 
 // The region attribute TetGen's -A gives each tetrahedron of `ele` (the
@@ -173,7 +160,7 @@ std::pair<double, int> drop_enclosed_regions(Mesh& m, const std::vector<double>&
     if (!m.elem_file_id.empty()) kept.elem_file_id.push_back(m.elem_file_id[static_cast<size_t>(e)]);
     if (!m.elem_line.empty()) kept.elem_line.push_back(m.elem_line[static_cast<size_t>(e)]);
   }
-  const double dropped = tet4_volume(m) - tet4_volume(kept);
+  const double dropped = mesh_quality(m).total_volume - mesh_quality(kept).total_volume;
   m = std::move(kept);
   return {dropped, enclosed};
 }
@@ -245,7 +232,7 @@ Mesh tetrahedralize(const std::string& surface, double size, double quality, boo
   // memory. TetGen's quality mesh has 2.4-3.5 tetrahedra per volume bound
   // (a sphere at 10 and 20 edges across); 3 is the estimate.
   const double bound = size * size * size / (6.0 * std::sqrt(2.0));  // a regular tetrahedron of edge `size`
-  const double volume = tet4_volume(run_tetgen("-pQA"));
+  const double volume = mesh_quality(run_tetgen("-pQA")).total_volume;
   const double estimate = 3.0 * volume / bound;
   if (estimate > static_cast<double>(kMaxBeamTets)) {
     char buf[320];

@@ -51,13 +51,19 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
 //   m_u a_u + sum_q m_q a_q = r_u,  m_q (a_u + a_q) = r_q
 // gives a_u = (r_u - sum_q r_q) / (m_u - sum_q m_q) (the home piece's mass)
 // and a_q = r_q / m_q - a_u: a direct solve (a branch DOF of the front
-// enrichment has no coupling: a = r / m); 0 on constrained DOFs.
-void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, std::vector<double>& a) {
+// enrichment has no coupling: a = r / m). On the DOF nodes with mark
+// (every one when mark is null; a marked enriched node's mesh node must be
+// marked too); a is left alone elsewhere, 0 on constrained DOFs.
+void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, const std::vector<char>* mark,
+                              std::vector<double>& a) {
   const int nstd = 3 * m.nnode, n = m.ndof();
+  const auto marked = [&](int dof) { return !mark || (*mark)[dof / 3]; };
   std::vector<double> rsum(nstd, 0.0), msum(nstd, 0.0);
   std::vector<int> home(n - nstd, -1);  // enriched DOF -> its mesh node's DOF (the coupling's row)
-  for (int c = 0; c < nstd; ++c) rsum[c] = r[c], msum[c] = m.mass_csc[m.diag[c]];
+  for (int c = 0; c < nstd; ++c)
+    if (marked(c)) rsum[c] = r[c], msum[c] = m.mass_csc[m.diag[c]];
   for (int c = nstd; c < n; ++c) {
+    if (!marked(c)) continue;
     for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
       if (m.Ai[k] < nstd && m.mass_csc[k] != 0.0) {
         home[c - nstd] = m.Ai[k];
@@ -65,8 +71,10 @@ void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, std:
         msum[m.Ai[k]] -= m.mass_csc[k];
       }
   }
-  for (int c = 0; c < nstd; ++c) a[c] = m.constrained[c] ? 0.0 : rsum[c] / msum[c];
+  for (int c = 0; c < nstd; ++c)
+    if (marked(c)) a[c] = m.constrained[c] ? 0.0 : rsum[c] / msum[c];
   for (int c = nstd; c < n; ++c) {
+    if (!marked(c)) continue;
     const int h = home[c - nstd];
     a[c] = m.constrained[c] ? 0.0 : r[c] / m.mass_csc[m.diag[c]] - (h >= 0 ? a[h] : 0.0);
   }
@@ -80,7 +88,7 @@ bool lumped_mass_solve(const Model& m, const std::vector<double>& r, std::vector
   if (m.mass_csc.empty()) {
     for (int d = 0; d < m.ndof(); ++d) x[d] = m.constrained[d] ? 0.0 : r[d] / m.mass_lumped[d];
   } else {
-    lumped_xfem_acceleration(m, r, x);
+    lumped_xfem_acceleration(m, r, nullptr, x);
   }
   return true;
 }
@@ -511,6 +519,49 @@ void consistent_acceleration(const Model& m, State& s, Workspace& ws, const std:
   direct.analyze(n, m.Ap, m.Ai);
   direct.factorize(Mc.data());
   direct.solve(rhs.data(), s.a.data());
+}
+
+void consistent_acceleration_near(const Model& m, State& s, Workspace& ws, const std::vector<int>& changed) {
+  if (m.mass_kind != MassKind::Lumped || m.mass_csc.empty()) {
+    consistent_acceleration(m, s, ws);
+    return;
+  }
+  const int nstd = m.nnode, n = m.ndof();
+  // Marked DOF nodes: those of the changed elements (their enriched nodes
+  // enrich their own mesh nodes) and every enriched node of a marked mesh node.
+  std::vector<char> mark(m.ndofnode, 0);
+  for (int e : changed)
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k) mark[m.elem_dof_node[k]] = 1;
+  for (int q = nstd; q < m.ndofnode; ++q)
+    if (mark[m.cuts.enr_node[q - nstd]]) mark[q] = 1;
+  std::vector<int> ring;  // elements with a marked node: all forces on marked DOFs
+  for (int e = 0; e < m.nelem; ++e)
+    for (int k = m.elem_dof_ptr[e]; k < m.elem_dof_ptr[e + 1]; ++k)
+      if (mark[m.elem_dof_node[k]]) {
+        ring.push_back(e);
+        break;
+      }
+  std::vector<double> f(n, 0.0), Kv(n, 0.0);
+  const bool damp = m.material.rayleigh_stiffness > 0;
+  element_subset_forces(m, ws.work.plan, ring, s.u.data(), s.R.data(), f.data(), damp ? s.v.data() : nullptr, Kv.data());
+  // M v on the marked DOF nodes (the diagonal and the u-q couplings), then the
+  // lumped solve per mesh node.
+  std::vector<double> Mv(n, 0.0), r(n, 0.0);
+  for (int node = 0; node < m.ndofnode; ++node)
+    for (int c = 3 * node; mark[node] && c < 3 * node + 3; ++c) Mv[c] = m.mass_csc[m.diag[c]] * s.v[c];
+  for (int c = 3 * nstd; c < n; ++c) {
+    if (!mark[c / 3]) continue;
+    for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
+      if (m.Ai[k] < 3 * nstd && m.mass_csc[k] != 0.0) {
+        Mv[c] += m.mass_csc[k] * s.v[m.Ai[k]];
+        Mv[m.Ai[k]] += m.mass_csc[k] * s.v[c];
+      }
+  }
+  for (int node = 0; node < m.ndofnode; ++node)
+    for (int c = 3 * node; mark[node] && c < 3 * node + 3; ++c)
+      r[c] = m.constrained[c] ? 0.0
+                              : m.f_gravity[c] - f[c] - m.material.rayleigh_mass * Mv[c] - m.material.rayleigh_stiffness * Kv[c];
+  lumped_xfem_acceleration(m, r, &mark, s.a);
 }
 
 double total_energy(const Model& m, const State& s) {

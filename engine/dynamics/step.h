@@ -81,6 +81,16 @@ const double* internal_forces(const Model& model, State& state, Workspace& ws, c
 void consistent_acceleration(const Model& model, State& state, Workspace& ws,
                              const std::vector<double>* contact_force = nullptr);
 
+// consistent_acceleration where a cut rebuild changed the equations: on the
+// DOF nodes of the `changed` elements, their mesh nodes' other enriched DOF
+// nodes (the lumped (u, q) blocks couple them), and nothing else; elsewhere
+// state.a keeps its value. Needs only the forces of the elements around those
+// nodes. Lumped mass only: with a consistent mass it is the global version.
+// Newmark's acceleration elsewhere carries the steps' Newton residual, which
+// sums to ~0 over a body: right while the cut severs nothing (cut_apply.cpp
+// resets the whole body's when it does).
+void consistent_acceleration_near(const Model& model, State& state, Workspace& ws, const std::vector<int>& changed);
+
 // Kinetic + elastic - gravity potential energy (for verification): for the
 // linear model 1/2 v'Mv + 1/2 u'K0u - f'u.
 double total_energy(const Model& model, const State& state);

@@ -747,6 +747,21 @@ RotationChange rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& p
   return out;
 }
 
+void element_subset_forces(const Model& m, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,
+                           double* R, double* f, const double* v, double* Kv) {
+  double* s = plan.scratch[0].data();
+  for (int e : elems) {
+    const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
+    if (n == 10) element_terms<10>(m, plan, e, u, R, f, nullptr, s);
+    else if (n == 4) element_terms<4>(m, plan, e, u, R, f, nullptr, s);
+    else element_terms<0>(m, plan, e, u, R, f, nullptr, s);
+    if (!v) continue;
+    if (n == 10) element_matvec<10>(m, plan, e, R, v, Kv, s);
+    else if (n == 4) element_matvec<4>(m, plan, e, R, v, Kv, s);
+    else element_matvec<0>(m, plan, e, R, v, Kv, s);
+  }
+}
+
 void sym_matvec_parallel(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* A, const double* x,
                          double* y) {
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());

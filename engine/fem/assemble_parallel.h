@@ -108,6 +108,10 @@ struct RotationChange {
 RotationChange rotation_change(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R,
                                double threshold);
 
+// Forces (and with v, K v) of the elements `elems` only, on the calling thread.
+void element_subset_forces(const Model& model, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,
+                           double* R, double* f_int, const double* v, double* Kv);
+
 // y = K(R) v without forming K: per point f_a = w R (mu (S + S^T) + lambda tr(S) I) g_a with
 // S = R^T sum_b v_b (x) g_b, which is R K0 R^T v element by element: the
 // frozen-R tangent, without the rotation term assemble_corotated adds where

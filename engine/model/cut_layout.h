@@ -26,6 +26,7 @@ struct CutLayout {
   std::vector<double> piece_fraction;    // (npiece) volume fraction of the piece in its element
   std::vector<unsigned char> elem_face_cut;  // (nelem, 4) a whole element face lies on a cut
   std::vector<unsigned char> elem_split;     // (nelem) 1 when the element is cut into pieces
+  int bodies = 1;                            // connected pieces of tissue (a cut frame that changes it severed one)
 
   // Front enrichment (compute_cut_layout with branch_front; empty without):
   // every node a of an element a cut's front passes through, or of an
