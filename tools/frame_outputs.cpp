@@ -83,9 +83,11 @@ void FrameOutputs::remove_files() {
     std::error_code ec;
     std::filesystem::remove_all(stage_dir_, ec);
   }
+  // (the series by the name it would have had, not its staging folder's)
+  const std::string series = series_ ? (std::filesystem::path(out_dir_) / (stem_ + ".pvd")).string() : "";
   if (removed > 0)
-    std::fprintf(stderr, "incise: removed the %d output file(s) of the failed run (%s%s)\n", removed,
-                 series_ ? pvd_path_.c_str() : "", series_ && !pngs_.empty() ? ", PNG frames" : !pngs_.empty() ? "PNG frames" : "");
+    std::fprintf(stderr, "incise: removed the %d output file(s) of the failed run (%s%s)\n", removed, series.c_str(),
+                 series_ && !pngs_.empty() ? ", PNG frames" : !pngs_.empty() ? "PNG frames" : "");
 }
 
 // The staged series replaces the folder's series of the same stem: its
