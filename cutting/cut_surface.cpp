@@ -270,6 +270,7 @@ bool CutSurface::covers(const double y[3], double tol) const {
   return false;
 }
 
+namespace {
 // Turns the triangles of each connected patch (neighbours across edges that
 // exactly two triangles share, vertices matched exactly) to the winding of
 // its first triangle in the file. The level set's sign is each facet's
@@ -324,6 +325,7 @@ int orient_consistently(std::vector<Facet>& facets, const std::string& path) {
     }
   return turned;
 }
+}  // namespace
 
 std::vector<Facet> read_triangle_surface(const std::string& path) {
   const bool stl = path.size() > 4 && (path.substr(path.size() - 4) == ".stl" || path.substr(path.size() - 4) == ".STL");
