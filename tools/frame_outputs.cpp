@@ -3,7 +3,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <regex>
 
 #include <unistd.h>
 
@@ -94,11 +93,19 @@ void FrameOutputs::remove_files() {
 // .pvd and every STEM_NNNNNN.vtu (also those of a longer earlier run).
 void FrameOutputs::commit_series() {
   namespace fs = std::filesystem;
-  const std::regex numbered(std::regex_replace(stem_, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") + R"(_\d{6}\.vtu)");
+  // STEM_NNNNNN.vtu: the stem, '_', six digits, ".vtu".
+  const auto numbered = [&](const std::string& name) {
+    const size_t n = stem_.size();
+    if (name.size() != n + 11 || name.compare(0, n, stem_) != 0 || name[n] != '_' || name.compare(n + 7, 4, ".vtu") != 0)
+      return false;
+    for (size_t i = n + 1; i < n + 7; ++i)
+      if (name[i] < '0' || name[i] > '9') return false;
+    return true;
+  };
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(out_dir_, ec)) {
     const std::string name = e.path().filename().string();
-    if (e.is_regular_file() && (name == stem_ + ".pvd" || std::regex_match(name, numbered))) fs::remove(e.path(), ec);
+    if (e.is_regular_file() && (name == stem_ + ".pvd" || numbered(name))) fs::remove(e.path(), ec);
   }
   std::vector<std::string> names = series_->files();
   names.push_back(stem_ + ".pvd");
