@@ -988,7 +988,7 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   if (auto it = root.find("prescribed"); it != root.end()) parse_prescribed(p, *it, s);
   // integrator.tangent left unset: consistent for compressible tissue (nu <=
   // 0.45), frozen_rotation above (the consistent one diverges at nu >= 0.49
-  // at 30 Hz). A swinging soft beam cut while it moved diverged under the
+  // at 30 Hz). A swinging soft beam cut while it moved blew up under the
   // frozen one (Newton at its cap in 53 of 60 frames, 324 inverted points)
   // and not under the consistent one (docs/numerics.md).
   s.consistent_tangent = s.material.poisson <= 0.45;
