@@ -112,15 +112,23 @@ std::vector<AppliedPatch> apply_scene_patches(json& root, const std::vector<Scen
   return applied;
 }
 
+namespace {
+// A patch that set `patched` set `where`: the key itself, an object around
+// it, or a key below it.
+bool patch_reaches(const std::string& patched, const std::string& where) {
+  return within(where, patched) || (!where.empty() && within(patched, where));
+}
+}  // namespace
+
 const ScenePatch* patch_for(const std::vector<AppliedPatch>& applied, const std::string& where) {
   for (auto it = applied.rbegin(); it != applied.rend(); ++it)
-    if (within(where, it->path) || (!where.empty() && within(it->path, where))) return it->patch;
+    if (patch_reaches(it->path, where)) return it->patch;
   return nullptr;
 }
 
 std::string key_origin(const Scene& scene, const std::string& where) {
   for (auto it = scene.patched.rbegin(); it != scene.patched.rend(); ++it)
-    if (within(where, it->first) || (!where.empty() && within(it->first, where))) return it->second;
+    if (patch_reaches(it->first, where)) return it->second;
   return scene.path;
 }
 
