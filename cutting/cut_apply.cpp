@@ -196,6 +196,17 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
   // probe it cost cut frames a second Newton iteration (docs/benchmarks.md).
   if (severed) consistent_acceleration(sim.model, st, sim.ws, contact_force.empty() ? nullptr : &contact_force);
   else consistent_acceleration_near(sim.model, st, sim.ws, p.changed);
+  // A severed piece is released with the stress that held it, a jump in the
+  // forcing that Newmark's rule, which damps nothing, would ring on: the
+  // step after the cut is a recovery step (backward Euler, State::recovery;
+  // docs/numerics.md, "Recovery steps"). A soft beam severed while it swung
+  // blew up without it (nu 0.3-0.499, either tangent). Not for a body at
+  // rest (u = v = 0: a scene's cut before the first step): nothing is
+  // released, and its pieces then fall exactly as Newmark's rule has them.
+  const auto moving = [](const std::vector<double>& x) {
+    return std::any_of(x.begin(), x.end(), [](double y) { return y != 0.0; });
+  };
+  if (severed && (moving(st.u) || moving(st.v))) st.recovery = true;
   up.part_ms[kCutAcceleration] = part.lap();
   up.changed = true;
   up.ms = clock.ms();

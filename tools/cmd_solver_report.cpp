@@ -38,6 +38,8 @@ SolverReport solver_report(const Simulation& sim, const std::vector<FrameTiming>
     nsub += t.solves;
     if (!t.converged) ++r.not_converged_frames;
     r.rescue_frames += t.rescues > 0;
+    r.capped_frames += t.newton_capped;
+    r.recovery_frames += t.recovery;
     if (t.budget_spent) {
       ++r.budget_frames;
       r.max_budget_residual = std::max(r.max_budget_residual, t.residual);
@@ -80,6 +82,13 @@ std::string format_solver_report(const SolverReport& r) {
                   rs.reused, rs.grown, rs.fresh);
     out += buf;
   }
+  if (r.capped_frames + r.recovery_frames > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "newton: %d frame%s stopped at integrator.max_newton_iterations with the rotations still moving; "
+                  "%d recovery step%s (backward Euler, integrator.recovery; docs/numerics.md)\n",
+                  r.capped_frames, r.capped_frames == 1 ? "" : "s", r.recovery_frames, r.recovery_frames == 1 ? "" : "s");
+    out += buf;
+  }
   if (r.policy == "lagged" || r.policy == "warped_cg") {
     std::snprintf(buf, sizeof buf, "CG: iterations/frame median %.0f, p99 %.0f, max %.0f; %d frame%s not converged (max residual %.2g)\n",
                   r.iterations.median_ms, r.iterations.p99_ms, r.iterations.max_ms, r.not_converged_frames,
@@ -106,6 +115,8 @@ nlohmann::json solver_report_json(const SolverReport& r) {
           {"not_converged_frames", r.not_converged_frames},
           {"rescue_frames", r.rescue_frames},
           {"budget_frames", r.budget_frames},
+          {"capped_frames", r.capped_frames},
+          {"recovery_frames", r.recovery_frames},
           {"max_budget_residual", r.max_budget_residual},
           {"max_residual", r.max_residual},
           {"substitutions_per_frame", r.substitutions_per_frame},

@@ -37,9 +37,9 @@ std::uint64_t fnv(const std::vector<double>& x, std::uint64_t h = kFnvOffset) {
   return fnv1a(lane, sizeof lane, fnv1a(&n, sizeof n, h));
 }
 
-// Format version 4 (3: no du, read as empty; 2: the byte-wise field hash; 1:
-// no swept cuts).
-constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '4'};
+// Format version 5 (4: no recovery flag, read as false; 3: no du either,
+// read as empty; 2: the byte-wise field hash; 1: no swept cuts).
+constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '5'};
 
 template <class T>
 void put(std::ostream& os, const T& v) {
@@ -60,6 +60,12 @@ T get(std::istream& is, const std::string& what, const char* field) {
 std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& s) {
   std::array<std::uint64_t, kNumStateFields> h{};
   h[kFieldClock] = fnv1a(&s.frame, sizeof s.frame, fnv1a(&s.time, sizeof s.time));
+  // The recovery flag with the clock, only when set: states without it hash
+  // as they did before the flag existed (recorded runs keep their hashes).
+  if (s.recovery) {
+    const unsigned char one = 1;
+    h[kFieldClock] = fnv1a(&one, sizeof one, h[kFieldClock]);
+  }
   h[kFieldU] = fnv(s.u);
   h[kFieldV] = fnv(s.du, fnv(s.v));
   h[kFieldA] = fnv(s.a);
@@ -82,17 +88,19 @@ void write_state(std::ostream& os, const State& s) {
     put<std::uint64_t>(os, f->size());
     os.write(reinterpret_cast<const char*>(f->data()), static_cast<std::streamsize>(f->size() * sizeof(double)));
   }
+  put<std::uint8_t>(os, s.recovery ? 1 : 0);
   put<std::uint64_t>(os, state_hash(s));
 }
 
 State read_state(std::istream& is, const std::string& what) {
   char magic[sizeof kMagic];
-  // Version 3 files (no du) are read too: the next step then starts from the
-  // velocity predictor.
+  // Version 3 files (no du) and 4 (no recovery flag) are read too: the next
+  // step then starts from the velocity predictor, or as an ordinary step.
   const bool read = static_cast<bool>(is.read(magic, sizeof magic));
   const bool v3 = read && std::memcmp(magic, "INCSTAT3", 8) == 0;
-  if (!read || (!v3 && std::memcmp(magic, kMagic, sizeof kMagic) != 0))
-    throw Error(what + ": not an incise state file of version 3 or 4 (header 'INCSTAT4' expected)");
+  const bool v4 = read && std::memcmp(magic, "INCSTAT4", 8) == 0;
+  if (!read || (!v3 && !v4 && std::memcmp(magic, kMagic, sizeof kMagic) != 0))
+    throw Error(what + ": not an incise state file of version 3 to 5 (header 'INCSTAT5' expected)");
   // Bytes left, so a corrupted length is refused before anything is allocated.
   const auto here = is.tellg();
   is.seekg(0, std::ios::end);
@@ -118,6 +126,11 @@ State read_state(std::istream& is, const std::string& what) {
     for (std::uint64_t i = 0; i < n; ++i)
       if (!std::isfinite((*fields[k])[i]))
         throw Error(what + ": state field " + names[k] + "[" + std::to_string(i) + "] is not finite");
+  }
+  if (!v3 && !v4) {
+    const std::uint8_t flag = get<std::uint8_t>(is, what, "recovery");
+    if (flag > 1) throw Error(what + ": state field recovery is " + std::to_string(flag) + ", not 0 or 1");
+    s.recovery = flag == 1;
   }
   const std::uint64_t stored = get<std::uint64_t>(is, what, "hash");
   if (stored != state_hash(s)) throw Error(what + ": state hash mismatch (the file is corrupted)");

@@ -28,11 +28,16 @@ struct State {
   std::vector<double> swept;          // (ntri, 9) corners
   std::vector<double> swept_tool;     // (ntri) the instrument (scene.instruments index)
   std::vector<double> swept_frame;    // (ntri) the frame that swept it
+  // The next step is a recovery step (backward Euler, integrator.recovery):
+  // a cut severed a piece before it, or the last step's Newton iteration stopped at
+  // its cap with the rotations still moving (engine/dynamics/step.cpp,
+  // docs/numerics.md "Recovery steps").
+  bool recovery = false;
 
   bool operator==(const State& o) const {
     return time == o.time && frame == o.frame && u == o.u && v == o.v && a == o.a && R == o.R && du == o.du &&
            cut_progress == o.cut_progress && swept == o.swept && swept_tool == o.swept_tool &&
-           swept_frame == o.swept_frame;
+           swept_frame == o.swept_frame && recovery == o.recovery;
   }
   bool operator!=(const State& o) const { return !(*this == o); }
 };

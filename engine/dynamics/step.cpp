@@ -158,6 +158,9 @@ void step(const Model& m, State& s, Workspace& ws) {
 }
 
 void step_stages(const Model& m, State& s, Workspace& ws) {
+  ws.recovery = s.recovery && m.material.model == MaterialModel::Corotated && m.recovery_steps;
+  ws.timing.recovery = ws.recovery;
+  ws.timing.newton_capped = false;
   ws.newton_done = false;
   ws.rescue_pending = false;
   ws.rotation_fallbacks = 0;
@@ -221,7 +224,7 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
   const double t1 = s.time + m.dt;
   const double a_ray = m.material.rayleigh_mass, b_ray = m.material.rayleigh_stiffness;
   const bool linear = m.material.model == MaterialModel::Linear;
-  const NewmarkCoefficients nc = newmark_coefficients(m);
+  const NewmarkCoefficients nc = newmark_coefficients(m, ws.recovery);
   if (ws.newton_iterations_done == 0) {
     // Increment Delta = u(t+dt) - u(t): constrained DOFs take their known
     // increments up front (projection, Algorithm 1); the solves then keep
@@ -334,11 +337,9 @@ void decide_newton(const Model& m, State& s, Workspace& ws) {
   const bool adaptive = m.adaptive_newton();
   ws.newton_done = false;
   const int budget = m.solver.frame_iterations;
-  if (it + 1 >= m.max_newton_iterations || ws.timing.budget_spent || (budget > 0 && ws.timing.iterations >= budget)) {
-    ws.newton_done = true;
-    return;
-  }
-  if (it + 1 < m.newton_iterations) return;
+  const bool capped =
+      it + 1 >= m.max_newton_iterations || ws.timing.budget_spent || (budget > 0 && ws.timing.iterations >= budget);
+  if (!capped && it + 1 < m.newton_iterations) return;
   if (!adaptive) {
     ws.newton_done = true;
     return;
@@ -364,21 +365,24 @@ void decide_newton(const Model& m, State& s, Workspace& ws) {
   ws.timing.rotation_change = rc.max;
   ws.timing.rotation_rms = rc.rms;
   ws.timing.rotation_above = rc.volume > 0.0 ? rc.above / rc.volume : 0.0;
-  if (m.rotation_tolerance > 0 &&
-      (rc.above > m.rotation_fraction * rc.volume || (m.rotation_rms > 0 && rc.rms > m.rotation_rms))) {
-    ws.newton_done = false;
-    return;
-  }
+  const bool turning = m.rotation_tolerance > 0 &&
+                       (rc.above > m.rotation_fraction * rc.volume || (m.rotation_rms > 0 && rc.rms > m.rotation_rms));
   // integrator.residual_tolerance: the residual at this iteration's start
   // (the one after the solve needs another assembly), so a step stops one
   // iteration after its residual fell below it.
-  ws.newton_done = !(m.residual_tolerance > 0 && ws.last_residual > m.residual_tolerance);
+  const bool more = turning || (m.residual_tolerance > 0 && ws.last_residual > m.residual_tolerance);
+  ws.newton_done = capped || !more;
+  // Stopped by the cap with the rotations still moving: the step's Newton
+  // residual stays in the state, and the next step is a recovery step
+  // (integrate, State::recovery). The residual test alone does not count: it
+  // asks for converged references, not for the stop that keeps a run stable.
+  ws.timing.newton_capped = capped && turning;
 }
 
 void integrate(const Model& m, State& s, Workspace& ws) {
   const int n = m.ndof();
   const double t1 = s.time + m.dt;
-  const NewmarkCoefficients nc = newmark_coefficients(m);
+  const NewmarkCoefficients nc = newmark_coefficients(m, ws.recovery);
   // Newmark update ([book] eq. (3.58), general beta and gamma).
   for (int d = 0; d < n; ++d) {
     const double a1 = nc.a_d * ws.delta[d] + nc.a_v * s.v[d] + nc.a_a * s.a[d];
@@ -397,6 +401,13 @@ void integrate(const Model& m, State& s, Workspace& ws) {
     s.a[p.dof] = 0.0;  // piecewise linear in time
   }
   project_contact_kinematics(m, s, ws);
+  // Recovery steps (docs/numerics.md): the trapezoidal rule conserves energy
+  // for linear forces only; a step Newton left unconverged carries its
+  // residual into the next, and on a stressed piece tumbling free after a cut
+  // those errors compounded into a blow-up within 10-40 frames (a soft beam
+  // severed while swinging, nu = 0.3 to 0.499, either tangent). The next step
+  // takes the dissipative coefficients, and so on until a step converges.
+  s.recovery = ws.timing.newton_capped;
   s.time = t1;
   ++s.frame;
   check_motion_bounded(m, s);

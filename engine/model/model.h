@@ -36,6 +36,7 @@ struct Model {
   bool line_search = false;         // integrator.line_search: halve an iteration that raised the residual
   double residual_tolerance = 0.0;  // integrator.residual_tolerance: also iterate while the relative residual is above it
   double newmark_gamma = 0.5, newmark_beta = 0.25;  // 1/2, 1/4: trapezoidal rule
+  bool recovery_steps = true;       // integrator.recovery "backward_euler" (true) or "none": State::recovery's steps
   bool consistent_tangent = false;  // integrator.tangent: add the rotation term (engine/fem/rotation_stiffness.h)
   bool increment_predictor = false;  // integrator.predictor "increment": Newton starts from State::du, not dt v
   double tangent_reuse = 0.0;       // integrator.tangent_reuse: F change below which element tangents are kept
@@ -157,7 +158,9 @@ struct Model {
 struct NewmarkCoefficients {
   double a_d, a_v, a_a, v_d, v_v, v_a, cM, cK;
 };
-NewmarkCoefficients newmark_coefficients(const Model& model);
+// `recovery`: a recovery step's (State::recovery): backward Euler, written
+// in the same form (a_a = v_a = 0: the carried acceleration is not used).
+NewmarkCoefficients newmark_coefficients(const Model& model, bool recovery = false);
 
 // Builds the Model from a mesh (tet4 or tet10, checked) and the scene's
 // material, mass, constraints and loads. order 2 raises a tet4 mesh. With a

@@ -1121,6 +1121,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.residual_tolerance = scene.residual_tolerance;
   m.newmark_gamma = scene.newmark_gamma;
   m.newmark_beta = scene.newmark_beta;
+  m.recovery_steps = scene.recovery_steps;
   m.consistent_tangent = scene.consistent_tangent;
   m.increment_predictor = scene.increment_predictor;
   m.tangent_reuse = scene.tangent_reuse;
@@ -1168,9 +1169,27 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   return m;
 }
 
-NewmarkCoefficients newmark_coefficients(const Model& m) {
-  const double dt = m.dt, b = m.newmark_beta, g = m.newmark_gamma;
+NewmarkCoefficients newmark_coefficients(const Model& m, bool recovery) {
   NewmarkCoefficients c;
+  if (recovery) {
+    // Backward Euler: x1 = x + dt v1, v1 = v + dt a1, so a1 = (Delta - dt v) /
+    // dt^2 and v1 = Delta / dt (Newmark's gamma = beta = 1 without the carried
+    // acceleration, which an unconverged step leaves inconsistent: on a
+    // sliver's tiny-mass DOFs 7e3 m/s^2 after a cut, which a Newmark step with
+    // gamma = 1, beta = 9/16 turned into 27 m/s through v1's dt (1 - gamma /
+    // (2 beta)) a term). L-stable: no high frequency survives it.
+    const double dt = m.dt;
+    c.a_d = 1.0 / (dt * dt);
+    c.a_v = -1.0 / dt;
+    c.a_a = 0.0;
+    c.v_d = 1.0 / dt;
+    c.v_v = 0.0;
+    c.v_a = 0.0;
+    c.cM = c.a_d + m.material.rayleigh_mass * c.v_d;
+    c.cK = 1.0 + m.material.rayleigh_stiffness * c.v_d;
+    return c;
+  }
+  const double dt = m.dt, b = m.newmark_beta, g = m.newmark_gamma;
   c.a_d = 1.0 / (b * dt * dt);
   c.a_v = -1.0 / (b * dt);
   c.a_a = 1.0 - 0.5 / b;

@@ -68,6 +68,8 @@ struct FrameTiming {
   double rotation_rms = 0;    // adaptive Newton: the volume-weighted RMS of every slot's change (rad) at the last check
   double rotation_above = 0;  // adaptive Newton: the volume fraction that changed more than rotation_tolerance
   int line_search_halvings = 0;  // Newton iterations taken back halfway (integrator.line_search), each an extra assembly
+  bool recovery = false;      // the step was a recovery step (State::recovery: backward Euler, integrator.recovery)
+  bool newton_capped = false; // Newton stopped at its cap (or solver.frame_iterations) with the rotations still moving: the next step recovers
   // Instruments (collision/, engine/dynamics/contact_solve.h).
   int contacts = 0;           // contact rows of the frame (after reduction to contact.max_rows)
   int grasp_rows = 0;         // bilateral grasp rows

@@ -409,7 +409,7 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
   p.object(v, at);
   p.allowed_keys(v, at, {"dt", "newton_iterations", "max_newton_iterations", "rotation_tolerance", "newmark_gamma",
                           "newmark_beta", "tangent", "tangent_reuse", "predictor", "line_search",
-                          "residual_tolerance", "rotation_fraction", "rotation_rms"});
+                          "residual_tolerance", "rotation_fraction", "rotation_rms", "recovery"});
   if (auto it = v.find("dt"); it != v.end()) {
     double dt = p.number(*it, at + ".dt");
     if (!(dt > 0.0 && dt <= 1.0))
@@ -454,6 +454,8 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
       p.fail(at + ".newmark_beta", " must be in [newmark_gamma / 2, 1] (unconditionally stable), got " + show(*it));
     s.newmark_beta = b;
   }
+  if (auto it = v.find("recovery"); it != v.end())
+    s.recovery_steps = p.choice(*it, at + ".recovery", {"none", "backward_euler"}) == 1;
 }
 
 // solver.* keys that only some policies use (the parser refuses them under another).
@@ -1061,6 +1063,7 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
   kv.push_back({"integrator.predictor", quoted(s.increment_predictor ? "increment" : "velocity")});
   kv.push_back({"integrator.newmark_gamma", number_text(s.newmark_gamma)});
   kv.push_back({"integrator.newmark_beta", number_text(s.newmark_beta)});
+  kv.push_back({"integrator.recovery", quoted(s.recovery_steps ? "backward_euler" : "none")});
   std::vector<ResolvedSetting> out;
   for (auto& [k, v] : kv) {
     auto it = s.origin.find(k);

@@ -292,6 +292,13 @@ struct Scene {
   // damps the high frequencies (docs/numerics.md, "Numerical damping").
   double newmark_gamma = 0.5;
   double newmark_beta = 0.25;
+  // integrator.recovery: "backward_euler" (true, the default) takes the step
+  // of a frame in which a cut severs a piece, and of each frame after one
+  // whose Newton iteration stopped at its cap with the rotations still
+  // moving, by backward Euler instead of Newmark's rule
+  // (State::recovery; docs/numerics.md, "Recovery steps"); "none": Newmark's
+  // rule in every step.
+  bool recovery_steps = true;
   // integrator.tangent: "frozen_rotation" (R K0 R^T) or "consistent" (plus the
   // dR/dF term of engine/fem/rotation_stiffness.h).
   bool consistent_tangent = false;

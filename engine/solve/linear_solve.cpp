@@ -24,9 +24,10 @@ namespace {
 
 using Mat3 = Eigen::Matrix3d;
 
-// A = cK K + cM M with the constrained rows and columns projected out (Algorithm 1).
-void form_matrix(const Model& m, const double* K, double* A) {
-  const NewmarkCoefficients c = newmark_coefficients(m);
+// A = cK K + cM M with the constrained rows and columns projected out
+// (Algorithm 1); a recovery step's coefficients with `recovery`.
+void form_matrix(const Model& m, const double* K, double* A, bool recovery = false) {
+  const NewmarkCoefficients c = newmark_coefficients(m, recovery);
   const double cM = c.cM, cK = c.cK;
   for (int k = 0; k < m.nnz(); ++k) A[k] = cK * K[k];
   if (m.mass_kind == MassKind::Consistent) {
@@ -797,10 +798,11 @@ namespace {
 // iteration whose assembly kept every element's blocks (tangent_reuse on a
 // calm body) and for the linear model's constant K0.
 void form_matrix_once(const Model& m, Workspace& ws, const double* K) {
-  if (ws.A_generation == ws.K_generation && ws.A_source == K) return;
-  form_matrix(m, K, ws.A.data());
+  if (ws.A_generation == ws.K_generation && ws.A_source == K && ws.A_recovery == ws.recovery) return;
+  form_matrix(m, K, ws.A.data(), ws.recovery);
   ws.A_generation = ws.K_generation;
   ws.A_source = K;
+  ws.A_recovery = ws.recovery;
 }
 }  // namespace
 

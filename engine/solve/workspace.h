@@ -47,6 +47,9 @@ struct Workspace {
   // The Newton loop of the step in progress (engine/dynamics/step.cpp).
   int newton_iterations_done = 0;  // linearised solves done so far in this step (all of them after it)
   bool newton_done = false;      // set by the solve stage: no further iteration
+  // This step takes the recovery coefficients (State::recovery at its start;
+  // newmark_coefficients(m, true)); A_recovery: the coefficients ws.A holds.
+  bool recovery = false, A_recovery = false;
   bool rescue_pending = false;   // lagged: the solve stage asks the factorization stage for a rescue factor
 
   // Contact and grasp constraints of the coming frame (collision/ fills

@@ -130,15 +130,34 @@ TEST(State, DamagedFilesAreRefusedWithTheField) {
   s.swept_frame = {3};
   const std::string good = saved(s);
   EXPECT_EQ(read_error(good), "");
-  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 3 or 4"), std::string::npos);
+  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 3 to 5"), std::string::npos);
   {
-    // A version 3 file (no du: the 8 bytes of its empty length before the
-    // hash dropped) is read with du empty; its hash is the same.
-    const std::string v3 = "INCSTAT3" + good.substr(8, good.size() - 24) + good.substr(good.size() - 8);
+    // A version 4 file (no recovery flag: the byte before the hash dropped)
+    // is read with the flag off; a version 3 file (no du either: the 8 bytes
+    // of its empty length dropped too) with du empty. Their hash is the same.
+    const std::string v4 = "INCSTAT4" + good.substr(8, good.size() - 17) + good.substr(good.size() - 8);
+    std::stringstream is4(v4);
+    const State r4 = read_state(is4, "old.state");
+    EXPECT_TRUE(r4 == s);
+    EXPECT_FALSE(r4.recovery);
+    const std::string v3 = "INCSTAT3" + good.substr(8, good.size() - 25) + good.substr(good.size() - 8);
     std::stringstream is(v3);
     const State r = read_state(is, "old.state");
     EXPECT_TRUE(r == s);
     EXPECT_TRUE(r.du.empty());
+  }
+  {
+    // The recovery flag (the next step is a recovery step) is kept, enters
+    // the hash only when set, and a byte other than 0 or 1 is refused.
+    State rec = s;
+    rec.recovery = true;
+    EXPECT_NE(state_hash(rec), state_hash(s));
+    const std::string bytes = saved(rec);
+    std::stringstream is(bytes);
+    EXPECT_TRUE(read_state(is, "rec.state") == rec);
+    std::string two = bytes;
+    two[two.size() - 9] = 2;
+    EXPECT_NE(read_error(two).find("state field recovery is 2, not 0 or 1"), std::string::npos) << read_error(two);
   }
   // Cut inside u's values (u's length at byte 24, its values from byte 32).
   EXPECT_NE(read_error(good.substr(0, 40)).find("run.state: state truncated in u"), std::string::npos) << read_error(good.substr(0, 40));

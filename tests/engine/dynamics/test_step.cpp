@@ -203,6 +203,45 @@ TEST(Newmark, GammaAboveOneHalfDampsAndOneHalfConserves) {
   EXPECT_LT(late_kinetic[1], 1e-3 * late_kinetic[0]) << late_kinetic[1] << " vs " << late_kinetic[0];
 }
 
+// A recovery step (State::recovery, after a capped Newton iteration or a
+// severing cut) is backward Euler in Newmark's form: on one degree of
+// freedom m x'' + k x = f with the coefficients integrate() uses,
+// - it ignores the carried acceleration, which an unconverged step leaves
+//   inconsistent: from rest at equilibrium with a = 1e6 it stays there, where
+//   the trapezoidal rule moves;
+// - it is L-stable: at omega dt = 1e3 one step leaves 1e-3 of the amplitude
+//   (1 / sqrt(1 + (omega dt)^2); the trapezoidal rule keeps it all);
+// - it is first order: in free fall v is exact and x is g dt^2 / 2 low.
+TEST(Newmark, RecoveryStepIsBackwardEuler) {
+  const Model m = build_model(make_beam(1.0, 0.5, 0.5, 2, 1, 1, 1), cantilever_scene(MaterialModel::Corotated));
+  const double dt = m.dt;
+  struct Dof {
+    double x, v, a;
+  };
+  // One step from y under f with stiffness k (unit mass): r = f - k (x + D) - a1(D) = 0.
+  auto step1 = [](const NewmarkCoefficients& c, Dof y, double k, double f) {
+    const double D = (f - k * y.x - c.a_v * y.v - c.a_a * y.a) / (c.a_d + k);
+    return Dof{y.x + D, c.v_d * D + c.v_v * y.v + c.v_a * y.a, c.a_d * D + c.a_v * y.v + c.a_a * y.a};
+  };
+  const NewmarkCoefficients be = newmark_coefficients(m, true), tr = newmark_coefficients(m, false);
+  const double k = 4.0 / (dt * dt), f = 2.0;
+  const Dof rest{f / k, 0.0, 1e6};
+  const Dof r_be = step1(be, rest, k, f), r_tr = step1(tr, rest, k, f);
+  EXPECT_DOUBLE_EQ(r_be.x, rest.x);
+  EXPECT_NEAR(r_be.v, 0.0, 1e-15);
+  EXPECT_GT(std::abs(r_tr.x - rest.x), 1e-3 * rest.x);
+  const double stiff = 1e6 / (dt * dt);  // omega dt = 1e3
+  const auto amplitude = [&](const Dof& y) { return std::hypot(y.x, y.v / std::sqrt(stiff)); };
+  const Dof y0{1.0, 0.0, -stiff};
+  EXPECT_LT(amplitude(step1(be, y0, stiff, 0.0)), 1.01e-3 * amplitude(y0));  // 1 / sqrt(1 + (omega dt)^2)
+  EXPECT_NEAR(amplitude(step1(tr, y0, stiff, 0.0)), amplitude(y0), 1e-9);
+  const double g = 9.81;
+  const Dof fall = step1(be, Dof{0.0, 1.0, g}, 0.0, g);
+  EXPECT_NEAR(fall.v, 1.0 + g * dt, 1e-12);
+  EXPECT_NEAR(fall.x, dt + 0.5 * g * dt * dt + 0.5 * g * dt * dt, 1e-12);
+  EXPECT_NEAR(fall.a, g, 1e-9);
+}
+
 TEST(Newmark, UnstableNewmarkParametersAreRejected) {
   Scene s = cantilever_scene(MaterialModel::Linear);
   s.newmark_gamma = 0.6;  // beta left at 1/4 < gamma / 2: conditionally stable only
@@ -314,6 +353,7 @@ TEST(Newmark, LineSearchConvergesStepsWhoseNewtonDoesNot) {
     s.max_newton_iterations = 30;
     s.rotation_tolerance = 1e-6;
     s.line_search = line_search;
+    s.recovery_steps = false;  // Newmark's rule in every step: recovery steps after capped ones change the counts
     Run r;
     run_soft_cantilever(s, 300.0, 0.0, 30, [&](const Workspace& ws) {
       r.iterations += ws.timing.newton;

@@ -843,6 +843,10 @@ TEST_F(SceneTest, TangentNewmarkRescueAndLateFactorKeys) {
   EXPECT_TRUE(s.solver.skip_late_factor);
   expect_error(minimal(R"("integrator": {"tangent": "exact"})"),
                "integrator.tangent must be one of \"frozen_rotation\", \"consistent\", got \"exact\"");
+  EXPECT_TRUE(s.recovery_steps);  // the default: backward Euler after a severing cut or a capped Newton iteration
+  EXPECT_FALSE(parse_scene(minimal(R"("integrator": {"recovery": "none"})"), scene_path_).recovery_steps);
+  expect_error(minimal(R"("integrator": {"recovery": "bdf2"})"),
+               "integrator.recovery must be one of \"none\", \"backward_euler\", got \"bdf2\"");
   expect_error(minimal(R"("integrator": {"newmark_gamma": 0.4})"),
                "integrator.newmark_gamma must be in [0.5, 1] (0.5 = no numerical damping), got 0.4");
   expect_error(minimal(R"("integrator": {"newmark_gamma": 0.6, "newmark_beta": 0.25})"),
