@@ -47,6 +47,30 @@ double triangle_distance(const V& x, const V& a, const V& b, const V& c) {
   return (x - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
 }
 
+// Closest point of triangle (a, b, c) to x (the regions of
+// triangle_distance) and its feature: 0 the face, 1 + j corner j, 4 + j
+// edge j (from corner j to corner j + 1 mod 3).
+V closest_on_triangle(const V& x, const V& a, const V& b, const V& c, int* feature) {
+  const V ab = b - a, ac = c - a, ap = x - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return *feature = 1, a;
+  const V bp = x - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return *feature = 2, b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return *feature = 4, V(a + d1 / (d1 - d3) * ab);
+  const V cp = x - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return *feature = 3, c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return *feature = 6, V(a + d2 / (d2 - d6) * ac);
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return *feature = 5, V(b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b));
+  const double denom = 1.0 / (va + vb + vc);
+  return *feature = 0, V(a + ab * (vb * denom) + ac * (vc * denom));
+}
+
 // Exact power-of-two scaling: 2^-e with e the exponent of m (m > 0, finite),
 // so values of any magnitude land near 1 without rounding. e is kept above
 // -1000: 2^1074 (a subnormal m) would overflow; such values land near 2^-74.
@@ -196,6 +220,36 @@ CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(st
     }
     i = j;
   }
+  // Pseudonormals. Edges and corners are matched by their exact coordinates,
+  // as above; the facets of one patch share one winding (orient_consistently).
+  edge_normal_.assign(facets_.size(), {});
+  corner_normal_.assign(facets_.size(), {});
+  std::map<std::array<Vec3, 2>, V> edge_sum;
+  std::map<Vec3, V> corner_sum;
+  const auto edge_key = [](const Facet& f, int j) {
+    std::array<Vec3, 2> e = {f.v[j], f.v[(j + 1) % 3]};
+    if (e[1] < e[0]) std::swap(e[0], e[1]);
+    return e;
+  };
+  for (const Facet& f : facets_) {
+    if (f.unbounded) continue;
+    const V n = vec(f.n);
+    for (int j = 0; j < 3; ++j) {
+      auto [it, fresh] = edge_sum.try_emplace(edge_key(f, j), V::Zero());
+      it->second += n;
+      const V p = vec(f.v[j]), u = vec(f.v[(j + 1) % 3]) - p, w = vec(f.v[(j + 2) % 3]) - p;
+      const double angle = std::atan2(u.cross(w).norm(), u.dot(w));
+      auto [ct, cfresh] = corner_sum.try_emplace(f.v[j], V::Zero());
+      ct->second += angle * n;
+    }
+  }
+  for (size_t k = 0; k < facets_.size(); ++k) {
+    if (facets_[k].unbounded) continue;
+    for (int j = 0; j < 3; ++j) {
+      edge_normal_[k][j] = arr(edge_sum[edge_key(facets_[k], j)]);
+      corner_normal_[k][j] = arr(corner_sum[facets_[k].v[j]]);
+    }
+  }
 }
 
 double CutSurface::front_distance(const double x[3]) const {
@@ -236,12 +290,29 @@ double CutSurface::distance(const double x[3]) const {
   return f.unbounded ? std::abs((xv - vec(f.p)).dot(vec(f.n))) : triangle_distance(xv, vec(f.v[0]), vec(f.v[1]), vec(f.v[2]));
 }
 
-// [preprint] eq. (72), against the nearest facet's plane.
+// [preprint] eq. (72), against the nearest facet's plane, where the nearest
+// point of the surface is inside that facet. Where it is on an edge or a
+// corner, the planes of the facets that meet there disagree in a wedge
+// behind them (below a V's fold either arm's plane put some points on the
+// wrong side, and the sign flipped from node to node: the V cut nothing):
+// the sign is then the pseudonormal's, and phi the distance to that point.
 CutSurface::Value CutSurface::value(const double x[3]) const {
   if (facets_.empty()) return {1.0, 1};
-  const Facet& f = facets_[nearest_facet(x)];
+  const int k = nearest_facet(x);
+  const Facet& f = facets_[k];
   const double phi = (x[0] - f.p[0]) * f.n[0] + (x[1] - f.p[1]) * f.n[1] + (x[2] - f.p[2]) * f.n[2];
   const int s = exact_sign_dot_diff(x, f.p.data(), f.n.data());
+  if (!f.unbounded) {
+    int feature = 0;
+    const V xv(x[0], x[1], x[2]);
+    const V c = closest_on_triangle(xv, vec(f.v[0]), vec(f.v[1]), vec(f.v[2]), &feature);
+    if (feature > 0) {
+      const V pn = vec(feature < 4 ? corner_normal_[k][feature - 1] : edge_normal_[k][feature - 4]);
+      const double d = (xv - c).dot(pn);
+      const int ps = d > 0 ? 1 : d < 0 ? -1 : 0;
+      if (ps != 0 && ps != s) return {ps * (xv - c).norm(), ps};
+    }
+  }
   // phi is rounded, s is exact: keep them consistent (phi = 0 iff s = 0).
   double ph = s == 0 ? 0.0 : (phi * s > 0 ? phi : s * 1e-300);
   return {ph, s};

@@ -66,6 +66,14 @@ class CutSurface {
   };
   std::vector<Facet> facets_;
   std::vector<Edge> boundary_;
+  // (facets, 3) pseudonormals (unnormalised; their direction is what counts)
+  // of each facet's edges (edge j: corners j, j + 1; the sum of the normals
+  // of the facets that share it) and corners (the normals of the facets
+  // around it, each weighted by its angle there): the sign of the level set
+  // where the nearest point of the surface is on an edge or a corner
+  // (Baerentzen and Aanaes, "Signed distance computation using the angle
+  // weighted pseudonormal", IEEE TVCG 11(3), 2005).
+  std::vector<std::array<Vec3, 3>> edge_normal_, corner_normal_;
   std::string name_;
   double slack_ = 0.0;
   int nearest_facet(const double x[3]) const;

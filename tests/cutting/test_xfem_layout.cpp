@@ -352,6 +352,57 @@ TEST(Xfem, TriangleSurfacesWithMixedWindingBendsAndCurvesSever) {
   std::filesystem::remove(moebius);
 }
 
+// A V-shaped surface (two sheets folded along y at x = 2.3, z = 0.3, their
+// arms leaving the beam's top) cuts its wedge out of the beam. The level set
+// was the signed distance to the nearest facet's plane: below the fold the
+// nearest point is on the fold line, either arm's plane extended puts some
+// of those points on the wedge's side, and the sign flipped from node to
+// node ("cuts nothing", or a wedge with holes). Where the nearest point is on
+// an edge or a corner the sign is now the angle-weighted pseudonormal's
+// (Baerentzen and Aanaes 2005). Both windings, and a sharper fold.
+TEST(Xfem, AVNotchSurfaceCutsOutItsWedge) {
+  const auto dir = std::filesystem::temp_directory_path();
+  for (const double half_width : {0.8, 0.2})
+    for (const bool flipped : {false, true}) {
+      const std::string f = (dir / "incise_cut_vnotch.obj").string();
+      {
+        std::ofstream os(f);
+        os.precision(17);
+        const double xz[3][2] = {{2.3 - half_width, 2.0}, {2.3, 0.3}, {2.3 + half_width, 2.0}};
+        for (const auto& p : xz)
+          for (double y : {-1.0, 0.5, 2.0}) os << "v " << p[0] << ' ' << y << ' ' << p[1] << '\n';
+        for (int i = 0; i < 2; ++i)
+          for (int j = 0; j < 2; ++j) {
+            const int a = 3 * i + j + 1, b = a + 1, c = a + 3, d = a + 4;
+            if (flipped) os << "f " << a << ' ' << d << ' ' << b << "\nf " << a << ' ' << c << ' ' << d << '\n';
+            else os << "f " << a << ' ' << b << ' ' << d << "\nf " << a << ' ' << d << ' ' << c << '\n';
+          }
+      }
+      const CutSurface surface(read_triangle_surface(f), "vnotch");
+      const double wedge[3] = {2.3, 0.5, 0.8};
+      const int sw = surface.value(wedge).sign;
+      ASSERT_NE(sw, 0);
+      // Every point of a grid around the fold (0.05 apart, the fold's own
+      // column included): inside the wedge (above both arms) or outside.
+      int wrong = 0, points = 0;
+      for (double x = 1.0; x <= 3.6; x += 0.05)
+        for (double z = -1.0; z <= 1.5; z += 0.05) {
+          const double above = z - (0.3 + std::abs(x - 2.3) * 1.7 / half_width);
+          if (std::abs(above) < 1e-6) continue;
+          const double p[3] = {x, 0.5, z};
+          wrong += surface.value(p).sign != (above > 0 ? sw : -sw);
+          ++points;
+        }
+      EXPECT_EQ(wrong, 0) << "of " << points << " points, half width " << half_width << (flipped ? " flipped" : "");
+      auto sim = cantilever(2, {mesh_cut(f)});
+      const CutUpdate up = update_cuts(*sim, 0.0, 0.0);
+      // The narrow wedge holds no node of the 0.5 m cells: nothing to cut.
+      EXPECT_EQ(up.report.bodies, half_width > 0.5 ? 2 : 1) << half_width << (flipped ? " flipped" : "");
+      EXPECT_EQ(up.report.front_elements, 0) << half_width << (flipped ? " flipped" : "");
+      std::filesystem::remove(f);
+    }
+}
+
 TEST(Xfem, CutAlongAnEdgeAndAFlapCutTwice) {
   // A plane containing the vertical mesh edge x = 2, y = 0 but no face.
   auto sim = cantilever(2, {test::plane_cut({2.0, 0.0, 0.0}, {1, 0.37, 0})});
