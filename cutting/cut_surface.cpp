@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <functional>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <set>
@@ -318,6 +319,18 @@ CutSurface::Value CutSurface::value(const double x[3]) const {
   return {ph, s};
 }
 
+namespace {
+// The roundoff of triangle_distance(x, facet): a few ulps of the largest
+// coordinate involved. Added to a caller's tolerance (1e-9 h): a triangle
+// spanning +-1e6 m through a 1 cm body loses 1e-9 m, 1e-7 h, to roundoff,
+// and covered nothing (the cut "cut nothing"); at tissue scale it is 1e-17 m.
+double roundoff(const V& x, const Facet& f) {
+  double m = x.cwiseAbs().maxCoeff();
+  for (const Vec3& v : f.v) m = std::max({m, std::abs(v[0]), std::abs(v[1]), std::abs(v[2])});
+  return 16.0 * std::numeric_limits<double>::epsilon() * m;
+}
+}  // namespace
+
 bool CutSurface::crosses_segment(const double a[3], const double b[3], double tol) const {
   const V xa(a[0], a[1], a[2]), xb(b[0], b[1], b[2]);
   for (const Facet& f : facets_) {
@@ -326,7 +339,7 @@ bool CutSurface::crosses_segment(const double a[3], const double b[3], double to
     const double da = (xa - p).dot(n), db = (xb - p).dot(n);
     if ((da > 0 && db > 0) || (da < 0 && db < 0) || da == db) continue;
     const V y = xa + da / (da - db) * (xb - xa);
-    if (triangle_distance(y, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol) return true;
+    if (triangle_distance(y, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(y, f)) return true;
   }
   return false;
 }
@@ -336,7 +349,7 @@ bool CutSurface::covers(const double y[3], double tol) const {
   tol *= 1.0 + slack_;
   for (const Facet& f : facets_) {
     if (f.unbounded) return true;
-    if (triangle_distance(x, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol) return true;
+    if (triangle_distance(x, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(x, f)) return true;
   }
   return false;
 }

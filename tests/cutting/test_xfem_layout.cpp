@@ -403,6 +403,36 @@ TEST(Xfem, AVNotchSurfaceCutsOutItsWedge) {
     }
 }
 
+// One oblique triangle whose corners lie 1 m, 1e4 m or 1e8 m away, through
+// the beam: the same plane cuts the same elements. The zero crossings were
+// checked against the triangle within 1e-9 h, which its own roundoff (a few
+// ulps of 1e8 m) exceeded: the big triangle "cut nothing".
+TEST(Xfem, AHugeTriangleCutsAsASmallOneDoes) {
+  const auto dir = std::filesystem::temp_directory_path();
+  const Eigen::Vector3d n = Eigen::Vector3d(1.0, 0.3, 0.2).normalized(), p0(2.3, 0.5, 0.5);
+  const Eigen::Vector3d u = n.cross(Eigen::Vector3d::UnitZ()).normalized(), w = n.cross(u);
+  int elements = -1;
+  for (const double size : {1.0, 1e4, 1e8}) {
+    const std::string f = (dir / "incise_cut_huge.obj").string();
+    {
+      std::ofstream os(f);
+      os.precision(17);
+      for (const Eigen::Vector3d& v : {Eigen::Vector3d(p0 + size * (-u - w)), Eigen::Vector3d(p0 + size * (3 * u - w)),
+                                       Eigen::Vector3d(p0 + size * (-u + 3 * w))})
+        os << "v " << v[0] << ' ' << v[1] << ' ' << v[2] << '\n';
+      os << "f 1 2 3\n";
+    }
+    auto sim = cantilever(2, {mesh_cut(f)});
+    const CutUpdate up = update_cuts(*sim, 0.0, 0.0);
+    EXPECT_EQ(up.report.bodies, 2) << size;
+    EXPECT_EQ(up.report.front_elements, 0) << size;
+    if (elements < 0) elements = up.report.cut_elements;
+    EXPECT_EQ(up.report.cut_elements, elements) << size;
+    std::filesystem::remove(f);
+  }
+  EXPECT_GT(elements, 0);
+}
+
 TEST(Xfem, CutAlongAnEdgeAndAFlapCutTwice) {
   // A plane containing the vertical mesh edge x = 2, y = 0 but no face.
   auto sim = cantilever(2, {test::plane_cut({2.0, 0.0, 0.0}, {1, 0.37, 0})});
