@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 
 #include "collision/face_contact.h"
@@ -118,8 +119,18 @@ void collision_stage(Simulation& sim) {
       const std::vector<HeldPoint>* imposed = nullptr;
       for (const GraspTaken& g : cd.imposed)
         if (g.frame == sim.state.frame && g.tool == static_cast<int>(i)) imposed = &g.held;
+      const bool was_empty = cd.grasps[i].closed_empty;
       update_grasp(sim.model, spec, tf, surface, sim.model_version, cd.grasps[i], imposed);
       if (!was_holding && cd.grasps[i].holding) cd.taken.push_back({sim.state.frame, static_cast<int>(i), cd.grasps[i].held});
+      // A grasp that silently held nothing looked like a solver failure (the
+      // tissue did not follow): say so once each time the jaws close on nothing.
+      if (cd.grasps[i].closed_empty && !was_empty)
+        std::fprintf(stderr,
+                     "warning: %s: %s closed its jaws at t = %g s with no tissue surface between them: it holds "
+                     "nothing (it takes tissue that comes between the closed jaws; to grasp, close them over the "
+                     "tissue, and slower if the jaws push it out while closing)\n",
+                     sim.scene.path.c_str(), (spec.json_path + (!spec.name.empty() && spec.name != spec.json_path ? " (\"" + spec.name + "\")" : "")).c_str(),
+                     sim.state.time + sim.model.dt);
       if (cd.grasps[i].holding) {
         add_grasp_rows(sim.state, cd.grasps[i], tf, sim.model.dt, static_cast<int>(i), surface, rows);
         continue;  // the jaws hold: no contact rows from them

@@ -14,6 +14,7 @@ void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFram
   const bool closed = tool.after.jaw >= spec.grasp_at;
   if (!closed) {
     grasp.holding = false;
+    grasp.closed_empty = false;
     grasp.held.clear();
     return;
   }
@@ -47,7 +48,11 @@ void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFram
     if (std::abs(l[0]) <= hx && std::abs(l[1]) <= hy && std::abs(l[2]) <= hz)
       inside.push_back({l[0] * l[0] + l[1] * l[1] + l[2] * l[2], v, l});
   }
-  if (inside.empty()) return;  // closed on nothing: nothing held until it opens and closes again
+  if (inside.empty()) {  // closed on nothing: taken when tissue comes between the closed jaws
+    grasp.closed_empty = true;
+    return;
+  }
+  grasp.closed_empty = false;
   std::sort(inside.begin(), inside.end(), [](const Candidate& a, const Candidate& b) {
     return a.d2 != b.d2 ? a.d2 < b.d2 : a.v < b.v;
   });

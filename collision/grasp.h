@@ -24,6 +24,9 @@ struct HeldPoint {
 
 struct Grasp {
   bool holding = false;
+  // Closed with no surface vertex between the jaws (update_grasp keeps
+  // looking each frame while they stay closed); cleared when they open.
+  bool closed_empty = false;
   int model_version = -1;       // of the pieces in `held`
   std::vector<HeldPoint> held;
 };

@@ -17,10 +17,10 @@ constexpr double kLift = 0.02;
 // Tool pose at t: jaws across world z (90 deg about x: tool y -> world z),
 // centred on the flap's free end; closes in 0.2 s, lifts kLift by 0.7 s,
 // opens from 0.9 s to 1.0 s.
-ToolPose grasper_pose(double t, bool close = true) {
+ToolPose grasper_pose(double t, bool close = true, double above = 0.0) {
   ToolPose p;
   const double lift = kLift * std::clamp((t - 0.2) / 0.5, 0.0, 1.0);
-  p.p = {0.1, 0.05, 0.0405 + lift};
+  p.p = {0.1, 0.05, 0.0405 + lift + above};
   p.q = {std::sqrt(0.5), std::sqrt(0.5), 0.0, 0.0};
   p.jaw = !close ? 0.0 : t < 0.2 ? t / 0.2 : (t < 0.9 ? 1.0 : std::max(0.0, 1.0 - (t - 0.9) / 0.1));
   return p;
@@ -35,7 +35,7 @@ double flap_end_lift(const Simulation& sim) {
   return z / n;
 }
 
-std::unique_ptr<Simulation> flap_sim(bool close) {
+std::unique_ptr<Simulation> flap_sim(bool close, double above = 0.0) {
   const Mesh mesh = test::tissue_block_mesh();
   Scene scene = test::tissue_block_scene(3e5, 4.0);
   // The flap: 2 cm thick, a horizontal cut at z = 0.03 under x > 0.03 (hinged at x = 0.03).
@@ -53,9 +53,9 @@ std::unique_ptr<Simulation> flap_sim(bool close) {
   scene.instruments.push_back(g);
   auto sim = test::make_sim(mesh, scene);
   sim->tools.assign(1, ToolFrame{});
-  sim->pipeline.set(kStageToolPoses, [close](Simulation& s) {
-    s.tools[0].before = grasper_pose(s.state.time, close);
-    s.tools[0].after = grasper_pose(s.state.time + s.model.dt, close);
+  sim->pipeline.set(kStageToolPoses, [close, above](Simulation& s) {
+    s.tools[0].before = grasper_pose(s.state.time, close, above);
+    s.tools[0].after = grasper_pose(s.state.time + s.model.dt, close, above);
   });
   install_collision_stage(*sim);
   return sim;
@@ -102,6 +102,30 @@ TEST(Grasp, AGrasperLiftsAFlapAndLetsItFallBack) {
   auto untouched = flap_sim(false);
   while (untouched->state.time < 3.0) advance_frame(*untouched);
   EXPECT_NEAR(flap_end_lift(*sim), flap_end_lift(*untouched), 0.02 * held_lift) << "the flap fell back";
+}
+
+// Jaws that close 5 cm above the flap take nothing: a warning says so once
+// (it used to hold nothing silently, and the tissue not following looked
+// like a solver fault), and again only after they open and close again.
+TEST(Grasp, JawsThatCloseOnNothingSayWhyNothingIsHeld) {
+  auto sim = flap_sim(true, 0.05);
+  testing::internal::CaptureStderr();
+  while (sim->state.time < 0.85) advance_frame(*sim);
+  const std::string err = testing::internal::GetCapturedStderr();
+  const CollisionData& cd = *collision_data(*sim);
+  EXPECT_FALSE(cd.grasps[0].holding);
+  EXPECT_TRUE(cd.grasps[0].closed_empty);
+  const std::string want = "instruments[0] closed its jaws at t = ";
+  const size_t at = err.find(want);
+  ASSERT_NE(at, std::string::npos) << err;
+  EXPECT_EQ(err.find(want, at + 1), std::string::npos) << "warned more than once: " << err;
+  EXPECT_NE(err.find("with no tissue surface between them: it holds nothing"), std::string::npos) << err;
+  // Closing on the flap: no warning.
+  auto held = flap_sim(true);
+  testing::internal::CaptureStderr();
+  while (held->state.time < 0.3) advance_frame(*held);
+  EXPECT_EQ(testing::internal::GetCapturedStderr().find("closed its jaws"), std::string::npos);
+  EXPECT_TRUE(collision_data(*held)->grasps[0].holding);
 }
 
 // The collision stage logs the points each grasp took when it closed; a
