@@ -45,6 +45,7 @@ struct CollisionData {
     long long id;     // what the row holds across frames (its key's id)
   };
   std::vector<Candidate> candidates;     // this frame's, deepest first (kept: no allocation per frame)
+  std::vector<char> warned_deep;         // (instruments) a probe's "deeper than half its radius" warning was given
 };
 
 // Fraction of an instrument's smallest dimension used as detection margin.

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "collision/collision_stage.h"
+#include "engine/util/error.h"
 #include "cutting/cut_stage.h"
 #include "engine/dynamics/step.h"
 #include "engine/output/display_mesh.h"
@@ -80,6 +81,43 @@ TEST(CollisionStage, AScalpelOrNoInstrumentBuildsNoCollisionModel) {
     EXPECT_EQ(t.runs[kStageCollision], 0);
     EXPECT_EQ(t.runs[kStageContact], 0);
   }
+}
+
+// A probe more than half its radius inside the tissue: at the first frame
+// the scene is refused (a 5 cm probe started 10 cm inside organ_3k crushed
+// it and the run exited 0); later in a run (a stroke faster than the
+// contact can push the tissue out) a warning says so, once. Half a radius
+// in is allowed (probe-incision-10k starts 1.4 mm into its 1 cm probe).
+TEST(CollisionStage, AProbeDeepInsideTheTissueIsRefusedAtTheStartAndNamedLater) {
+  const Mesh mesh = test::tissue_block_mesh();  // top face at z = 0.05
+  Scene scene = tissue_block();
+  const double r = 0.01, top = 0.05;
+  scene.instruments.push_back(probe(r));
+  scene.path = "block.json";
+  for (const double start_depth : {0.4 * r, 0.8 * r}) {
+    auto sim = make_probe_sim(mesh, scene, [&](double) { return at(0.05, 0.05, top + r - start_depth); });
+    if (start_depth < 0.5 * r) {
+      EXPECT_NO_THROW(advance_frame(*sim));
+      continue;
+    }
+    try {
+      advance_frame(*sim);
+      ADD_FAILURE() << "a probe started " << start_depth << " m deep was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("block.json: instruments[0] starts 0.008"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("move the first pose of its trajectory out of the tissue"), std::string::npos)
+          << e.what();
+    }
+  }
+  // Above the surface, then 1.5 radii down in one frame and held there.
+  auto sim = make_probe_sim(mesh, scene, [&](double t) { return at(0.05, 0.05, top + r + (t < 0.1 ? 0.002 : -1.5 * r)); });
+  testing::internal::CaptureStderr();
+  for (int k = 0; k < 10; ++k) advance_frame(*sim);
+  const std::string err = testing::internal::GetCapturedStderr();
+  const size_t at_warning = err.find("block.json: instruments[0] went ");
+  ASSERT_NE(at_warning, std::string::npos) << err;
+  EXPECT_NE(err.find("more than half its radius (0.01 m)"), std::string::npos) << err;
+  EXPECT_EQ(err.find("block.json: instruments[0] went ", at_warning + 1), std::string::npos) << "warned more than once: " << err;
 }
 
 // Rows per face (the default) and per triangle: one row per face holds one
