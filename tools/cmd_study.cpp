@@ -193,13 +193,33 @@ nlohmann::json sample(const Simulation& sim, const std::vector<std::array<double
   return out;
 }
 
+// --frames are frames of the base scene's dt (with the study's --set
+// patches, not its sweeps): a point with another dt (a dt sweep) samples at
+// the same times, its frame f dt_base / dt. Its samples were taken at the
+// same frame numbers, i.e. other times (0.66 "error" between dt = 1/30 and
+// 1/60 at frame 5 of a swinging beam). The steps of point k whose dt is
+// `dt`; an error where a sample time is not a whole number of them.
+std::vector<int> sample_steps(const nlohmann::json& plan, int k, double dt) {
+  const std::vector<int> frames = plan["frames"];
+  const double base_dt = load_scene(plan["scene"], point_patches(plan, k, false)).dt;
+  std::vector<int> at;
+  for (const int f : frames) {
+    const double g = f * base_dt / dt;
+    if (!(std::abs(g - std::round(g)) <= 1e-6 * std::max(1.0, g)))
+      throw Error("study: integrator.dt " + number_text(dt, 6) + " does not reach frame " + std::to_string(f) +
+                  " of the base scene's dt " + number_text(base_dt, 6) + " (t = " + number_text(f * base_dt, 6) +
+                  " s) in whole steps; sweep dt by divisors of the base dt");
+    at.push_back(static_cast<int>(std::round(g)));
+  }
+  return at;
+}
+
 // One point, in this process: its result file (a failure is a result too).
 void run_point(const fs::path& dir, int k) {
   const nlohmann::json plan = read_plan(dir);
   if (k < 0 || k >= static_cast<int>(plan["points"].size()))
     throw Error("study: --point " + std::to_string(k) + " is not in " + (dir / "study.json").string() + " (points 0-" +
                 std::to_string(plan["points"].size() - 1) + ")");
-  const std::vector<int> frames = plan["frames"];
   nlohmann::json res;
   res["point"] = k;
   res["values"] = plan["points"][static_cast<size_t>(k)];
@@ -209,21 +229,7 @@ void run_point(const fs::path& dir, int k) {
     if (!plan["probe"].get<std::string>().empty()) probes = read_probe_points(plan["probe"]);
     auto sim = load_checked_simulation(plan["scene"], point_patches(plan, k));
     std::printf("%s", format_resolved_settings(sim->scene).c_str());
-    // --frames are frames of the base scene's dt (with the study's --set
-    // patches, not its sweeps): a point with another dt (a dt sweep)
-    // samples at the same times, its frame f dt_base / dt. Its samples were
-    // taken at the same frame numbers, i.e. other times (0.66 "error"
-    // between dt = 1/30 and 1/60 at frame 5 of a swinging beam).
-    const double base_dt = load_scene(plan["scene"], point_patches(plan, k, false)).dt;
-    std::vector<int> at;
-    for (const int f : frames) {
-      const double g = f * base_dt / sim->model.dt;
-      if (!(std::abs(g - std::round(g)) <= 1e-6 * std::max(1.0, g)))
-        throw Error("study: integrator.dt " + number_text(sim->model.dt, 6) + " does not reach frame " +
-                    std::to_string(f) + " of the base scene's dt " + number_text(base_dt, 6) + " (t = " +
-                    number_text(f * base_dt, 6) + " s) in whole steps; sweep dt by divisors of the base dt");
-      at.push_back(static_cast<int>(std::round(g)));
-    }
+    const std::vector<int> at = sample_steps(plan, k, sim->model.dt);
     res["dof"] = sim->model.ndof();
     res["energy_start"] = total_energy(sim->model, sim->state);
     double energy_scale = std::abs(res["energy_start"].get<double>());
@@ -319,6 +325,10 @@ void study(const StudyOptions& o) {
   }
   if (o.scene.empty()) throw Error("study: give a scene file (or --collect DIR, or --point K --out DIR)");
   nlohmann::json plan = make_plan(o);
+  // Every point's sample steps before any runs (a dt sweep with a dt that
+  // does not divide the base one failed only when its point came up).
+  for (int k = 0; k < static_cast<int>(plan["points"].size()); ++k)
+    sample_steps(plan, k, load_scene(plan["scene"], point_patches(plan, k)).dt);
   // Resume: the same plan in DIR keeps its points; a different one is an error.
   if (fs::exists(dir / "study.json")) {
     if (read_plan(dir) != plan)

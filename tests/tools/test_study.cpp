@@ -102,6 +102,11 @@ TEST_F(StudyCli, ADtSweepComparesAtEqualTimes) {
   EXPECT_EQ(set.code, 0) << set.out;
   const test::Result bad = test::incise("study " + path("scene.json") + " --sweep dt=0.0333333333333333,0.025 --frames 5 --out " + path("t"));
   EXPECT_NE(bad.out.find("study: integrator.dt 0.025 does not reach frame 5 of the base scene's dt"), std::string::npos) << bad.out;
+  // Refused before any point ran, and nothing written (it used to run the
+  // points before the bad one and fail only there).
+  EXPECT_NE(bad.code, 0);
+  EXPECT_EQ(bad.out.find("point 0"), std::string::npos) << bad.out;
+  EXPECT_FALSE(std::filesystem::exists(path("t"))) << bad.out;
 }
 
 // A soft tet10 cantilever swinging under gravity at three mesh resolutions
