@@ -96,6 +96,11 @@ ToolShape instrument_shape(const Simulation& sim, int i, const ToolPose& pose) {
 }
 
 namespace {
+// "instruments[1]" or "instruments[1] ("grasper")" for messages.
+std::string instrument_label(const InstrumentSpec& spec) {
+  return spec.json_path + (!spec.name.empty() && spec.name != spec.json_path ? " (\"" + spec.name + "\")" : "");
+}
+
 // A probe deeper in the tissue than half its radius: its rows' normals and
 // depths no longer say where the surface is (the far side of the sphere is
 // nearer), and one frame's contact solve cannot push that much tissue out:
@@ -109,7 +114,7 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
   double depth = 0.0;
   for (const TissueContact& c : found) depth = std::max(depth, c.depth - cd.margin[i]);
   if (!(depth > 0.5 * spec.radius)) return;
-  const std::string who = spec.json_path + (!spec.name.empty() && spec.name != spec.json_path ? " (\"" + spec.name + "\")" : "");
+  const std::string who = instrument_label(spec);
   char buf[512];
   if (sim.state.frame == 0) {
     std::snprintf(buf, sizeof buf,
@@ -165,8 +170,7 @@ void collision_stage(Simulation& sim) {
                      "warning: %s: %s closed its jaws at t = %g s with no tissue surface between them: it holds "
                      "nothing (it takes tissue that comes between the closed jaws; to grasp, close them over the "
                      "tissue, and slower if the jaws push it out while closing)\n",
-                     sim.scene.path.c_str(), (spec.json_path + (!spec.name.empty() && spec.name != spec.json_path ? " (\"" + spec.name + "\")" : "")).c_str(),
-                     sim.state.time + sim.model.dt);
+                     sim.scene.path.c_str(), instrument_label(spec).c_str(), sim.state.time + sim.model.dt);
       if (cd.grasps[i].holding) {
         add_grasp_rows(sim.state, cd.grasps[i], tf, sim.model.dt, static_cast<int>(i), surface, rows);
         continue;  // the jaws hold: no contact rows from them

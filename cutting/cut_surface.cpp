@@ -26,30 +26,8 @@ using V = Eigen::Vector3d;
 V vec(const Vec3& a) { return V(a[0], a[1], a[2]); }
 Vec3 arr(const V& a) { return {a[0], a[1], a[2]}; }
 
-// Distance from x to triangle (a, b, c) (Ericson, closest point on triangle).
-double triangle_distance(const V& x, const V& a, const V& b, const V& c) {
-  const V ab = b - a, ac = c - a, ap = x - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return (x - a).norm();
-  const V bp = x - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return (x - b).norm();
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (x - (a + d1 / (d1 - d3) * ab)).norm();
-  const V cp = x - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return (x - c).norm();
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (x - (a + d2 / (d2 - d6) * ac)).norm();
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-    return (x - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
-  const double denom = 1.0 / (va + vb + vc);
-  return (x - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
-}
-
-// Closest point of triangle (a, b, c) to x (the regions of
-// triangle_distance) and its feature: 0 the face, 1 + j corner j, 4 + j
+// Closest point of triangle (a, b, c) to x (Ericson, "Real-Time Collision
+// Detection", 5.1.5) and its feature: 0 the face, 1 + j corner j, 4 + j
 // edge j (from corner j to corner j + 1 mod 3).
 V closest_on_triangle(const V& x, const V& a, const V& b, const V& c, int* feature) {
   const V ab = b - a, ac = c - a, ap = x - a;
@@ -70,6 +48,12 @@ V closest_on_triangle(const V& x, const V& a, const V& b, const V& c, int* featu
     return *feature = 5, V(b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b));
   const double denom = 1.0 / (va + vb + vc);
   return *feature = 0, V(a + ab * (vb * denom) + ac * (vc * denom));
+}
+
+// Distance from x to triangle (a, b, c).
+double triangle_distance(const V& x, const V& a, const V& b, const V& c) {
+  int feature = 0;
+  return (x - closest_on_triangle(x, a, b, c, &feature)).norm();
 }
 
 // Exact power-of-two scaling: 2^-e with e the exponent of m (m > 0, finite),
@@ -236,12 +220,10 @@ CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(st
     if (f.unbounded) continue;
     const V n = vec(f.n);
     for (int j = 0; j < 3; ++j) {
-      auto [it, fresh] = edge_sum.try_emplace(edge_key(f, j), V::Zero());
-      it->second += n;
+      edge_sum.try_emplace(edge_key(f, j), V::Zero()).first->second += n;
       const V p = vec(f.v[j]), u = vec(f.v[(j + 1) % 3]) - p, w = vec(f.v[(j + 2) % 3]) - p;
       const double angle = std::atan2(u.cross(w).norm(), u.dot(w));
-      auto [ct, cfresh] = corner_sum.try_emplace(f.v[j], V::Zero());
-      ct->second += angle * n;
+      corner_sum.try_emplace(f.v[j], V::Zero()).first->second += angle * n;
     }
   }
   for (size_t k = 0; k < facets_.size(); ++k) {

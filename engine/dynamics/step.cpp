@@ -412,7 +412,7 @@ void integrate(const Model& m, State& s, Workspace& ws) {
   // residual into the next, and on a stressed piece tumbling free after a cut
   // those errors compounded into a blow-up within 10-40 frames (a soft beam
   // severed while swinging, nu = 0.3 to 0.499, either tangent). The next step
-  // takes the dissipative coefficients, and so on until a step converges.
+  // is one backward Euler step, and so on until a step converges.
   s.recovery = ws.timing.newton_capped;
   s.time = t1;
   ++s.frame;
