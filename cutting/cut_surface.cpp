@@ -180,19 +180,51 @@ CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(st
   facets_.erase(std::remove_if(facets_.begin(), facets_.end(),
                                [](const Facet& f) { return !(vec(f.n).norm() > 0.5); }),
                 facets_.end());
-  std::vector<std::pair<std::array<Vec3, 2>, int>> edges;  // (sorted end points, facet)
+  std::vector<std::pair<std::array<Vec3, 2>, int>> edges;  // (sorted end points, 3 facet + edge)
   for (size_t k = 0; k < facets_.size(); ++k)
     for (int j = 0; j < 3 && !facets_[k].unbounded; ++j) {
       std::array<Vec3, 2> e = {facets_[k].v[j], facets_[k].v[(j + 1) % 3]};
       if (e[1] < e[0]) std::swap(e[0], e[1]);
-      edges.push_back({e, static_cast<int>(k)});
+      edges.push_back({e, static_cast<int>(3 * k + j)});
     }
   std::sort(edges.begin(), edges.end());
+  // Pseudonormals (value()): an edge's is the sum of the normals of the
+  // facets that share it, a corner's the sum over the facets around it of
+  // normal times angle there. Matched by exact coordinates, as the boundary
+  // below; the facets of one patch share one winding (orient_consistently).
+  // Sorted vectors, not maps: a scalpel's surface is rebuilt every cut frame.
+  edge_normal_.assign(facets_.size(), {});
+  corner_normal_.assign(facets_.size(), {});
+  for (size_t i = 0; i < edges.size();) {
+    size_t j = i;
+    V sum = V::Zero();
+    for (; j < edges.size() && edges[j].first == edges[i].first; ++j) sum += vec(facets_[edges[j].second / 3].n);
+    for (size_t q = i; q < j; ++q) edge_normal_[edges[q].second / 3][edges[q].second % 3] = arr(sum);
+    i = j;
+  }
+  {
+    std::vector<std::pair<Vec3, int>> corners;  // (position, 3 facet + corner)
+    for (size_t k = 0; k < facets_.size(); ++k)
+      for (int j = 0; j < 3 && !facets_[k].unbounded; ++j) corners.push_back({facets_[k].v[j], static_cast<int>(3 * k + j)});
+    std::sort(corners.begin(), corners.end());
+    for (size_t i = 0; i < corners.size();) {
+      size_t j = i;
+      V sum = V::Zero();
+      for (; j < corners.size() && corners[j].first == corners[i].first; ++j) {
+        const Facet& f = facets_[corners[j].second / 3];
+        const int c = corners[j].second % 3;
+        const V p = vec(f.v[c]), u = vec(f.v[(c + 1) % 3]) - p, w = vec(f.v[(c + 2) % 3]) - p;
+        sum += std::atan2(u.cross(w).norm(), u.dot(w)) * vec(f.n);
+      }
+      for (size_t q = i; q < j; ++q) corner_normal_[corners[q].second / 3][corners[q].second % 3] = arr(sum);
+      i = j;
+    }
+  }
   for (size_t i = 0; i < edges.size();) {
     size_t j = i;
     while (j < edges.size() && edges[j].first == edges[i].first) ++j;
     if (j == i + 1) {
-      const Facet& f = facets_[edges[i].second];
+      const Facet& f = facets_[edges[i].second / 3];
       const V a = vec(edges[i].first[0]), b = vec(edges[i].first[1]);
       V m = (b - a).cross(vec(f.n));
       V c = vec(f.v[0]) + vec(f.v[1]) + vec(f.v[2]);
@@ -204,34 +236,6 @@ CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(st
       }
     }
     i = j;
-  }
-  // Pseudonormals. Edges and corners are matched by their exact coordinates,
-  // as above; the facets of one patch share one winding (orient_consistently).
-  edge_normal_.assign(facets_.size(), {});
-  corner_normal_.assign(facets_.size(), {});
-  std::map<std::array<Vec3, 2>, V> edge_sum;
-  std::map<Vec3, V> corner_sum;
-  const auto edge_key = [](const Facet& f, int j) {
-    std::array<Vec3, 2> e = {f.v[j], f.v[(j + 1) % 3]};
-    if (e[1] < e[0]) std::swap(e[0], e[1]);
-    return e;
-  };
-  for (const Facet& f : facets_) {
-    if (f.unbounded) continue;
-    const V n = vec(f.n);
-    for (int j = 0; j < 3; ++j) {
-      edge_sum.try_emplace(edge_key(f, j), V::Zero()).first->second += n;
-      const V p = vec(f.v[j]), u = vec(f.v[(j + 1) % 3]) - p, w = vec(f.v[(j + 2) % 3]) - p;
-      const double angle = std::atan2(u.cross(w).norm(), u.dot(w));
-      corner_sum.try_emplace(f.v[j], V::Zero()).first->second += angle * n;
-    }
-  }
-  for (size_t k = 0; k < facets_.size(); ++k) {
-    if (facets_[k].unbounded) continue;
-    for (int j = 0; j < 3; ++j) {
-      edge_normal_[k][j] = arr(edge_sum[edge_key(facets_[k], j)]);
-      corner_normal_[k][j] = arr(corner_sum[facets_[k].v[j]]);
-    }
   }
 }
 
