@@ -123,7 +123,6 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
                   sim.scene.path.c_str(), who.c_str(), depth, spec.radius);
     throw Error(buf);
   }
-  if (cd.warned_deep.size() != sim.scene.instruments.size()) cd.warned_deep.assign(sim.scene.instruments.size(), 0);
   if (cd.warned_deep[i]) return;
   cd.warned_deep[i] = 1;
   std::fprintf(stderr,
@@ -237,6 +236,7 @@ void install_collision_stage(Simulation& sim) {
   cd->margin.resize(n, 0.0);
   cd->results.resize(n);
   cd->grasps.resize(n);
+  cd->warned_deep.assign(n, 0);
   for (size_t i = 0; i < n; ++i) {
     const InstrumentSpec& s = sim.scene.instruments[i];
     cd->margin[i] = contact_margin(s);

@@ -1185,18 +1185,16 @@ NewmarkCoefficients newmark_coefficients(const Model& m, bool recovery) {
     c.v_d = 1.0 / dt;
     c.v_v = 0.0;
     c.v_a = 0.0;
-    c.cM = c.a_d + m.material.rayleigh_mass * c.v_d;
-    c.cK = 1.0 + m.material.rayleigh_stiffness * c.v_d;
-    return c;
+  } else {
+    const double dt = m.dt, b = m.newmark_beta, g = m.newmark_gamma;
+    c.a_d = 1.0 / (b * dt * dt);
+    c.a_v = -1.0 / (b * dt);
+    c.a_a = 1.0 - 0.5 / b;
+    // v1 = v + dt ((1 - gamma) a + gamma a1)
+    c.v_d = g / (b * dt);
+    c.v_v = 1.0 - g / b;
+    c.v_a = dt * (1.0 - 0.5 * g / b);
   }
-  const double dt = m.dt, b = m.newmark_beta, g = m.newmark_gamma;
-  c.a_d = 1.0 / (b * dt * dt);
-  c.a_v = -1.0 / (b * dt);
-  c.a_a = 1.0 - 0.5 / b;
-  // v1 = v + dt ((1 - gamma) a + gamma a1)
-  c.v_d = g / (b * dt);
-  c.v_v = 1.0 - g / b;
-  c.v_a = dt * (1.0 - 0.5 * g / b);
   c.cM = c.a_d + m.material.rayleigh_mass * c.v_d;
   c.cK = 1.0 + m.material.rayleigh_stiffness * c.v_d;
   return c;
