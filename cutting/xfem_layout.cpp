@@ -430,15 +430,21 @@ std::vector<std::vector<int>> connect_pieces(const LevelSets& ls, const std::vec
   return adj;
 }
 
-// Connected components of the piece graph: the separate bodies of tissue.
-int count_bodies(const std::vector<std::vector<int>>& adj) {
+// Connected components of the piece graph: the separate bodies of tissue,
+// numbered in the order of their first piece. (npiece) body of each piece.
+std::vector<int> label_bodies(const std::vector<std::vector<int>>& adj, int& bodies) {
   const int np = static_cast<int>(adj.size());
   UnionFind all(np);
   for (int P = 0; P < np; ++P)
     for (int Q : adj[P]) all.join(P, Q);
-  int bodies = 0;
-  for (int P = 0; P < np; ++P) bodies += all.find(P) == P;
-  return bodies;
+  std::vector<int> root_body(np, -1), body(np);
+  bodies = 0;
+  for (int P = 0; P < np; ++P) {
+    int& b = root_body[all.find(P)];
+    if (b < 0) b = bodies++;
+    body[P] = b;
+  }
+  return body;
 }
 
 // Nodes that can have more than one region: the nodes of split elements and
@@ -619,7 +625,7 @@ CutLayout compute_cut_layout(const Model& base, const std::vector<const CutSurfa
   if (!enriched_fronts.empty()) tip = front_elements(base, ls, enriched_fronts, cuts_of, L);
   const PieceSet ps = make_pieces(ls, cuts_of, tip, L, rep);
   const std::vector<std::vector<int>> adj = connect_pieces(ls, pairs, separated, cuts_of, ps);
-  rep.bodies = count_bodies(adj);
+  L.piece_body = label_bodies(adj, rep.bodies);
   L.bodies = rep.bodies;
   // Regions of each node's support; only candidates can have more than one.
   const std::vector<char> candidate = region_candidates(ls, cuts_of, pairs, separated);

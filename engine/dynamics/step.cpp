@@ -364,15 +364,17 @@ void decide_newton(const Model& m, State& s, Workspace& ws) {
   // frame took a second iteration, so a policy and `exact` took different
   // ones (error at frame 30 4.2e-2). A grasp's or a probe's region is
   // 1.5e-4-6e-3 of the organ (docs/benchmarks.md, "Newton's stop over the
-  // body").
+  // body"). Each body the cuts left (Model::rot_body) is judged by its own
+  // volume: a thin slab cut off a swinging beam (5e-8 of its volume) turned
+  // 0.1-3 rad a frame, under the whole tissue's fraction, and diverged.
   double* x = ws.tmp.data();
   for (int d = 0; d < n; ++d) x[d] = s.u[d] + ws.delta[d];
   const RotationChange rc = rotation_change(m, ws.work.plan, *ws.work.pool, x, s.R.data(), m.rotation_tolerance);
   ws.timing.rotation_change = rc.max;
-  ws.timing.rotation_rms = rc.rms;
-  ws.timing.rotation_above = rc.volume > 0.0 ? rc.above / rc.volume : 0.0;
+  ws.timing.rotation_rms = rc.body_rms;
+  ws.timing.rotation_above = rc.body_above;
   const bool turning = m.rotation_tolerance > 0 &&
-                       (rc.above > m.rotation_fraction * rc.volume || (m.rotation_rms > 0 && rc.rms > m.rotation_rms));
+                       (rc.body_above > m.rotation_fraction || (m.rotation_rms > 0 && rc.body_rms > m.rotation_rms));
   // integrator.residual_tolerance: the residual at this iteration's start
   // (the one after the solve needs another assembly), so a step stops one
   // iteration after its residual fell below it.

@@ -182,6 +182,7 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
   p.slot_weight = shared_slot_weights(m);
   condensed_elements(m, p);
   matvec_ranges(m, p);
+  p.body_sums.assign(p.nthreads, std::vector<double>(3 * static_cast<size_t>(m.nbody), 0.0));
   return p;
 }
 
@@ -691,10 +692,11 @@ void stiffness_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, cons
 namespace {
 // The element's displacements gathered once for all its slots (a slot at a time
 // gathered them per slot: 4 times for a tet10 per_point); each slot's angle
-// into the worker's largest and its volume-weighted sums.
+// into the worker's largest and its body's volume-weighted sums
+// (body: V a^2, V, V above the threshold).
 template <int NN>
 void element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, const double* u, const double* Rall,
-                             double* ue, double threshold, RotationChange& acc) {
+                             double* ue, double threshold, double& max, double* body) {
   const int b0 = m.elem_dof_ptr[e];
   const int n = NN > 0 ? NN : m.elem_dof_ptr[e + 1] - b0;
   const int* nodes = &m.elem_dof_node[b0];
@@ -712,10 +714,11 @@ void element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, co
     const double a = rotation_angle_to(Eigen::Map<const Mat3>(F), Eigen::Map<const Mat3>(Rall + 9 * r));
     if (!(a >= 0.0)) continue;  // NaN
     const double v = plan.slot_volume[r];
-    acc.max = std::max(acc.max, a);
-    acc.rms += v * a * a;  // the sum until the caller divides
-    acc.volume += v;
-    if (a > threshold) acc.above += v;
+    max = std::max(max, a);
+    double* b = body + 3 * (m.rot_body.empty() ? 0 : m.rot_body[r]);
+    b[0] += v * a * a;
+    b[1] += v;
+    if (a > threshold) b[2] += v;
   }
 }
 }  // namespace
@@ -725,23 +728,32 @@ RotationChange rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& p
   RotationChange out;
   if (m.material.model == MaterialModel::Linear) return out;
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
-  RotationChange part[64];  // per worker (solver.threads <= 64)
+  double part_max[64] = {0};  // per worker (solver.threads <= 64)
   pool.run([&](int tid) {
     int b, e;
     ThreadPool::split(m.nelem, pool.size(), tid, b, e);
     double* ue = plan.scratch[tid].data();
+    double* body = plan.body_sums[tid].data();
+    std::fill(plan.body_sums[tid].begin(), plan.body_sums[tid].end(), 0.0);
     for (int el = b; el < e; ++el) {
       const int n = m.elem_dof_ptr[el + 1] - m.elem_dof_ptr[el];
-      if (n == 10) element_rotation_change<10>(m, plan, el, u, R, ue, threshold, part[tid]);
-      else if (n == 4) element_rotation_change<4>(m, plan, el, u, R, ue, threshold, part[tid]);
-      else element_rotation_change<0>(m, plan, el, u, R, ue, threshold, part[tid]);
+      if (n == 10) element_rotation_change<10>(m, plan, el, u, R, ue, threshold, part_max[tid], body);
+      else if (n == 4) element_rotation_change<4>(m, plan, el, u, R, ue, threshold, part_max[tid], body);
+      else element_rotation_change<0>(m, plan, el, u, R, ue, threshold, part_max[tid], body);
     }
   });
-  for (int t = 0; t < pool.size(); ++t) {
-    out.max = std::max(out.max, part[t].max);
-    out.rms += part[t].rms;
-    out.volume += part[t].volume;
-    out.above += part[t].above;
+  for (int t = 0; t < pool.size(); ++t) out.max = std::max(out.max, part_max[t]);
+  for (int k = 0; k < m.nbody; ++k) {
+    double sq = 0.0, vol = 0.0, above = 0.0;
+    for (int t = 0; t < pool.size(); ++t) {
+      const double* b = &plan.body_sums[t][3 * static_cast<size_t>(k)];
+      sq += b[0], vol += b[1], above += b[2];
+    }
+    out.rms += sq, out.volume += vol, out.above += above;
+    if (vol > 0.0) {
+      out.body_rms = std::max(out.body_rms, std::sqrt(sq / vol));
+      out.body_above = std::max(out.body_above, above / vol);
+    }
   }
   out.rms = out.volume > 0.0 ? std::sqrt(out.rms / out.volume) : 0.0;
   return out;

@@ -36,6 +36,7 @@ struct AssemblyPlan {
   std::vector<char> elem_condensed;  // (nelem) 1 where every slot of the element has a rest stiffness (Model::rot_K0)
   std::vector<std::vector<double>> scratch;  // (nthreads) per-worker work space
   std::vector<std::vector<double>> matvec_buf;  // (nthreads) per-worker partial y of sym_matvec
+  std::vector<std::vector<double>> body_sums;   // (nthreads) (nbody, 3) rotation_change's per-body sums
   std::vector<int> matvec_col_ptr;  // (nthreads + 1) column ranges of about equal nnz
   int ncolors() const { return static_cast<int>(color_ptr.size()) - 1; }
   int nseparators() const { return static_cast<int>(color_elem.size()); }
@@ -104,6 +105,10 @@ struct RotationChange {
   double rms = 0.0;     // rad, sqrt(sum_r V_r a_r^2 / sum_r V_r)
   double volume = 0.0;  // of the slots counted
   double above = 0.0;   // of the slots whose angle is above the threshold
+  // Per body (Model::rot_body; the whole tissue while it is one): the largest
+  // of the bodies' RMS and of their shares of volume above the threshold.
+  double body_rms = 0.0;    // rad
+  double body_above = 0.0;  // fraction of that body's counted volume
 };
 RotationChange rotation_change(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R,
                                double threshold);

@@ -27,6 +27,7 @@ struct CutLayout {
   std::vector<unsigned char> elem_face_cut;  // (nelem, 4) a whole element face lies on a cut
   std::vector<unsigned char> elem_split;     // (nelem) 1 when the element is cut into pieces
   int bodies = 1;                            // connected pieces of tissue (a cut frame that changes it severed one)
+  std::vector<int> piece_body;               // (npiece) body of each piece, 0..bodies-1 (empty: all body 0)
 
   // Front enrichment (compute_cut_layout with branch_front; empty without):
   // every node a of an element a cut's front passes through, or of an

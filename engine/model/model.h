@@ -81,6 +81,11 @@ struct Model {
   std::vector<int> rot_elem;       // (nrot) element of the slot
   std::vector<int> rot_grad_ptr;   // (nrot + 1) into rot_grad
   std::vector<double> rot_grad;    // gradients giving the slot's deformation gradient
+  // The body (connected piece of tissue, CutLayout::piece_body) of each slot,
+  // so Newton's stop can judge a severed piece by its own volume
+  // (decide_newton). Empty while the tissue is one body.
+  int nbody = 1;
+  std::vector<int> rot_body;       // (nrot) 0..nbody-1
   // Rest stiffness of the points of a shared slot (a piece of a split element):
   // with one rotation R for all of them, their force is R^ K0 (R^T x - X) and
   // their frozen-R tangent R^ K0 R^T (R^ = diag(R, ...)), so assembly rotates

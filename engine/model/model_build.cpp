@@ -146,6 +146,27 @@ void add_element_dof_nodes(Model& m, const int* nodes, const std::vector<PieceVi
   m.elem_dof_ptr.push_back(static_cast<int>(m.elem_dof_node.size()));
 }
 
+// Model::rot_body from the cut layout's bodies. A split element has one slot
+// per piece, in piece order; any other element's slots (one, or one per
+// cubature point) are all in its one piece.
+void label_slot_bodies(Model& m) {
+  m.rot_body.clear();
+  m.nbody = m.has_cuts() ? m.cuts.bodies : 1;
+  if (m.nbody <= 1 || m.cuts.piece_body.empty()) {
+    m.nbody = 1;
+    return;
+  }
+  m.rot_body.resize(m.nrot);
+  const std::vector<int> slot_ptr = element_slot_ptr(m);
+  for (int e = 0; e < m.nelem; ++e) {
+    const int p0 = m.cuts.elem_piece_ptr[e], np = m.cuts.elem_piece_ptr[e + 1] - p0;
+    const int ns = slot_ptr[e + 1] - slot_ptr[e];
+    if (np > 1 && ns != np) throw Error("internal: element " + std::to_string(e) + " has " + std::to_string(np) +
+                                        " pieces but " + std::to_string(ns) + " rotation slots");
+    for (int k = 0; k < ns; ++k) m.rot_body[slot_ptr[e] + k] = m.cuts.piece_body[p0 + (np > 1 ? k : 0)];
+  }
+}
+
 // Element e's rotation slots, points and volume copied from B, whose pieces
 // of e are the same (base_slot: B's element_slot_ptr).
 void copy_element_from_base(Model& m, const Model& B, int e, const std::vector<int>& base_slot,
@@ -378,6 +399,7 @@ void build_elements(Model& m, const Scene& scene, const Model* base, std::vector
     else integrate_element(m, cub, per_point, e, nodes, pieces, w, slot_src);
   }
   m.nrot = static_cast<int>(m.rot_elem.size());
+  label_slot_bodies(m);
 }
 
 // Rest stiffness of each piece of a split element (Model::rot_K0): K0 =

@@ -530,6 +530,56 @@ TEST(Xfem, LumpedAccelerationAfterACutSolvesTheMassSystem) {
   }
 }
 
+// A cut that severs the beam [0,4]x[0,1]x[0,1] by the plane
+// (x - 2.3) + 0.2 y + 0.1 z = 0 leaves two bodies of 2.15 and 1.85 (the
+// plane's x averaged over the cross-section: 2.3 - 0.1 - 0.05): each rotation
+// slot knows its body, the slots' volumes sum to each, and the rotation
+// change is judged per body (decide_newton): the smaller body turned by
+// 0.5 rad while the larger stays is all of that body above the threshold,
+// though 46% of the tissue.
+TEST(Xfem, EachSeveredBodysSlotsAreJudgedByItsOwnVolume) {
+  Scene s = test::block_scene(2);
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  const Mesh mesh = make_beam(4, 1, 1, 8, 2, 2, 1);
+  const Model uncut = build_model(mesh, s);
+  EXPECT_EQ(uncut.nbody, 1);
+  EXPECT_TRUE(uncut.rot_body.empty());
+  const auto plane = make_cut_surface(test::plane_cut({2.3, 0, 0}, {1, 0.2, 0.1}), 0.0);
+  const CutLayout layout = compute_cut_layout(uncut, {plane.get()}, nullptr);
+  ASSERT_EQ(layout.bodies, 2);
+  ASSERT_EQ(layout.piece_body.size(), layout.piece_fraction.size());
+  const Model m = build_model(mesh, s, &layout);
+  ASSERT_EQ(m.nbody, 2);
+  ASSERT_EQ(static_cast<int>(m.rot_body.size()), m.nrot);
+  const AssemblyPlan plan0 = make_assembly_plan(m, 1);
+  double vol[2] = {0, 0}, x_mean[2] = {0, 0};
+  for (int r = 0; r < m.nrot; ++r) {
+    ASSERT_TRUE(m.rot_body[r] == 0 || m.rot_body[r] == 1);
+    vol[m.rot_body[r]] += plan0.slot_volume[r];
+    const int e = m.rot_elem[r];
+    double xc = 0.0;
+    for (int a = 0; a < 4; ++a) xc += 0.25 * m.X[3 * mesh.tet[static_cast<size_t>(e) * mesh.npe() + a]];
+    x_mean[m.rot_body[r]] += plan0.slot_volume[r] * xc;
+  }
+  const int clamped = x_mean[0] / vol[0] < x_mean[1] / vol[1] ? 0 : 1, free_end = 1 - clamped;
+  EXPECT_NEAR(vol[clamped], 2.15, 1e-10);
+  EXPECT_NEAR(vol[free_end], 1.85, 1e-10);
+
+  State st;
+  Workspace ws;
+  init_state(m, st, ws);
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  for (int r = 0; r < m.nrot; ++r)
+    if (m.rot_body[r] == free_end) Eigen::Map<Eigen::Matrix3d>(&st.R[9 * static_cast<size_t>(r)]) = Q;
+  const std::vector<double> u(m.ndof(), 0.0);
+  const RotationChange rc = rotation_change(m, ws.work.plan, *ws.work.pool, u.data(), st.R.data(), 0.1);
+  EXPECT_NEAR(rc.max, 0.5, 1e-9);
+  EXPECT_NEAR(rc.above / rc.volume, 1.85 / 4.0, 1e-10);
+  EXPECT_NEAR(rc.rms, 0.5 * std::sqrt(1.85 / 4.0), 1e-9);
+  EXPECT_NEAR(rc.body_above, 1.0, 1e-12);
+  EXPECT_NEAR(rc.body_rms, 0.5, 1e-9);
+}
+
 // A cut rebuild on a base model equals a build from scratch: same pattern,
 // masses and loads (the base only saves recomputation), from an uncut base
 // and from a cut one.
@@ -570,6 +620,7 @@ TEST(Xfem, RebuildFromTheBaseModelEqualsAFreshBuild) {
     EXPECT_EQ(a->qp_grad, b->qp_grad);
     EXPECT_EQ(a->qp_rot, b->qp_rot);
     EXPECT_EQ(a->rot_elem, b->rot_elem);
+    EXPECT_EQ(a->rot_body, b->rot_body);
     EXPECT_EQ(a->rot_grad, b->rot_grad);
     EXPECT_EQ(a->rot_K0_ptr, b->rot_K0_ptr);
     EXPECT_EQ(a->rot_K0, b->rot_K0);
