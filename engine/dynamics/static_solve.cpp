@@ -20,9 +20,10 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
   ws.work.job_running = false;
   for (int d : m.fixed_dofs) s.u[d] = 0.0;
   for (const auto& p : m.prescribed) s.u[p.dof] = time >= 0.0 ? m.prescribed_value(p, time) : p.value;
+  const std::vector<double> load = static_gravity_load(m);  // f_gravity but on slivers' enriched DOFs
   double fext = 0.0;
   for (int d = 0; d < n; ++d)
-    if (!m.constrained[d]) fext += m.f_gravity[d] * m.f_gravity[d];
+    if (!m.constrained[d]) fext += load[d] * load[d];
   fext = std::sqrt(fext);
   StaticResult res;
   double ref = 0.0;
@@ -40,6 +41,7 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
   }
   // Free residual f_ext - f_int(u) into ws.rhs and its norm; K (nnz) when asked.
   int fallbacks = 0;
+  double shift = 0.0;  // relative raise of the enriched DOFs' diagonals, once one was needed
   const auto residual_at = [&](const double* u, bool tangent) {
     if (linear) {
       internal_forces(m, s, ws, u, false);
@@ -49,7 +51,7 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
     }
     double r2 = 0.0;
     for (int d = 0; d < n; ++d) {
-      ws.rhs[d] = m.constrained[d] ? 0.0 : m.f_gravity[d] - ws.f_int[d];
+      ws.rhs[d] = m.constrained[d] ? 0.0 : load[d] - ws.f_int[d];
       r2 += ws.rhs[d] * ws.rhs[d];
     }
     return std::sqrt(r2);
@@ -80,26 +82,47 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
     }
     if (it == max_iterations) break;
     if (!(linear && ws.factor_current)) {
-      const auto factorize = [&] {
+      const auto factorize = [&](double shift) {
         const double* K = linear ? m.K0_csc.data() : ws.K.data();
         std::copy(K, K + m.nnz(), ws.A.begin());
         ws.A_generation = 0;
+        for (int d = 3 * m.nnode; d < n && shift > 0.0; ++d) ws.A[m.diag[d]] *= 1.0 + shift;
         project_constraints(m, ws.A.data());
         ws.solver.factorize(ws.A.data());
         ++ws.refactorizations;
       };
-      try {
-        factorize();
-      } catch (const Error&) {
-        // The exact tangent is indefinite here (compressed rotation modes
-        // outweigh the rest: near inversion, a buckling load): this
-        // iteration takes the projected, positive semi-definite one.
-        if (linear) throw;
+      // The exact tangent first. Where Cholesky fails: with enrichment, the
+      // same with the enriched DOFs' diagonals raised (kept for the later
+      // iterations), then the projected tangent. Singular to roundoff: a
+      // sliver's enriched DOFs (a cut within 1e-7 h of a node layer) have
+      // modes of energy (thickness)^3 beside diagonals of order thickness.
+      // A raise of kStaticEnrichedShift changes the step, not the residual
+      // (static_gravity_load leaves those modes unloaded), so the solve still
+      // converges. Indefinite: compressed rotation modes outweigh the rest
+      // (near inversion, a buckling load); the projected tangent is positive
+      // semi-definite.
+      const auto factorized = [&](double sh) {
+        try {
+          factorize(sh);
+          return true;
+        } catch (const Error&) {
+          if (linear) throw;
+          return false;
+        }
+      };
+      const bool can_shift = m.ndofnode > m.nnode && shift == 0.0;
+      const auto shifted = [&] {
+        if (!can_shift || !factorized(kStaticEnrichedShift)) return false;
+        shift = kStaticEnrichedShift;
+        res.shifted = 1;
+        return true;
+      };
+      if (!factorized(shift) && !shifted()) {
         plan.exact_rotation_term = false;
         residual_at(s.u.data(), true);
         plan.exact_rotation_term = true;
         ++res.projected;
-        factorize();
+        if (!factorized(shift) && !shifted()) factorize(shift);  // throws: CHOLMOD's message names the DOF
       }
       ws.factor_current = linear;
     }
@@ -121,7 +144,7 @@ StaticResult solve_static(const Model& m, State& s, Workspace& ws, double tolera
     for (int d = 0; d < n; ++d) slope += ws.du[d] * ws.rhs[d];
     const auto energy_at = [&](const double* u) {  // after residual_at(u): s.R holds u's rotations
       double w = 0.0;
-      for (int d = 0; d < n; ++d) w += m.f_gravity[d] * u[d];
+      for (int d = 0; d < n; ++d) w += load[d] * u[d];
       return elastic_energy(m, u, s.R.data()) - w;
     };
     double alpha = 1.0, r_new = 0.0;
@@ -164,6 +187,7 @@ std::string static_report(const StaticResult& r) {
                 r.smallest_step, r.stalled);
   out += buf;
   if (r.projected > 0) out += "; " + std::to_string(r.projected) + " iteration(s) on the projected tangent (exact one indefinite)";
+  if (r.shifted > 0) out += "; enriched DOFs' diagonals raised by 1e-10 (a singular sliver)";
   if (r.inverted_points > 0) out += "; " + std::to_string(r.inverted_points) + " inverted cubature point(s) at the end";
   return out;
 }

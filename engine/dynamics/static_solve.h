@@ -23,12 +23,16 @@ struct StaticResult {
   double smallest_step = 1.0;  // shortest step length taken (1: every step was a full Newton step)
   int stalled = 0;        // iterations where no step length passed the line search (the shortest was taken)
   int projected = 0;      // iterations whose exact tangent was indefinite: the projected one was taken
+  int shifted = 0;        // 1 once a tangent was singular with enrichment: enriched diagonals raised from then on
   int inverted_points = 0;  // cubature points inverted at the solution (SVD fallbacks of the last assembly)
 };
 
 // The line search (static_solve.cpp): alpha halves from 1 at most this many
 // times.
 inline constexpr int kStaticLineSearchHalvings = 10;
+// Relative raise of the enriched DOFs' diagonals when even the projected
+// tangent is singular (solve_static).
+inline constexpr double kStaticEnrichedShift = 1e-10;
 
 // Solves into state.u (state and ws must be init_state'd). Converged when
 // ||f_ext - f_int(u)|| on the free DOFs <= tolerance * max(||f_ext||, ||r_0||),

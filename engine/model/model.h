@@ -183,6 +183,14 @@ bool same_element_pieces(const Model& m, const Model& base, int e);
 
 std::vector<int> element_slot_ptr(const Model& m);  // (nelem + 1) first rotation slot of each element
 
+// The gravity load of static solves (ndof): f_gravity, with the consistent
+// load rho g int N_a on the Heaviside-enriched DOF nodes of a lumped-mass
+// model where their node's function nearly vanishes in their region: rho
+// int N_a^2 there below kSliverMass of frac * rho int_e N_a^2 (the
+// definition explains why).
+inline constexpr double kSliverMass = 1e-6;
+std::vector<double> static_gravity_load(const Model& model);
+
 // The rest stiffness K0 (R = I) in the model's pattern, (nnz).
 std::vector<double> rest_stiffness(const Model& model);
 // Whether stepping uses K0: the linear model and the warped policies.

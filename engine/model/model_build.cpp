@@ -1075,6 +1075,59 @@ void build_constraints(Model& m, const Scene& scene, const Model* base) {
 
 }  // namespace
 
+// The static solve's gravity load. Lumped with enrichment, f_gravity puts
+// frac * HRZ mass * g on each Heaviside-enriched DOF node q: right for
+// dynamics (exact free fall, masses proportional to the pieces' volumes), but
+// where q's node's function nearly vanishes in q's region (the far nodes of a
+// sliver: a cut 1e-4 h or less past a node layer) that load drives a
+// near-null stiffness mode (energy of order (thickness)^3 against a load of
+// order thickness): the static Newton stalled at a relative residual of 9e-5
+// (offsets 1e-4 and 1e-6 h), or its tangent lost positive definiteness
+// (1e-7 h). Such a q, whose region's consistent diagonal mass rho int N_a^2
+// is below kSliverMass of the lumped one's share (frac * rho int_e N_a^2;
+// about 1e-2 (thickness / h)^2 for a sliver, 1e-4 for one of 0.1 h, of order
+// 1 for a piece N_a does not vanish in), gets the consistent load rho g int N_a over the pieces that use it
+// ([book] eq. (3.34), the body force term), which leaves such a mode
+// unloaded. Other q keep f_gravity's, so `initial: "static"` still starts a
+// cut body at rest under the dynamics' load. Consistent mass, or no
+// enrichment: f_gravity.
+std::vector<double> static_gravity_load(const Model& m) {
+  std::vector<double> f = m.f_gravity;
+  if (m.mass_kind != MassKind::Lumped || m.ndofnode == m.nnode || !m.has_cuts()) return f;
+  const Mesh& mesh = m.mesh;
+  const int npe = mesh.npe();
+  // Per DOF node (enriched ones used): rho int N_a^2 over q's pieces, frac *
+  // rho int_e N_a^2 over them, and rho int N_a over them.
+  std::vector<double> diag(m.ndofnode, 0.0), share(m.ndofnode, 0.0), load(m.ndofnode, 0.0);
+  MassWork w(mesh, m.material.density);
+  for (int e = 0; e < m.nelem; ++e) {
+    if (m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e] == npe) continue;  // no enrichment
+    const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
+    for (int b = 0; b < npe; ++b)
+      for (int d = 0; d < 3; ++d) w.Xe[3 * b + d] = mesh.X[3 * nodes[b] + d];
+    const double* Me = &m.elem_mass[static_cast<size_t>(e) * npe * npe];
+    const std::vector<PieceView> pieces = pieces_of(m, e);
+    for (int k = 0; k < static_cast<int>(pieces.size()); ++k) {
+      const PieceView& P = pieces[k];
+      if (!P.enr) continue;
+      if (P.rst) integrate_mass(P.rst, P.nsub, w, w.Mp);
+      else std::copy_n(Me, npe * npe, w.Mp.begin());
+      const double frac = m.cuts.piece_fraction[m.cuts.elem_piece_ptr[e] + k];
+      for (int a = 0; a < npe; ++a) {
+        const int q = P.enr[a];
+        if (q < 0) continue;
+        diag[q] += w.Mp[a * npe + a];
+        share[q] += frac * Me[a * npe + a];
+        for (int b = 0; b < npe; ++b) load[q] += w.Mp[a * npe + b];  // row sum: partition of unity
+      }
+    }
+  }
+  for (int q = m.nnode; q < m.ndofnode; ++q)
+    if (share[q] > 0.0 && diag[q] < kSliverMass * share[q])
+      for (int d = 0; d < 3; ++d) f[3 * q + d] = load[q] * m.gravity[d];
+  return f;
+}
+
 std::vector<int> select_nodes(const Mesh& mesh, const Region& region, const std::string& scene_path) {
   double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
   for (int n = 0; n < mesh.nnode(); ++n)

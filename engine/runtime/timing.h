@@ -65,8 +65,8 @@ struct FrameTiming {
   int tangent_updates = 0;    // elements whose tangent blocks were (re)computed (all but the kept ones: integrator.tangent_reuse)
   int inverted_points = 0;    // cubature points the frame's last assembly found inverted or degenerate (SVD fallback of the rotation)
   double rotation_change = 0; // adaptive Newton: largest rotation change (rad) at the last check (integrator.rotation_tolerance)
-  double rotation_rms = 0;    // adaptive Newton: the volume-weighted RMS of every slot's change (rad) at the last check
-  double rotation_above = 0;  // adaptive Newton: the volume fraction that changed more than rotation_tolerance
+  double rotation_rms = 0;    // adaptive Newton: the volume-weighted RMS of every slot's change (rad) at the last check, largest over the bodies
+  double rotation_above = 0;  // adaptive Newton: the volume fraction that changed more than rotation_tolerance, largest over the bodies
   int line_search_halvings = 0;  // Newton iterations taken back halfway (integrator.line_search), each an extra assembly
   bool recovery = false;      // the step was a recovery step (State::recovery: backward Euler, integrator.recovery)
   bool newton_capped = false; // Newton stopped at its cap (or solver.frame_iterations) with the rotations still moving: the next step recovers
