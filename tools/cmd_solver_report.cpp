@@ -84,7 +84,8 @@ std::string format_solver_report(const SolverReport& r) {
   }
   if (r.capped_frames + r.recovery_frames > 0) {
     std::snprintf(buf, sizeof buf,
-                  "newton: %d frame%s stopped at integrator.max_newton_iterations with the rotations still moving; "
+                  "newton: %d frame%s stopped with the rotations still moving (at integrator.max_newton_iterations, "
+                  "or in a severed piece under integrator.rotation_fraction of the tissue); "
                   "%d recovery step%s (backward Euler, integrator.recovery; docs/numerics.md)\n",
                   r.capped_frames, r.capped_frames == 1 ? "" : "s", r.recovery_frames, r.recovery_frames == 1 ? "" : "s");
     out += buf;

@@ -33,7 +33,7 @@ struct SolverReport {
   Percentiles iterations;          // CG iterations per frame (as "ms" fields: median, p95, p99, max)
   int not_converged_frames = 0;    // frames whose CG stopped at max_iterations above tolerance
   int rescue_frames = 0;           // lagged: frames that factored the current matrix (solver.rescue_after)
-  int capped_frames = 0;    // Newton stopped at its cap with the rotations still moving
+  int capped_frames = 0;    // Newton stopped with the rotations still moving (FrameTiming::newton_capped)
   int recovery_frames = 0;  // recovery steps (backward Euler after a severing cut or a capped frame, integrator.recovery)
   int budget_frames = 0;           // frames that spent solver.frame_iterations (FrameTiming::budget_spent)
   double max_budget_residual = 0;  // the largest CG residual such a frame accepted

@@ -30,8 +30,8 @@ struct StaticResult {
 // The line search (static_solve.cpp): alpha halves from 1 at most this many
 // times.
 inline constexpr int kStaticLineSearchHalvings = 10;
-// Relative raise of the enriched DOFs' diagonals when even the projected
-// tangent is singular (solve_static).
+// Relative raise of the enriched DOFs' diagonals once Cholesky refuses a
+// tangent with enrichment (solve_static: a sliver's near-null modes).
 inline constexpr double kStaticEnrichedShift = 1e-10;
 
 // Solves into state.u (state and ws must be init_state'd). Converged when

@@ -724,7 +724,7 @@ void element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, co
 }  // namespace
 
 RotationChange rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R,
-                               double threshold) {
+                               double threshold, double small) {
   RotationChange out;
   if (m.material.model == MaterialModel::Linear) return out;
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
@@ -743,17 +743,28 @@ RotationChange rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& p
     }
   });
   for (int t = 0; t < pool.size(); ++t) out.max = std::max(out.max, part_max[t]);
-  for (int k = 0; k < m.nbody; ++k) {
-    double sq = 0.0, vol = 0.0, above = 0.0;
+  // Totals first (the small bodies' threshold is a share of the volume).
+  const auto body = [&](int k, double& sq, double& vol, double& above) {
+    sq = vol = above = 0.0;
     for (int t = 0; t < pool.size(); ++t) {
       const double* b = &plan.body_sums[t][3 * static_cast<size_t>(k)];
       sq += b[0], vol += b[1], above += b[2];
     }
+  };
+  for (int k = 0; k < m.nbody; ++k) {
+    double sq, vol, above;
+    body(k, sq, vol, above);
     out.rms += sq, out.volume += vol, out.above += above;
-    if (vol > 0.0) {
-      out.body_rms = std::max(out.body_rms, std::sqrt(sq / vol));
-      out.body_above = std::max(out.body_above, above / vol);
-    }
+  }
+  for (int k = 0; k < m.nbody; ++k) {
+    double sq, vol, above;
+    body(k, sq, vol, above);
+    if (!(vol > 0.0)) continue;
+    const bool is_small = vol < small * out.volume;
+    double& rms = is_small ? out.small_rms : out.body_rms;
+    double& share = is_small ? out.small_above : out.body_above;
+    rms = std::max(rms, std::sqrt(sq / vol));
+    share = std::max(share, above / vol);
   }
   out.rms = out.volume > 0.0 ? std::sqrt(out.rms / out.volume) : 0.0;
   return out;

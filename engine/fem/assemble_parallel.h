@@ -106,12 +106,15 @@ struct RotationChange {
   double volume = 0.0;  // of the slots counted
   double above = 0.0;   // of the slots whose angle is above the threshold
   // Per body (Model::rot_body; the whole tissue while it is one): the largest
-  // of the bodies' RMS and of their shares of volume above the threshold.
+  // of the bodies' RMS and of their shares of volume above the threshold,
+  // over the bodies of at least `small` of the counted volume, and over the
+  // others (small pieces a cut severed).
   double body_rms = 0.0;    // rad
   double body_above = 0.0;  // fraction of that body's counted volume
+  double small_rms = 0.0, small_above = 0.0;
 };
 RotationChange rotation_change(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* u, const double* R,
-                               double threshold);
+                               double threshold, double small = 0.0);
 
 // Forces (and with v, K v) of the elements `elems` only, on the calling thread.
 void element_subset_forces(const Model& model, AssemblyPlan& plan, const std::vector<int>& elems, const double* u,

@@ -69,7 +69,7 @@ struct FrameTiming {
   double rotation_above = 0;  // adaptive Newton: the volume fraction that changed more than rotation_tolerance, largest over the bodies
   int line_search_halvings = 0;  // Newton iterations taken back halfway (integrator.line_search), each an extra assembly
   bool recovery = false;      // the step was a recovery step (State::recovery: backward Euler, integrator.recovery)
-  bool newton_capped = false; // Newton stopped at its cap (or solver.frame_iterations) with the rotations still moving: the next step recovers
+  bool newton_capped = false; // Newton stopped with rotations still moving, at its cap (or solver.frame_iterations) or in a severed piece under rotation_fraction of the tissue: the next step recovers
   // Instruments (collision/, engine/dynamics/contact_solve.h).
   int contacts = 0;           // contact rows of the frame (after reduction to contact.max_rows)
   int grasp_rows = 0;         // bilateral grasp rows

@@ -578,6 +578,62 @@ TEST(Xfem, EachSeveredBodysSlotsAreJudgedByItsOwnVolume) {
   EXPECT_NEAR(rc.rms, 0.5 * std::sqrt(1.85 / 4.0), 1e-9);
   EXPECT_NEAR(rc.body_above, 1.0, 1e-12);
   EXPECT_NEAR(rc.body_rms, 0.5, 1e-9);
+  // Bodies under half the tissue counted apart: the free end (46%).
+  const RotationChange halves = rotation_change(m, ws.work.plan, *ws.work.pool, u.data(), st.R.data(), 0.1, 0.5);
+  EXPECT_EQ(halves.body_above, 0.0);
+  EXPECT_EQ(halves.body_rms, 0.0);
+  EXPECT_NEAR(halves.small_above, 1.0, 1e-12);
+  EXPECT_NEAR(halves.small_rms, 0.5, 1e-9);
+}
+
+// Newton's stop on the two bodies of the same severed beam, after one
+// iteration whose result is the rest shape while one body's frozen rotations
+// are turned by 0.5 rad (decide_newton): a body of at least rotation_fraction
+// of the tissue iterates again; a smaller one (the free end, 46% of the
+// volume, under a fraction of 0.5) iterates again only in a cut frame, and
+// otherwise stops and asks for a recovery step (FrameTiming::newton_capped).
+TEST(Xfem, ASmallSeveredPieceIteratesInCutFramesAndElseAsksForARecoveryStep) {
+  Scene s = test::block_scene(2);
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  const Mesh mesh = make_beam(4, 1, 1, 8, 2, 2, 1);
+  const auto plane = make_cut_surface(test::plane_cut({2.3, 0, 0}, {1, 0.2, 0.1}), 0.0);
+  const CutLayout layout = compute_cut_layout(build_model(mesh, s), {plane.get()}, nullptr);
+  struct Stop {
+    bool done, recover;
+  };
+  const auto decide = [&](double fraction, bool turn_free_end, bool cut_frame) {
+    Scene sc = s;
+    sc.rotation_fraction = fraction;
+    sc.rotation_rms = 0.0;
+    const Model m = build_model(mesh, sc, &layout);
+    State st;
+    Workspace ws;
+    init_state(m, st, ws);
+    step(m, st, ws);  // the workspace as a step leaves it
+    // The clamped body holds the slots of element 0 (at x = 0).
+    const int clamped = m.rot_body[0];
+    for (int d = 0; d < m.ndof(); ++d) ws.delta[d] = -st.u[d];  // the iteration's result: u + Delta = 0
+    const Eigen::Matrix3d Q = Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    for (int r = 0; r < m.nrot; ++r) {
+      const bool turned = (m.rot_body[r] != clamped) == turn_free_end;
+      Eigen::Map<Eigen::Matrix3d>(&st.R[9 * static_cast<size_t>(r)]) = turned ? Q : Eigen::Matrix3d::Identity();
+    }
+    ws.newton_iterations_done = 1;
+    ws.timing.cut_frame = cut_frame;
+    decide_newton(m, st, ws);
+    return Stop{ws.newton_done, ws.timing.newton_capped};
+  };
+  for (const bool cut_frame : {false, true}) {
+    const Stop big = decide(1e-4, true, cut_frame);
+    EXPECT_FALSE(big.done) << "a body above the fraction iterates (cut frame " << cut_frame << ")";
+    const Stop clamped = decide(0.5, false, cut_frame);
+    EXPECT_FALSE(clamped.done) << "the clamped body (54%) is above the fraction (cut frame " << cut_frame << ")";
+  }
+  const Stop small_cut = decide(0.5, true, true);
+  EXPECT_FALSE(small_cut.done) << "a small piece iterates in a cut frame";
+  const Stop small = decide(0.5, true, false);
+  EXPECT_TRUE(small.done) << "a small piece stops outside cut frames";
+  EXPECT_TRUE(small.recover) << "and asks for a recovery step";
 }
 
 // A cut rebuild on a base model equals a build from scratch: same pattern,
