@@ -743,22 +743,14 @@ RotationChange rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& p
     }
   });
   for (int t = 0; t < pool.size(); ++t) out.max = std::max(out.max, part_max[t]);
-  // Totals first (the small bodies' threshold is a share of the volume).
-  const auto body = [&](int k, double& sq, double& vol, double& above) {
-    sq = vol = above = 0.0;
-    for (int t = 0; t < pool.size(); ++t) {
-      const double* b = &plan.body_sums[t][3 * static_cast<size_t>(k)];
-      sq += b[0], vol += b[1], above += b[2];
-    }
-  };
+  // The workers' sums into worker 0's, and the totals first (the small
+  // bodies' threshold is a share of the volume).
+  std::vector<double>& sums = plan.body_sums[0];
+  for (int t = 1; t < pool.size(); ++t)
+    for (size_t i = 0; i < sums.size(); ++i) sums[i] += plan.body_sums[t][i];
+  for (int k = 0; k < m.nbody; ++k) out.rms += sums[3 * k], out.volume += sums[3 * k + 1], out.above += sums[3 * k + 2];
   for (int k = 0; k < m.nbody; ++k) {
-    double sq, vol, above;
-    body(k, sq, vol, above);
-    out.rms += sq, out.volume += vol, out.above += above;
-  }
-  for (int k = 0; k < m.nbody; ++k) {
-    double sq, vol, above;
-    body(k, sq, vol, above);
+    const double sq = sums[3 * k], vol = sums[3 * k + 1], above = sums[3 * k + 2];
     if (!(vol > 0.0)) continue;
     const bool is_small = vol < small * out.volume;
     double& rms = is_small ? out.small_rms : out.body_rms;

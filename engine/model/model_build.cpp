@@ -1086,9 +1086,9 @@ void build_constraints(Model& m, const Scene& scene, const Model* base) {
 // (1e-7 h). Such a q, whose region's consistent diagonal mass rho int N_a^2
 // is below kSliverMass of the lumped one's share (frac * rho int_e N_a^2;
 // about 1e-2 (thickness / h)^2 for a sliver, 1e-4 for one of 0.1 h, of order
-// 1 for a piece N_a does not vanish in), gets the consistent load rho g int N_a over the pieces that use it
-// ([book] eq. (3.34), the body force term), which leaves such a mode
-// unloaded. Other q keep f_gravity's, so `initial: "static"` still starts a
+// 1 for a piece N_a does not vanish in), gets the consistent load
+// rho g int N_a over the pieces that use it ([book] eq. (3.34), the body
+// force term), which leaves such a mode unloaded. Other q keep f_gravity's, so `initial: "static"` still starts a
 // cut body at rest under the dynamics' load. Consistent mass, or no
 // enrichment: f_gravity.
 std::vector<double> static_gravity_load(const Model& m) {
