@@ -555,12 +555,11 @@ void lagged_patch(const Model& m, Workspace& ws, const double* A) {
   if (map.empty() && seeds.empty()) {
     w.patch_dof.clear();
     w.patch_contact_nodes.clear();
-    w.patch_key = -1;
+    w.patch_pattern = -1;
     return;
   }
-  const long long key = (static_cast<long long>(w.pattern) * 2 + w.front) * 1000003LL + w.front_frame;
-  if (key != w.patch_key || seeds != w.patch_contact_nodes) {
-    w.patch_key = key;
+  if (!w.patch_current() || seeds != w.patch_contact_nodes) {
+    w.mark_patch_current();
     w.patch_contact_nodes = seeds;
     build_patch(m, map, w);
   }
@@ -855,7 +854,7 @@ void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
       const bool rescue = ws.rescue_pending;
       if (rescue || ws.newton_iterations_done == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
       if (m.solver.warp) lagged_warp_rotations(m, ws);
-      if (rescue || ws.newton_iterations_done == 0 || ws.work.patch_key < 0) lagged_patch(m, ws, ws.A.data());
+      if (rescue || ws.newton_iterations_done == 0 || ws.work.patch_pattern < 0) lagged_patch(m, ws, ws.A.data());
       if (!rescue) factor_condensed_dofs(ws.work.condensed, ws.A.data());  // this iteration's A (a rescue keeps it)
       // The coarse level: from this frame's first matrix (measured at 20k DOF
       // here: 5-6 ms to form A_c, 5.7 ms to factor it; later Newton

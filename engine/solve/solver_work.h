@@ -77,7 +77,17 @@ struct SolverWork {
   std::vector<int> patch_dof;          // (np) global DOFs of the patch, sorted
   std::vector<int> patch_src;          // (patch nnz) position in the global A of each patch entry
   std::vector<double> patch_A, patch_r;
-  long long patch_key = -1;            // (pattern, front slot, front frame) it was built for
+  // What the patch was built for: the pattern, the front slot and its frame
+  // (patch_pattern -1: none). Kept apart: a packed key, (pattern * 2 +
+  // front) * 1000003 + front_frame, gave pattern 26 with slot 2 and pattern
+  // 27 with slot 0 the same value, and a patch of the old pattern's entries
+  // was refactored with the new A (organ_instruments: "not positive
+  // definite" at frame 46).
+  int patch_pattern = -1, patch_front = -1, patch_front_frame = 0;
+  bool patch_current() const {
+    return patch_pattern == pattern && patch_front == front && patch_front_frame == front_frame;
+  }
+  void mark_patch_current() { patch_pattern = pattern, patch_front = front, patch_front_frame = front_frame; }
   std::vector<int> patch_contact_nodes;  // solver.contact_patch: the contact rows' DOF nodes it was built for
   std::vector<int> patch_seeds;          // (scratch) this iteration's
   // Rows of A at the patch DOFs (every column), for the multiplicative combination.
