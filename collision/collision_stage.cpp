@@ -7,6 +7,8 @@
 #include <string>
 
 #include "collision/face_contact.h"
+#include "collision/narrowphase.h"
+#include "engine/runtime/trajectory.h"
 #include "engine/util/error.h"
 
 namespace incise {
@@ -108,11 +110,16 @@ std::string instrument_label(const InstrumentSpec& spec) {
 // points and 1e4-6e6 N every frame) and the run ended "successfully". At
 // the run's first frame that is a bad scene (the instrument starts inside
 // the tissue): an error. Later, a stroke faster than half the radius a
-// frame put it there: a warning, once per instrument.
-void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const std::vector<TissueContact>& found) {
+// frame put it there: a warning, once per instrument. A frame that swept
+// the probe (sweep_probe) has rows for the faces it went through; a probe
+// still deep a frame after that is what the warning is for.
+void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const std::vector<TissueContact>& found,
+                       bool swept) {
   const InstrumentSpec& spec = sim.scene.instruments[i];
+  if (swept && sim.state.frame > 0) return;  // a fast stroke: its sweep's rows push the tissue out
   double depth = 0.0;
-  for (const TissueContact& c : found) depth = std::max(depth, c.depth - cd.margin[i]);
+  for (const TissueContact& c : found)
+    if (!c.swept) depth = std::max(depth, c.depth - cd.margin[i]);
   if (!(depth > 0.5 * spec.radius)) return;
   const std::string who = instrument_label(spec);
   char buf[512];
@@ -126,11 +133,63 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
   if (cd.warned_deep[i]) return;
   cd.warned_deep[i] = 1;
   std::fprintf(stderr,
-               "warning: %s: %s went %.3g m into the tissue by t = %g s, more than half its radius (%g m): it moved "
-               "through the surface faster than the contact can push the tissue out in a frame; the motion near it "
-               "is not physical from here (slow its trajectory)\n",
-               sim.scene.path.c_str(), who.c_str(), depth, sim.state.time + sim.model.dt, spec.radius);
+               "warning: %s: %s went %.3g m into the tissue by t = %g s, more than half its radius (%g m): the contact "
+               "did not push the tissue out (a sphere pressed deeper than its diameter has the tissue closed over it, "
+               "and one row per face lets it sink; or the tissue ran into it faster than the contact margin, %g m, a "
+               "frame); the motion near it is not physical from here (press less deep, give the probe a shaft with "
+               "its length, or set contact.rows \"triangle\")\n",
+               sim.scene.path.c_str(), who.c_str(), depth, sim.state.time + sim.model.dt, spec.radius, cd.margin[i]);
 }
+
+// A probe that moves more than kSweepStepShare of its radius in the frame
+// (against the frame's start): the end pose's query (already in
+// cd.results[i]) misses the faces the probe went through, and a probe
+// jabbed its diameter in one frame ended inside the tissue untouched. The
+// path is sampled at sub-poses kSweepStepShare radii apart (positions
+// linear, orientation by slerp, as trajectories interpolate); a face first
+// touched at a sub-pose, and not at the end pose, gets that sub-pose's
+// deepest contact on it: its point and direction (the direction the tissue
+// was struck in), with the depth the point must move along it to leave the
+// end pose, round_exit_distance with the real radius (none where the ray
+// misses it: the probe went past, the point stays behind it). Where the
+// face is touched at the end pose the end pose's contact stays, so a slow
+// probe's rows are what they were. Returns whether it swept.
+bool sweep_probe(const Simulation& sim, CollisionData& cd, size_t i) {
+  const InstrumentSpec& spec = sim.scene.instruments[i];
+  const ToolFrame& tf = sim.tools[i];
+  const InstrumentSpec shape_spec = inflated(spec, cd.margin[i]);
+  ToolShape& sh = cd.sweep_shapes[i];
+  set_tool_pose(sh, shape_spec, tf.before);
+  const ToolPart& end = cd.shapes[i].part[0];
+  const double r = spec.radius;
+  const double move = std::max((end.a - sh.part[0].a).norm(), (end.b - sh.part[0].b).norm());
+  if (!(move > kSweepStepShare * r)) return false;
+  const int steps = static_cast<int>(std::min<double>(kMaxSweepSteps, std::ceil(move / (kSweepStepShare * r))));
+  std::vector<unsigned char>& seen = cd.sweep_face;
+  seen.assign(cd.model.surface().nface, 0);
+  std::vector<TissueContact>& contacts = cd.results[i].contacts;
+  for (const TissueContact& c : contacts) seen[c.face] = 1;
+  for (int k = 0; k < steps; ++k) {  // t = k / steps, earliest first; t = 1 is the end pose's query
+    const double t = static_cast<double>(k) / steps;
+    ToolPose pose = tf.after;
+    for (int d = 0; d < 3; ++d) pose.p[d] = (1.0 - t) * tf.before.p[d] + t * tf.after.p[d];
+    pose.q = slerp(tf.before.q, tf.after.q, t);
+    set_tool_pose(sh, shape_spec, pose);
+    query_contacts(cd.model, sh, cd.request, cd.sweep_result);
+    for (const TissueContact& c : cd.sweep_result.contacts) {  // deepest first: a face's first is its deepest
+      if (seen[c.face]) continue;
+      seen[c.face] = 1;
+      const Eigen::Vector3d x(c.point[0], c.point[1], c.point[2]), n(c.normal[0], c.normal[1], c.normal[2]);
+      const double depth = round_exit_distance(end.a, end.b, r, x, n);
+      if (!(depth > 0)) continue;
+      TissueContact& kept = contacts.emplace_back(c);
+      kept.depth = depth + cd.margin[i];  // the stage subtracts the margin
+      kept.swept = true;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 void collision_stage(Simulation& sim) {
@@ -178,6 +237,7 @@ void collision_stage(Simulation& sim) {
     }
     set_tool_pose(cd.shapes[i], inflated(spec, cd.margin[i]), tf.after);
     query_contacts(cd.model, cd.shapes[i], cd.request, cd.results[i]);
+    const bool swept = spec.kind == InstrumentSpec::Kind::Probe && sweep_probe(sim, cd, i);
     // One row per tissue face a tool part touches (contact.rows "face",
     // "face_deepest"; the contacts come deepest first, so the first of a
     // face is its deepest point): a face's triangles give nearly the same
@@ -187,14 +247,14 @@ void collision_stage(Simulation& sim) {
     // wraps the tool); a box pushes along the face's normal, where it does not.
     auto& found = cd.results[i].contacts;
     cd.face_seen.assign(cd.model.surface().nface, 0);
-    if (spec.kind == InstrumentSpec::Kind::Probe && !found.empty()) check_probe_depth(sim, cd, i, found);
+    if (spec.kind == InstrumentSpec::Kind::Probe && !found.empty()) check_probe_depth(sim, cd, i, found, swept);
     for (size_t k = 0; k < found.size(); ++k) {
       TissueContact& c = found[k];
       unsigned char& seen = cd.face_seen[c.face];
       if (rule != ContactSettings::Rows::Triangle && (seen & (1 << c.part))) continue;
       seen |= static_cast<unsigned char>(1 << c.part);
       deepest = std::max(deepest, c.depth - cd.margin[i]);
-      if (rule == ContactSettings::Rows::Face)
+      if (rule == ContactSettings::Rows::Face && !c.swept)
         weight_round_face_contact(surface, cd.shapes[i].part[c.part], sim.state.u.data(), c);
       candidates.push_back({c.depth - cd.margin[i], static_cast<int>(i), static_cast<int>(k), contact_id(c, rule)});
     }
@@ -222,6 +282,7 @@ void collision_stage(Simulation& sim) {
     add_contact_row(tc, c.id, c.depth, sim.tools[c.tool], sim.model.dt, c.tool, rows);
     if (friction) add_friction_rows(tc, c.id, sim.tools[c.tool], sim.model.dt, c.tool, normal_row, rows);
     ++ft.contacts;
+    ft.swept_rows += tc.swept;
   }
   ft.max_depth = deepest;
 }
@@ -243,6 +304,7 @@ void install_collision_stage(Simulation& sim) {
     const ToolPose pose = i < sim.tools.size() ? sim.tools[i].after : ToolPose{};
     cd->shapes.push_back(make_tool_shape(inflated(s, cd->margin[i]), pose));
   }
+  cd->sweep_shapes = cd->shapes;  // the FCL geometry is shared, the poses are the sweep's own
   // Several triangles per face: enough candidates for max_rows faces.
   cd->request.max_contacts = 8 * std::max(sim.scene.contact.max_rows, 1);
   sim.module_data[kStageCollision] = cd;

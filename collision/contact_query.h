@@ -50,6 +50,10 @@ struct TissueContact {
   double point[3] = {0, 0, 0};   // tissue point on the triangle (world)
   double normal[3] = {0, 0, 0};  // unit: the direction the tissue moves to leave the tool
   double depth = 0.0;            // > 0, along normal
+  // Found by the frame's sweep of a fast probe, not at its end pose
+  // (collision_stage.cpp, sweep_probe): normal from the first sub-pose
+  // that touched the face, depth to leave the end pose along it.
+  bool swept = false;
   // The material point: element, piece (-1 without cuts), local coordinates
   // (the barycentric point mapped through the triangle's vertex rst, which is
   // linear over a tessellated triangle), and the DOFs that move it:

@@ -146,6 +146,28 @@ bool round_triangle_contact(const Vector3d& p, const Vector3d& q, double r, cons
   return out.depth > 0;
 }
 
+double round_exit_distance(const Vector3d& a, const Vector3d& b, double r, const Vector3d& x, const Vector3d& n) {
+  double best = -std::numeric_limits<double>::infinity();
+  // |w + s n| = r for an end sphere (w = x - centre), n a unit vector.
+  for (const Vector3d* c : {&a, &b}) {
+    const Vector3d w = x - *c;
+    const double h = w.dot(n), disc = h * h - (w.squaredNorm() - r * r);
+    if (disc >= 0) best = std::max(best, -h + std::sqrt(disc));
+  }
+  const Vector3d ab = b - a;
+  const double L = ab.norm();
+  if (!(L > 0)) return best;
+  // The cylinder's side: |w_perp + s n_perp| = r, its axial coordinate in [0, L].
+  const Vector3d e = ab / L, w = x - a;
+  const Vector3d np = n - n.dot(e) * e, wp = w - w.dot(e) * e;
+  const double A = np.squaredNorm(), B = wp.dot(np), disc = B * B - A * (wp.squaredNorm() - r * r);
+  if (A > 0 && disc >= 0) {
+    const double s = (-B + std::sqrt(disc)) / A, axial = (w + s * n).dot(e);
+    if (axial >= 0 && axial <= L) best = std::max(best, s);
+  }
+  return best;
+}
+
 bool box_triangle_contact(const Vector3d& c, const Eigen::Matrix3d& R, const Vector3d& half, const Vector3d& v0,
                           const Vector3d& v1, const Vector3d& v2, TriangleContact& out) {
   Vector3d n = (v1 - v0).cross(v2 - v0);

@@ -50,6 +50,13 @@ double closest_segment_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d&
 bool round_triangle_contact(const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
                             const Eigen::Vector3d& v0, const Eigen::Vector3d& v1, const Eigen::Vector3d& v2,
                             TriangleContact& out);
+// How far x must move along the unit direction n to leave the round solid
+// (segment [a, b] inflated by r; a = b: a sphere): the far end of the ray's
+// interval inside it, the largest root over the two end spheres and the
+// cylinder between them (the solid is convex, so the ray's exit lies on one
+// of them). Negative infinity where the ray x + s n (s real) misses it.
+double round_exit_distance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r, const Eigen::Vector3d& x,
+                           const Eigen::Vector3d& n);
 // Box: centre, axes (columns of R, orthonormal), half extents.
 bool box_triangle_contact(const Eigen::Vector3d& centre, const Eigen::Matrix3d& R, const Eigen::Vector3d& half,
                           const Eigen::Vector3d& v0, const Eigen::Vector3d& v1, const Eigen::Vector3d& v2,

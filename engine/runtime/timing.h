@@ -77,6 +77,7 @@ struct FrameTiming {
   int compliance_columns = 0; // columns of Y = A^-1 H^T substituted (0 where an earlier Newton iteration's or frame's Y served)
   double contact_force = 0;   // |sum of lambda dir| over the contact and grasp rows (N)
   double max_depth = 0;       // deepest penetration collision found at the frame's start (before the response)
+  int swept_rows = 0;         // contact rows from a fast probe's sweep (faces it went through: collision_stage.h)
   int bvh_refits = 0;         // tissue collision model refitted this frame
   int bvh_rebuilds = 0;       // rebuilt (after a topology change)
 };

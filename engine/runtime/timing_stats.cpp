@@ -55,6 +55,7 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
     s.contact_force_max = std::max(s.contact_force_max, t.contact_force);
     s.bvh_refits += t.bvh_refits;
     s.bvh_rebuilds += t.bvh_rebuilds;
+    s.swept_frames += t.swept_rows > 0;
   }
   if (!frames.empty()) s.contacts_mean /= frames.size();
   if (s.contact_frames > 0) s.contact_sweeps_mean /= s.contact_frames;
@@ -111,9 +112,11 @@ std::string format_summary(const TimingSummary& s) {
                   "instruments: %d frames with contacts or grasps; contact rows per frame mean %.1f, max %d; grasp rows "
                   "max %d;\n  PGS sweeps per such frame %.0f; deepest penetration found at a frame's start %.3g; "
                   "largest total force %.3g N, its change between frames mean %.3g N;\n  collision tree refitted %lld "
-                  "times, rebuilt %lld (topology changes)\n",
+                  "times, rebuilt %lld (topology changes); %d frames with rows from a fast probe's sweep (moving more "
+                  "than half its radius a frame)\n",
                   s.contact_frames, s.contacts_mean, s.contacts_max, s.grasp_rows_max, s.contact_sweeps_mean,
-                  s.max_depth, s.contact_force_max, s.contact_force_change, s.bvh_refits, s.bvh_rebuilds);
+                  s.max_depth, s.contact_force_max, s.contact_force_change, s.bvh_refits, s.bvh_rebuilds,
+                  s.swept_frames);
     out += line;
   }
   if (s.cut_frames.count > 0) {

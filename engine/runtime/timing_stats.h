@@ -38,6 +38,7 @@ struct TimingSummary {
   // rows (N): a held tool's force chatters when this is a large share of it.
   double contact_force_change = 0;
   long long bvh_refits = 0, bvh_rebuilds = 0;
+  int swept_frames = 0;         // frames with rows from a fast probe's sweep
 };
 TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms = 1000.0 / 30.0);
 // A fixed-width table: stage, median, p95, p99, max (ms), runs.

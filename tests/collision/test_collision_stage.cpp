@@ -3,6 +3,7 @@
 // supports and the weight, with the penetration held below tolerance in every
 // frame; a probe on one side of a cut leaves the other side alone; the
 // collision tree is refitted, and rebuilt only after a topology change.
+#include <algorithm>
 #include <cmath>
 #include <functional>
 
@@ -85,8 +86,8 @@ TEST(CollisionStage, AScalpelOrNoInstrumentBuildsNoCollisionModel) {
 
 // A probe more than half its radius inside the tissue: at the first frame
 // the scene is refused (a 5 cm probe started 10 cm inside organ_3k crushed
-// it and the run exited 0); later in a run (a stroke faster than the
-// contact can push the tissue out) a warning says so, once. Half a radius
+// it and the run exited 0); later in a run (the tissue not pushed out) a
+// warning says so, once. Half a radius
 // in is allowed (probe-incision-10k starts 1.4 mm into its 1 cm probe).
 TEST(CollisionStage, AProbeDeepInsideTheTissueIsRefusedAtTheStartAndNamedLater) {
   const Mesh mesh = test::tissue_block_mesh();  // top face at z = 0.05
@@ -109,14 +110,23 @@ TEST(CollisionStage, AProbeDeepInsideTheTissueIsRefusedAtTheStartAndNamedLater) 
           << e.what();
     }
   }
-  // Above the surface, then 1.5 radii down in one frame and held there.
-  auto sim = make_probe_sim(mesh, scene, [&](double t) { return at(0.05, 0.05, top + r + (t < 0.1 ? 0.002 : -1.5 * r)); });
+  // Above the surface, then 3 radii down at 0.4 radii a frame (under the
+  // sweep's half radius) and held there: the face rows let the probe sink
+  // into the faces between them (the face rows' limit). A jab 1.5 radii
+  // down in one frame warned here before the sweep; its rows now push the
+  // tissue out (AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes).
+  Scene small = scene;
+  const double rs = 0.005;  // a fifth of the elements' size
+  small.instruments[0].radius = rs;
+  auto sim = make_probe_sim(mesh, small, [&](double t) {
+    return at(0.045, 0.055, top + rs + 0.001 - std::clamp((t - 0.1) * 0.4 * rs / scene.dt, 0.0, 3 * rs));
+  });
   testing::internal::CaptureStderr();
-  for (int k = 0; k < 10; ++k) advance_frame(*sim);
+  for (int k = 0; k < 15; ++k) advance_frame(*sim);
   const std::string err = testing::internal::GetCapturedStderr();
   const size_t at_warning = err.find("block.json: instruments[0] went ");
   ASSERT_NE(at_warning, std::string::npos) << err;
-  EXPECT_NE(err.find("more than half its radius (0.01 m)"), std::string::npos) << err;
+  EXPECT_NE(err.find("more than half its radius (0.005 m)"), std::string::npos) << err;
   EXPECT_EQ(err.find("block.json: instruments[0] went ", at_warning + 1), std::string::npos) << "warned more than once: " << err;
 }
 
@@ -243,8 +253,8 @@ TEST(CollisionStage, AHeldProbesForceSettlesFrameToFrame) {
 // frame began): a face its axis has passed keeps the face rule's direction
 // (-n_out) instead of the weighted point's, which pulled the tissue out
 // through the probe. Before, the probe ended the jab inside the block at
-// 0 N with no contact row, and stayed there. (A 2 cm jab, the end pose
-// wholly below the top face, still loses the contact: docs/next-steps.md.)
+// 0 N with no contact row, and stayed there. (A jab whose end pose lies
+// wholly below the top face: the next test.)
 TEST(CollisionStage, AProbeJabbedFasterThanItsRadiusAFramePushesTheTissue) {
   Scene scene = tissue_block();
   scene.consistent_tangent = true;
@@ -278,6 +288,75 @@ TEST(CollisionStage, AProbeJabbedFasterThanItsRadiusAFramePushesTheTissue) {
   }
   EXPECT_LT(uz, -0.5 * (press - 0.0005)) << "the deepest top node under the probe";
   RecordProperty("penetration_after_hold_mm", std::to_string(1000 * penetration_after_step(*sim)));
+}
+
+// A probe jabbed past the surface in one frame: 2.2 cm for an 8 mm probe,
+// so that its end pose lies wholly below the top face it started above
+// (with its detection margin too). Without the sweep it ended inside the
+// block untouched at 0 N (no row) and stayed there. With it, the faces it
+// went through are pushed out ahead of it, and the hold that follows is
+// the one the same press reached over 8 frames (each under half the
+// radius: no sweep) gives: the top near the probe within 3% of the press
+// (measured: 0.3%), the force and the penetration averaged over the hold
+// within 10% (6%) and 1.25x (1.05x). A sphere held deeper than its
+// diameter has the tissue closed over it, and one row per face then lets
+// the held force vary by 10-20% from frame to frame and the probe sink
+// 3-8 mm into the faces between rows in both runs, hence the averages:
+// that is the face rows' limit (docs/next-steps.md), not the sweep's.
+TEST(CollisionStage, AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes) {
+  Scene scene = tissue_block();
+  scene.consistent_tangent = true;
+  const double r = 0.008, top = 0.06, press = 0.022, x0 = 0.045, y0 = 0.055;
+  const Mesh mesh = make_beam(0.1, 0.1, top, 6, 6, 4, 1);
+  scene.instruments.push_back(probe(r));
+  const double t0 = 0.1, dt = scene.dt;
+  double uz[2] = {0, 0}, f_mean[2] = {0, 0}, pen_mean[2] = {0, 0}, uz_jab = 0;
+  // The deepest top node near the probe's axis (none lies under it).
+  auto top_uz = [&](const Simulation& sim) {
+    double u = 0;
+    for (int i = 0; i < sim.model.nnode; ++i) {
+      const double* X = &sim.model.X[3 * i];
+      if (std::abs(X[2] - top) < 1e-9 && std::hypot(X[0] - x0, X[1] - y0) < 0.015) u = std::min(u, sim.state.u[3 * i + 2]);
+    }
+    return u;
+  };
+  for (int fast = 0; fast < 2; ++fast) {
+    auto sim = make_probe_sim(mesh, scene, [&](double t) {
+      const double k = fast ? (t >= t0 + 0.5 * dt ? 1.0 : 0.0) : std::clamp((t - t0) / (8 * dt), 0.0, 1.0);
+      return at(x0, y0, top + r + 0.0005 - k * press);
+    });
+    int lost = 0, held = 0;
+    double f_min = 1e300;
+    while (sim->state.time < 0.7) {
+      advance_frame(*sim);
+      if (fast && std::abs(sim->state.time - (t0 + dt)) < 0.5 * dt) uz_jab = top_uz(*sim);
+      if (sim->state.time < t0 + 10 * dt) continue;
+      const ContactRows& c = sim->ws.contacts;
+      double f = 0;
+      for (int i = 0; i < c.nrow(); ++i) f += c.lambda[i] * c.dir[3 * i + 2];
+      ++held;
+      lost += c.nrow() == 0;
+      f_min = std::min(f_min, -f);
+      f_mean[fast] -= f;
+      pen_mean[fast] += penetration_after_step(*sim);
+    }
+    ASSERT_GT(held, 5);
+    f_mean[fast] /= held;
+    pen_mean[fast] /= held;
+    const char* run = fast ? "jab" : "slow press";
+    EXPECT_EQ(lost, 0) << run << ": frames of the hold without a contact row";
+    EXPECT_GT(f_min, 0.0) << run << ": the probe pushes in every frame of the hold";
+    uz[fast] = top_uz(*sim);
+    RecordProperty(fast ? "jab_top_mm" : "slow_top_mm", std::to_string(1000 * uz[fast]));
+    RecordProperty(fast ? "jab_mean_force_N" : "slow_mean_force_N", std::to_string(f_mean[fast]));
+    RecordProperty(fast ? "jab_mean_penetration_mm" : "slow_mean_penetration_mm", std::to_string(1000 * pen_mean[fast]));
+  }
+  EXPECT_LT(uz_jab, -0.5 * press) << "the jab's own frame took the top down";
+  EXPECT_LT(uz[0], -0.75 * press) << "the slow press took the top down with it";
+  EXPECT_NEAR(uz[1], uz[0], 0.03 * press) << "the jab's top against the slow press's, held";
+  EXPECT_NEAR(f_mean[1], f_mean[0], 0.1 * f_mean[0]) << "the held force, averaged over the hold";
+  EXPECT_LT(pen_mean[1], 1.25 * pen_mean[0]) << "the jab's penetration while held, against the slow press's";
+  RecordProperty("jab_frame_top_mm", std::to_string(1000 * uz_jab));
 }
 
 // Two halves fixed at the base, cut apart by a vertical plane at x = 0.0475

@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <Eigen/Geometry>
@@ -86,6 +88,49 @@ TEST(Narrowphase, ASphereThroughTheFaceStillPushesInward) {
   ASSERT_TRUE(round_triangle_contact(Vector3d(0.2, 0.1, -1e-9), Vector3d(0.2, 0.1, -1e-9), 0.5, T0, T1, T2, down));
   EXPECT_NEAR(up.depth, down.depth, 3e-9);
   EXPECT_LT((up.normal - down.normal).norm(), 1e-12);
+}
+
+// The exit of a ray from a sphere and a capsule, against a scan of the
+// distance to the axis along the ray refined by bisection.
+TEST(Narrowphase, ARaysExitFromARoundSolidIsTheFarEndOfItsInsideInterval) {
+  const double inf = std::numeric_limits<double>::infinity();
+  // A sphere: from its centre, r along any direction; a ray past it misses.
+  EXPECT_NEAR(round_exit_distance(Vector3d(1, 2, 3), Vector3d(1, 2, 3), 0.5, Vector3d(1, 2, 3), Vector3d(0, 0, -1)),
+              0.5, 1e-15);
+  EXPECT_NEAR(round_exit_distance(Vector3d(0, 0, 0), Vector3d(0, 0, 0), 0.5, Vector3d(0.3, 0, 2), Vector3d(0, 0, -1)),
+              2 + 0.4, 1e-14);
+  EXPECT_EQ(round_exit_distance(Vector3d(0, 0, 0), Vector3d(0, 0, 0), 0.5, Vector3d(0.6, 0, 2), Vector3d(0, 0, -1)),
+            -inf);
+  std::mt19937 rng(7);
+  auto axis_distance = [](const Vector3d& a, const Vector3d& b, const Vector3d& y) {
+    const Vector3d ab = b - a;
+    const double l2 = ab.squaredNorm(), t = l2 > 0 ? std::clamp((y - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
+    return (a + t * ab - y).norm();
+  };
+  int hits = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Vector3d a = random_vec(rng, 1), b = trial % 4 == 0 ? a : Vector3d(random_vec(rng, 1)), x = random_vec(rng, 2);
+    const double r = 0.2 + 0.5 * std::abs(random_vec(rng, 1)[0]);
+    // Aimed near the axis's midpoint: most rays cross the solid, some miss.
+    const Vector3d n = (0.5 * (a + b) + random_vec(rng, 0.8) - x).normalized();
+    double last_in = -inf;
+    const int m = 40000;
+    for (int k = 0; k <= m; ++k) {
+      const double sv = -10 + 20.0 * k / m;
+      if (axis_distance(a, b, x + sv * n) <= r) last_in = sv;
+    }
+    const double got = round_exit_distance(a, b, r, x, n);
+    if (last_in == -inf) {
+      EXPECT_EQ(got, -inf) << trial;
+      continue;
+    }
+    ++hits;
+    double lo = last_in, hi = last_in + 20.0 / m;
+    for (int it = 0; it < 60; ++it) (axis_distance(a, b, x + 0.5 * (lo + hi) * n) <= r ? lo : hi) = 0.5 * (lo + hi);
+    EXPECT_NEAR(got, lo, 1e-9) << trial;
+  }
+  EXPECT_GT(hits, 100);
+  EXPECT_LT(hits, 200) << "some rays miss";
 }
 
 TEST(Narrowphase, SphereBesideAnEdgeGetsTheGeometricNormal) {
