@@ -67,6 +67,10 @@ inline constexpr int kMaxSweepSteps = 1000;
 
 // Fraction of an instrument's smallest dimension used as detection margin.
 inline constexpr double kContactMarginShare = 0.25;
+// Tissue near a probe that may move more than the margin in a frame gets
+// speculative rows within this multiple of that motion
+// (collision_stage.cpp, add_speculative_contacts).
+inline constexpr double kSpeculativeShare = 1.25;
 
 void collision_stage(Simulation& sim);
 void install_collision_stage(Simulation& sim);

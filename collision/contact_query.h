@@ -54,6 +54,9 @@ struct TissueContact {
   // (collision_stage.cpp, sweep_probe): normal from the first sub-pose
   // that touched the face, depth to leave the end pose along it.
   bool swept = false;
+  // A speculative row for tissue that may reach a resting probe within the
+  // frame (collision_stage.cpp, add_speculative_contacts): depth < 0.
+  bool speculative = false;
   // The material point: element, piece (-1 without cuts), local coordinates
   // (the barycentric point mapped through the triangle's vertex rst, which is
   // linear over a tessellated triangle), and the DOFs that move it:

@@ -60,6 +60,15 @@ ToolShape make_tool_shape(const InstrumentSpec& s, const ToolPose& pose) {
   return t;
 }
 
+void set_probe_radius(ToolShape& t, double radius) {
+  ToolPart& part = t.part[0];
+  if (t.kind != InstrumentSpec::Kind::Probe || part.radius == radius) return;
+  part.radius = radius;
+  if (part.kind == ToolPart::Kind::Sphere) static_cast<fcl::Sphered&>(*part.geometry).radius = radius;
+  else static_cast<fcl::Capsuled&>(*part.geometry).radius = radius;
+  part.geometry->computeLocalAABB();
+}
+
 void set_tool_pose(ToolShape& t, const InstrumentSpec& s, const ToolPose& pose) {
   const double qn = std::sqrt(pose.q[0] * pose.q[0] + pose.q[1] * pose.q[1] + pose.q[2] * pose.q[2] +
                               pose.q[3] * pose.q[3]);

@@ -45,6 +45,9 @@ struct ToolShape {
 ToolShape make_tool_shape(const InstrumentSpec& spec, const ToolPose& pose);
 // Moves the parts to `pose` (q is normalised; jaw clamped to [0, 1]).
 void set_tool_pose(ToolShape& shape, const InstrumentSpec& spec, const ToolPose& pose);
+// A probe's round part with another radius (the collision stage's detection
+// margin changes from frame to frame); allocates nothing.
+void set_probe_radius(ToolShape& shape, double radius);
 
 
 }  // namespace incise

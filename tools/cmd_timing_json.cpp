@@ -42,7 +42,8 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
                       {"pgs_sweeps_mean", s.contact_sweeps_mean}, {"max_depth", s.max_depth},
                       {"contact_force_max", s.contact_force_max},
                       {"contact_force_change", s.contact_force_change}, {"bvh_refits", s.bvh_refits},
-                      {"bvh_rebuilds", s.bvh_rebuilds},       {"swept_frames", s.swept_frames}};
+                      {"bvh_rebuilds", s.bvh_rebuilds},       {"swept_frames", s.swept_frames},
+                      {"speculative_frames", s.speculative_frames}};
   j["cut_frames"] = pct(s.cut_frames);
   j["cut_frames"]["count"] = s.cut_frames.count;
   j["cut_frames"]["prepared_ahead"] = s.cut_ahead;

@@ -78,6 +78,7 @@ struct FrameTiming {
   double contact_force = 0;   // |sum of lambda dir| over the contact and grasp rows (N)
   double max_depth = 0;       // deepest penetration collision found at the frame's start (before the response)
   int swept_rows = 0;         // contact rows from a fast probe's sweep (faces it went through: collision_stage.h)
+  int speculative_rows = 0;   // speculative rows for tissue that may reach a probe within the frame (collision_stage.h)
   int bvh_refits = 0;         // tissue collision model refitted this frame
   int bvh_rebuilds = 0;       // rebuilt (after a topology change)
 };

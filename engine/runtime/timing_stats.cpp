@@ -56,6 +56,7 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
     s.bvh_refits += t.bvh_refits;
     s.bvh_rebuilds += t.bvh_rebuilds;
     s.swept_frames += t.swept_rows > 0;
+    s.speculative_frames += t.speculative_rows > 0;
   }
   if (!frames.empty()) s.contacts_mean /= frames.size();
   if (s.contact_frames > 0) s.contact_sweeps_mean /= s.contact_frames;
@@ -78,7 +79,7 @@ TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms
 
 std::string format_summary(const TimingSummary& s) {
   std::string out;
-  char line[480];
+  char line[768];
   std::snprintf(line, sizeof line, "%-16s %10s %10s %10s %10s %8s\n", "stage (ms)", "median", "p95", "p99", "max", "runs");
   out += line;
   auto row = [&](const char* name, const Percentiles& p, long long runs = -1) {
@@ -113,10 +114,10 @@ std::string format_summary(const TimingSummary& s) {
                   "max %d;\n  PGS sweeps per such frame %.0f; deepest penetration found at a frame's start %.3g; "
                   "largest total force %.3g N, its change between frames mean %.3g N;\n  collision tree refitted %lld "
                   "times, rebuilt %lld (topology changes); %d frames with rows from a fast probe's sweep (moving more "
-                  "than half its radius a frame)\n",
+                  "than half its radius a frame), %d with speculative rows (tissue moving faster than the margin)\n",
                   s.contact_frames, s.contacts_mean, s.contacts_max, s.grasp_rows_max, s.contact_sweeps_mean,
                   s.max_depth, s.contact_force_max, s.contact_force_change, s.bvh_refits, s.bvh_rebuilds,
-                  s.swept_frames);
+                  s.swept_frames, s.speculative_frames);
     out += line;
   }
   if (s.cut_frames.count > 0) {

@@ -39,6 +39,7 @@ struct TimingSummary {
   double contact_force_change = 0;
   long long bvh_refits = 0, bvh_rebuilds = 0;
   int swept_frames = 0;         // frames with rows from a fast probe's sweep
+  int speculative_frames = 0;   // frames with speculative rows (fast tissue near a probe)
 };
 TimingSummary summarize(const std::vector<FrameTiming>& frames, double budget_ms = 1000.0 / 30.0);
 // A fixed-width table: stage, median, p95, p99, max (ms), runs.

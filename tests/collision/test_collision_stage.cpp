@@ -359,6 +359,47 @@ TEST(CollisionStage, AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes)
   RecordProperty("jab_frame_top_mm", std::to_string(1000 * uz_jab));
 }
 
+// A soft cantilever released from rest under gravity swings its free end
+// down onto a resting 5 mm probe at about 1 cm a frame, eight times the
+// detection margin. Without speculative rows the tissue was inside the
+// probe before any row held it: 3-8 mm deep at the frames' start, and 1.5 N
+// impacts. Now the tissue near the probe that may move further than the
+// margin in a frame has rows within that reach, inactive until the step
+// closes their gap: no frame starts more than a tenth of the radius inside
+// (measured 0.25 mm; 7.8 mm without), and the beam's end, 1 cm past the
+// probe's axis, stays within a fifth of the radius of the probe's top
+// (0.4 mm below it; 13.5 mm without: the beam slid past the probe).
+TEST(CollisionStage, TissueSwingingOntoARestingProbeStopsAtItsSurface) {
+  Scene scene = test::block_scene(2);
+  scene.material.young = 1e5;
+  scene.material.poisson = 0.45;
+  scene.material.density = 1000;
+  scene.material.rayleigh_mass = 1.0;
+  scene.material.rayleigh_stiffness = 0.002;
+  scene.consistent_tangent = true;
+  scene.fixed.push_back(test::box({-1, -1, -1}, {1e-9, 1, 1}));
+  const double r = 0.005, pz = -0.035;
+  scene.instruments.push_back(probe(r));
+  auto sim = make_probe_sim(make_beam(0.1, 0.02, 0.02, 10, 2, 2, 1), scene, [&](double) { return at(0.09, 0.01, pz); });
+  double depth_max = 0.0, tip_min = 1.0, force_max = 0.0, reach_frames = 0;
+  for (int k = 0; k < 30; ++k) {
+    const FrameTiming ft = advance_frame(*sim);
+    depth_max = std::max(depth_max, ft.max_depth);
+    force_max = std::max(force_max, ft.contact_force);
+    reach_frames += ft.speculative_rows > 0;
+    // The lowest point of the beam's end face x = 0.1 (its bottom edge).
+    for (int i = 0; i < sim->model.nnode; ++i)
+      if (std::abs(sim->model.X[3 * i] - 0.1) < 1e-9 && std::abs(sim->model.X[3 * i + 1] - 0.01) < 1e-9)
+        tip_min = std::min(tip_min, sim->model.X[3 * i + 2] + sim->state.u[3 * i + 2]);
+  }
+  EXPECT_GT(force_max, 0.0) << "the beam reached the probe";
+  EXPECT_GT(reach_frames, 0) << "frames with speculative rows";
+  EXPECT_LT(depth_max, 0.1 * r) << "the deepest penetration at a frame's start";
+  EXPECT_GT(tip_min, pz + r - 0.2 * r) << "the tip's lowest point, against the probe's top";
+  RecordProperty("depth_max_mm", std::to_string(1000 * depth_max));
+  RecordProperty("tip_min_over_probe_top_mm", std::to_string(1000 * (tip_min - pz - r)));
+}
+
 // Two halves fixed at the base, cut apart by a vertical plane at x = 0.0475
 // (inside a column of elements); the probe presses the left half next to
 // the cut. Every display point of the right half moves exactly as it does
