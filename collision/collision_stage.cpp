@@ -34,14 +34,30 @@ double contact_margin(const InstrumentSpec& s) {
 
 // How far the tissue near a probe may move in the frame, times
 // kSpeculativeShare: a surface vertex's motion estimated as the larger of
-// its last increment |du| and dt |v| (du, v at its material point), over
-// the vertices within the probe's reach; a cheap bound over the DOF nodes
+// its last increment |du| and dt |v| (du, v at its material point,
+// vertex_motion), over the vertices within the probe's reach; a cheap bound over the DOF nodes
 // first returns 0 while that cannot exceed the detection margin (tissue at
 // rest: no speculative rows, nothing changes for a probe pressing it).
 // Newmark's acceleration is no estimate: it carries the Newton residual and
 // the contact impulses (it read 5-9 cm a frame on a beam moving 1 cm), and
 // a gravity term dt^2 |g| / 2 (5.4 mm at 30 Hz) would give a probe on a
 // supported organ speculative rows in every frame, each a substitution.
+// kSpeculativeShare times the motion estimate of surface vertex q: the
+// larger of |du| and dt |v| at its material point.
+double vertex_motion(const Simulation& sim, const TissueSurface& s, int q) {
+  const std::vector<double>&v = sim.state.v, &du = sim.state.du;
+  const bool has_du = du.size() == v.size();
+  double vq[3] = {0, 0, 0}, dq[3] = {0, 0, 0};
+  for (int k = s.vert_ptr[q]; k < s.vert_ptr[q + 1]; ++k) {
+    const size_t n = 3 * static_cast<size_t>(s.vert_dofnode[k]);
+    const double w = s.vert_weight[k];
+    for (int d = 0; d < 3; ++d) vq[d] += w * v[n + d], dq[d] += has_du ? w * du[n + d] : 0.0;
+  }
+  const double dt = sim.model.dt;
+  return kSpeculativeShare * std::sqrt(std::max(dt * dt * (vq[0] * vq[0] + vq[1] * vq[1] + vq[2] * vq[2]),
+                                                dq[0] * dq[0] + dq[1] * dq[1] + dq[2] * dq[2]));
+}
+
 double speculative_reach(const Simulation& sim, const CollisionData& cd, const InstrumentSpec& spec,
                          const ToolFrame& tf, double margin) {
   const double dt = sim.model.dt;
@@ -52,8 +68,10 @@ double speculative_reach(const Simulation& sim, const CollisionData& cd, const I
   for (size_t k = 0; k + 2 < v.size(); k += 3)
     node_max = std::max({node_max, dt * dt * norm2(&v[k]), has_du ? norm2(&du[k]) : 0.0});
   // A vertex moves by sum_k w_k (motion of node k): at most sum |w_k| times
-  // the largest, under kWeightBound for tet10 weights with enrichment.
-  constexpr double kWeightBound = 4.0;
+  // the largest; sum |N_a| <= 2 for tet10, and a Heaviside enrichment
+  // N_a (H - H_a) doubles a weight at most (branch DOFs aside: a skip
+  // there only means fewer speculative rows).
+  constexpr double kWeightBound = 6.0;
   const double bound = kSpeculativeShare * kWeightBound * std::sqrt(node_max);
   if (!(bound > margin)) return 0.0;
   const TissueSurface& s = cd.model.surface();
@@ -62,19 +80,13 @@ double speculative_reach(const Simulation& sim, const CollisionData& cd, const I
   const std::array<double, 3> p0 = tool_to_world(tf.after, {0, 0, 0}), p1 = tool_to_world(tf.after, {0, 0, spec.length});
   double lo[3], hi[3];
   for (int d = 0; d < 3; ++d) lo[d] = std::min(p0[d], p1[d]) - reach, hi[d] = std::max(p0[d], p1[d]) + reach;
-  double vert_max = 0.0;  // squared
+  double reach_max = 0.0;
   for (int q = 0; q < s.nvert(); ++q) {
     const double* x = &s.x[3 * static_cast<size_t>(q)];
     if (x[0] < lo[0] || x[0] > hi[0] || x[1] < lo[1] || x[1] > hi[1] || x[2] < lo[2] || x[2] > hi[2]) continue;
-    double vq[3] = {0, 0, 0}, dq[3] = {0, 0, 0};
-    for (int k = s.vert_ptr[q]; k < s.vert_ptr[q + 1]; ++k) {
-      const size_t n = 3 * static_cast<size_t>(s.vert_dofnode[k]);
-      const double w = s.vert_weight[k];
-      for (int d = 0; d < 3; ++d) vq[d] += w * v[n + d], dq[d] += has_du ? w * du[n + d] : 0.0;
-    }
-    vert_max = std::max({vert_max, dt * dt * norm2(vq), norm2(dq)});
+    reach_max = std::max(reach_max, vertex_motion(sim, s, q));
   }
-  return kSpeculativeShare * std::sqrt(vert_max);
+  return reach_max;
 }
 
 // Tissue that runs into a resting probe faster than the detection margin a
@@ -82,9 +94,11 @@ double speculative_reach(const Simulation& sim, const CollisionData& cd, const I
 // 5 mm probe at 1 cm a frame went 3.4 mm into it, and its contact came and
 // went. Where the tissue near the probe may move further than the margin
 // (speculative_reach), faces within that reach of the probe's end pose,
-// and not already found, get speculative rows: the geometric normal from
-// the axis and the gap as a negative target, inactive unless the step
-// closes it. Only faces the axis is outside of (the probe on their outer
+// not already found, and whose own corners may move as far as their gap,
+// get speculative rows: the geometric normal from the axis and the gap as
+// a negative target, inactive unless the step closes it (without the
+// per-face test, a probe held beside a fresh incision took 3 rows of
+// faces that did not move in 9 frames, 2-5 ms each). Only faces the axis is outside of (the probe on their outer
 // side): with a reach larger than the tissue is thick, the back faces of a
 // thin part lie within it too, and the face rule of collision/narrowphase.h
 // would push them through the tissue (tried: a 2.6 cm reach under the beam
@@ -119,6 +133,9 @@ void add_speculative_contacts(const Simulation& sim, CollisionData& cd, size_t i
     const Eigen::Vector3d g = x - y;
     const double d = g.norm();
     if (!((y - x).dot(n_out) > 0) || !(d > spec.radius + cd.margin[i])) continue;  // behind the face, or found already
+    double motion = 0.0;  // of the triangle's corners: a face that cannot close its gap needs no row
+    for (int j = 0; j < 3; ++j) motion = std::max(motion, vertex_motion(sim, s, tv[j]));
+    if (!(motion > d - spec.radius)) continue;
     TissueContact& kept = contacts.emplace_back(c);
     for (int k = 0; k < 3; ++k) kept.normal[k] = g[k] / d;
     kept.depth = spec.radius - d + cd.margin[i];  // the stage subtracts the margin: the target is minus the gap
