@@ -32,16 +32,6 @@ double contact_margin(const InstrumentSpec& s) {
   return s.kind == InstrumentSpec::Kind::Probe ? kContactMarginShare * s.radius : 0.0;
 }
 
-// How far the tissue near a probe may move in the frame, times
-// kSpeculativeShare: a surface vertex's motion estimated as the larger of
-// its last increment |du| and dt |v| (du, v at its material point,
-// vertex_motion), over the vertices within the probe's reach; a cheap bound over the DOF nodes
-// first returns 0 while that cannot exceed the detection margin (tissue at
-// rest: no speculative rows, nothing changes for a probe pressing it).
-// Newmark's acceleration is no estimate: it carries the Newton residual and
-// the contact impulses (it read 5-9 cm a frame on a beam moving 1 cm), and
-// a gravity term dt^2 |g| / 2 (5.4 mm at 30 Hz) would give a probe on a
-// supported organ speculative rows in every frame, each a substitution.
 // kSpeculativeShare times the motion estimate of surface vertex q: the
 // larger of |du| and dt |v| at its material point.
 double vertex_motion(const Simulation& sim, const TissueSurface& s, int q) {
@@ -58,6 +48,15 @@ double vertex_motion(const Simulation& sim, const TissueSurface& s, int q) {
                                                 dq[0] * dq[0] + dq[1] * dq[1] + dq[2] * dq[2]));
 }
 
+// How far the tissue near a probe may move in the frame, times
+// kSpeculativeShare: the largest vertex_motion over the surface vertices
+// within the probe's reach; a cheap bound over the DOF nodes first returns
+// 0 while that cannot exceed the detection margin (tissue at rest: no
+// speculative rows, nothing changes for a probe pressing it). Newmark's
+// acceleration is no estimate: it carries the Newton residual and the
+// contact impulses (it read 5-9 cm a frame on a beam moving 1 cm), and a
+// gravity term dt^2 |g| / 2 (5.4 mm at 30 Hz) would give a probe on a
+// supported organ speculative rows in every frame, each a substitution.
 double speculative_reach(const Simulation& sim, const CollisionData& cd, const InstrumentSpec& spec,
                          const ToolFrame& tf, double margin) {
   const double dt = sim.model.dt;
@@ -98,11 +97,12 @@ double speculative_reach(const Simulation& sim, const CollisionData& cd, const I
 // get speculative rows: the geometric normal from the axis and the gap as
 // a negative target, inactive unless the step closes it (without the
 // per-face test, a probe held beside a fresh incision took 3 rows of
-// faces that did not move in 9 frames, 2-5 ms each). Only faces the axis is outside of (the probe on their outer
-// side): with a reach larger than the tissue is thick, the back faces of a
-// thin part lie within it too, and the face rule of collision/narrowphase.h
-// would push them through the tissue (tried: a 2.6 cm reach under the beam
-// gave 48 rows, 500 N and 100 inverted points a frame).
+// faces that did not move in 9 frames, 2-5 ms each). Only faces the axis
+// is outside of (the probe on their outer side): with a reach larger than
+// the tissue is thick, the back faces of a thin part lie within it too, and
+// the face rule of collision/narrowphase.h would push them through the
+// tissue (tried: a 2.6 cm reach under the beam gave 48 rows, 500 N and 100
+// inverted points a frame).
 void add_speculative_contacts(const Simulation& sim, CollisionData& cd, size_t i) {
   const InstrumentSpec& spec = sim.scene.instruments[i];
   const ToolFrame& tf = sim.tools[i];
@@ -112,8 +112,8 @@ void add_speculative_contacts(const Simulation& sim, CollisionData& cd, size_t i
   set_probe_radius(sh, spec.radius + reach);
   set_tool_pose(sh, inflated(spec, reach), tf.after);
   query_contacts(cd.model, sh, cd.request, cd.sweep_result);
-  set_probe_radius(sh, spec.radius + cd.margin[i]);  // back: the sweep's shapes are inflated by the margin
-  set_probe_radius(cd.shapes[i], spec.radius + cd.margin[i]);  // the FCL geometry is shared with them
+  // Back to the margin: the sweep's shapes share their FCL geometry with `shapes`.
+  set_probe_radius(sh, spec.radius + cd.margin[i]);
   const TissueSurface& s = cd.model.surface();
   std::vector<unsigned char>& seen = cd.sweep_face;
   seen.assign(s.nface, 0);
