@@ -32,25 +32,31 @@ double contact_margin(const InstrumentSpec& s) {
   return s.kind == InstrumentSpec::Kind::Probe ? kContactMarginShare * s.radius : 0.0;
 }
 
-// kSpeculativeShare times the motion estimate of surface vertex q: the
-// larger of |du| and dt |v| at its material point.
-double vertex_motion(const Simulation& sim, const TissueSurface& s, int q) {
+// Two estimates of surface vertex q's motion over the frame: its last
+// increment du and dt v, at its material point.
+struct VertexMotion {
+  Eigen::Vector3d last, velocity;
+  // kSpeculativeShare times the larger, as a length, or along -n (towards
+  // whatever lies on the other side of n).
+  double length() const { return kSpeculativeShare * std::max(last.norm(), velocity.norm()); }
+  double towards(const Eigen::Vector3d& n) const { return -kSpeculativeShare * std::min(last.dot(n), velocity.dot(n)); }
+};
+VertexMotion vertex_motion(const Simulation& sim, const TissueSurface& s, int q) {
   const std::vector<double>&v = sim.state.v, &du = sim.state.du;
   const bool has_du = du.size() == v.size();
-  double vq[3] = {0, 0, 0}, dq[3] = {0, 0, 0};
+  VertexMotion m{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   for (int k = s.vert_ptr[q]; k < s.vert_ptr[q + 1]; ++k) {
     const size_t n = 3 * static_cast<size_t>(s.vert_dofnode[k]);
     const double w = s.vert_weight[k];
-    for (int d = 0; d < 3; ++d) vq[d] += w * v[n + d], dq[d] += has_du ? w * du[n + d] : 0.0;
+    for (int d = 0; d < 3; ++d) m.velocity[d] += w * v[n + d], m.last[d] += has_du ? w * du[n + d] : 0.0;
   }
-  const double dt = sim.model.dt;
-  return kSpeculativeShare * std::sqrt(std::max(dt * dt * (vq[0] * vq[0] + vq[1] * vq[1] + vq[2] * vq[2]),
-                                                dq[0] * dq[0] + dq[1] * dq[1] + dq[2] * dq[2]));
+  m.velocity *= sim.model.dt;
+  return m;
 }
 
 // How far the tissue near a probe may move in the frame, times
-// kSpeculativeShare: the largest vertex_motion over the surface vertices
-// within the probe's reach; a cheap bound over the DOF nodes first returns
+// kSpeculativeShare: the largest vertex_motion (either way) over the
+// surface vertices within the probe's reach; a cheap bound over the DOF nodes first returns
 // 0 while that cannot exceed the detection margin (tissue at rest: no
 // speculative rows, nothing changes for a probe pressing it). Newmark's
 // acceleration is no estimate: it carries the Newton residual and the
@@ -83,7 +89,7 @@ double speculative_reach(const Simulation& sim, const CollisionData& cd, const I
   for (int q = 0; q < s.nvert(); ++q) {
     const double* x = &s.x[3 * static_cast<size_t>(q)];
     if (x[0] < lo[0] || x[0] > hi[0] || x[1] < lo[1] || x[1] > hi[1] || x[2] < lo[2] || x[2] > hi[2]) continue;
-    reach_max = std::max(reach_max, vertex_motion(sim, s, q));
+    reach_max = std::max(reach_max, vertex_motion(sim, s, q).length());
   }
   return reach_max;
 }
@@ -93,16 +99,19 @@ double speculative_reach(const Simulation& sim, const CollisionData& cd, const I
 // 5 mm probe at 1 cm a frame went 3.4 mm into it, and its contact came and
 // went. Where the tissue near the probe may move further than the margin
 // (speculative_reach), faces within that reach of the probe's end pose,
-// not already found, and whose own corners may move as far as their gap,
-// get speculative rows: the geometric normal from the axis and the gap as
-// a negative target, inactive unless the step closes it (without the
-// per-face test, a probe held beside a fresh incision took 3 rows of
-// faces that did not move in 9 frames, 2-5 ms each). Only faces the axis
-// is outside of (the probe on their outer side): with a reach larger than
-// the tissue is thick, the back faces of a thin part lie within it too, and
-// the face rule of collision/narrowphase.h would push them through the
-// tissue (tried: a 2.6 cm reach under the beam gave 48 rows, 500 N and 100
-// inverted points a frame).
+// not already found, whose corners may move towards the probe further
+// than their gap and the margin, get speculative rows: the geometric
+// normal from the axis and the gap as a negative target, inactive unless
+// the step closes it. Measured before the per-face test: a probe held
+// beside a fresh incision took 3 rows of faces that did not move (9 frames
+// of 90, 2-5 ms each); counting motion either way and any gap, slow presses
+// of a 3 mm probe took them in 19 frames, and Newton hit its cap in 41
+// frames instead of 5. Only faces the axis is outside of (the probe on
+// their outer side): with a reach larger than the tissue is thick, the
+// back faces of a thin part lie within it too, and the face rule of
+// collision/narrowphase.h would push them through the tissue (tried: a
+// 2.6 cm reach under the beam gave 48 rows, 500 N and 100 inverted points
+// a frame).
 void add_speculative_contacts(const Simulation& sim, CollisionData& cd, size_t i) {
   const InstrumentSpec& spec = sim.scene.instruments[i];
   const ToolFrame& tf = sim.tools[i];
@@ -133,9 +142,13 @@ void add_speculative_contacts(const Simulation& sim, CollisionData& cd, size_t i
     const Eigen::Vector3d g = x - y;
     const double d = g.norm();
     if (!((y - x).dot(n_out) > 0) || !(d > spec.radius + cd.margin[i])) continue;  // behind the face, or found already
-    double motion = 0.0;  // of the triangle's corners: a face that cannot close its gap needs no row
-    for (int j = 0; j < 3; ++j) motion = std::max(motion, vertex_motion(sim, s, tv[j]));
-    if (!(motion > d - spec.radius)) continue;
+    // The triangle's corners' motion towards the probe: a face that would
+    // not pass its gap by more than the margin (or moves away, pushed by the
+    // probe itself) needs no row: the next frame's rows push out what a
+    // margin holds, as they did before.
+    double approach = 0.0;
+    for (int j = 0; j < 3; ++j) approach = std::max(approach, vertex_motion(sim, s, tv[j]).towards(g / d));
+    if (!(approach > d - spec.radius + cd.margin[i])) continue;
     TissueContact& kept = contacts.emplace_back(c);
     for (int k = 0; k < 3; ++k) kept.normal[k] = g[k] / d;
     kept.depth = spec.radius - d + cd.margin[i];  // the stage subtracts the margin: the target is minus the gap
