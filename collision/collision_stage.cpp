@@ -259,10 +259,11 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
   cd.warned_deep[i] = 1;
   std::fprintf(stderr,
                "warning: %s: %s went %.3g m into the tissue by t = %g s, more than half its radius (%g m): the contact "
-               "did not push the tissue out (a sphere pressed deeper than its diameter has the tissue closed over it, "
-               "and one row per face lets it sink; or the tissue ran into it faster than the contact margin, %g m, a "
-               "frame); the motion near it is not physical from here (press less deep, give the probe a shaft with "
-               "its length, or set contact.rows \"triangle\")\n",
+               "did not push the tissue out: it moved through the surface faster than half its radius a frame "
+               "(contact.sweep: true sweeps its path), the tissue ran into it faster than the margin, %g m, a frame "
+               "(contact.speculative: true), or, pressed deeper than its diameter, the tissue closed over it (one row "
+               "per face lets a sphere sink: give it a shaft with its length, or set contact.rows \"triangle\"); the "
+               "motion near it is not physical from here (docs/instruments.md)\n",
                sim.scene.path.c_str(), who.c_str(), depth, sim.state.time + sim.model.dt, spec.radius, cd.margin[i]);
 }
 
@@ -362,8 +363,9 @@ void collision_stage(Simulation& sim) {
     }
     set_tool_pose(cd.shapes[i], inflated(spec, cd.margin[i]), tf.after);
     query_contacts(cd.model, cd.shapes[i], cd.request, cd.results[i]);
-    const bool swept = spec.kind == InstrumentSpec::Kind::Probe && sweep_probe(sim, cd, i);
-    if (spec.kind == InstrumentSpec::Kind::Probe) add_speculative_contacts(sim, cd, i);
+    const bool probe = spec.kind == InstrumentSpec::Kind::Probe;
+    const bool swept = probe && sim.scene.contact.sweep && sweep_probe(sim, cd, i);
+    if (probe && sim.scene.contact.speculative) add_speculative_contacts(sim, cd, i);
     // One row per tissue face a tool part touches (contact.rows "face",
     // "face_deepest"; the contacts come deepest first, so the first of a
     // face is its deepest point): a face's triangles give nearly the same

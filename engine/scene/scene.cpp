@@ -725,7 +725,11 @@ void parse_instruments(const Parser& p, const json& v, Scene& s) {
 void parse_contact(const Parser& p, const json& v, Scene& s) {
   const std::string at = "contact";
   p.object(v, at);
-  p.allowed_keys(v, at, {"rows", "max_rows", "friction", "pgs_iterations", "refine_rounds", "compliance_reuse"});
+  p.allowed_keys(v, at,
+                 {"rows", "max_rows", "friction", "pgs_iterations", "refine_rounds", "compliance_reuse", "sweep",
+                  "speculative"});
+  if (auto it = v.find("sweep"); it != v.end()) s.contact.sweep = p.boolean(*it, at + ".sweep");
+  if (auto it = v.find("speculative"); it != v.end()) s.contact.speculative = p.boolean(*it, at + ".speculative");
   if (auto it = v.find("compliance_reuse"); it != v.end()) {
     s.contact.compliance_reuse = p.nonnegative(*it, at + ".compliance_reuse");
     if (s.contact.compliance_reuse > 1) p.fail(at + ".compliance_reuse", " must be in [0, 1], got " + show(*it));

@@ -121,6 +121,15 @@ struct ContactSettings {
   // of the same factor serve while every row (by key) changed its
   // coefficients by at most this fraction (0: only identical rows), [0, 1]
   double compliance_reuse = 0.1;
+  // A probe moving more than half its radius a frame is swept: faces it
+  // went through get rows (collision_stage.cpp, sweep_probe). Off: measured
+  // to help a jab into thick tissue and to hurt thin plates, fast strokes
+  // and oscillation (docs/instruments.md).
+  bool sweep = false;
+  // Speculative rows for tissue that may run into a probe faster than the
+  // margin a frame (add_speculative_contacts). Off: measured to help a
+  // coarse beam falling onto a probe and to make a finer one bounce.
+  bool speculative = false;
 };
 
 // A haptic device driving one instrument from a 1 kHz thread (scene key

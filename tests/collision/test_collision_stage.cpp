@@ -112,9 +112,9 @@ TEST(CollisionStage, AProbeDeepInsideTheTissueIsRefusedAtTheStartAndNamedLater) 
   }
   // Above the surface, then 3 radii down at 0.4 radii a frame (under the
   // sweep's half radius) and held there: the face rows let the probe sink
-  // into the faces between them (the face rows' limit). A jab 1.5 radii
-  // down in one frame warned here before the sweep; its rows now push the
-  // tissue out (AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes).
+  // into the faces between them (the face rows' limit). (A jab 1.5 radii
+  // down in one frame warns too, unless contact.sweep is on:
+  // AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes.)
   Scene small = scene;
   const double rs = 0.005;  // a fifth of the elements' size
   small.instruments[0].radius = rs;
@@ -292,8 +292,9 @@ TEST(CollisionStage, AProbeJabbedFasterThanItsRadiusAFramePushesTheTissue) {
 
 // A probe jabbed past the surface in one frame: 2.2 cm for an 8 mm probe,
 // so that its end pose lies wholly below the top face it started above
-// (with its detection margin too). Without the sweep it ended inside the
-// block untouched at 0 N (no row) and stayed there. With it, the faces it
+// (with its detection margin too). Without the sweep (contact.sweep, off
+// by default) it ends inside the block untouched at 0 N (no row) and stays
+// there. With it, the faces it
 // went through are pushed out ahead of it, and the hold that follows is
 // the one the same press reached over 8 frames (each under half the
 // radius: no sweep) gives: the top near the probe within 3% of the press
@@ -306,6 +307,7 @@ TEST(CollisionStage, AProbeJabbedFasterThanItsRadiusAFramePushesTheTissue) {
 TEST(CollisionStage, AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes) {
   Scene scene = tissue_block();
   scene.consistent_tangent = true;
+  scene.contact.sweep = true;
   const double r = 0.008, top = 0.06, press = 0.022, x0 = 0.045, y0 = 0.055;
   const Mesh mesh = make_beam(0.1, 0.1, top, 6, 6, 4, 1);
   scene.instruments.push_back(probe(r));
@@ -361,9 +363,10 @@ TEST(CollisionStage, AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes)
 
 // A soft cantilever released from rest under gravity swings its free end
 // down onto a resting 5 mm probe at about 1 cm a frame, eight times the
-// detection margin. Without speculative rows the tissue was inside the
-// probe before any row held it: 3-8 mm deep at the frames' start, and 1.5 N
-// impacts. Now the tissue near the probe that may move further than the
+// detection margin. Without speculative rows (contact.speculative, off by
+// default) the tissue is inside the probe before any row holds it: 3-8 mm
+// deep at the frames' start, and 1.5 N impacts. With them the tissue near
+// the probe that may move further than the
 // margin in a frame has rows within that reach, inactive until the step
 // closes their gap: no frame starts more than a tenth of the radius inside
 // (measured 0.25 mm; 7.8 mm without), and the beam's end, 1 cm past the
@@ -377,6 +380,7 @@ TEST(CollisionStage, TissueSwingingOntoARestingProbeStopsAtItsSurface) {
   scene.material.rayleigh_mass = 1.0;
   scene.material.rayleigh_stiffness = 0.002;
   scene.consistent_tangent = true;
+  scene.contact.speculative = true;
   scene.fixed.push_back(test::box({-1, -1, -1}, {1e-9, 1, 1}));
   const double r = 0.005, pz = -0.035;
   scene.instruments.push_back(probe(r));

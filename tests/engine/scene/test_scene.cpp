@@ -683,7 +683,13 @@ TEST_F(SceneTest, ContactSettingsParsedAndChecked) {
   expect_error(minimal(R"("contact": {"pgs_iterations": 0})"), "contact.pgs_iterations must be an integer >= 1, got 0");
   expect_error(minimal(R"("contact": {"stiffness": 1})"),
                "contact.stiffness: unknown key; allowed: rows, max_rows, friction, pgs_iterations, refine_rounds, "
-               "compliance_reuse");
+               "compliance_reuse, sweep, speculative");
+  EXPECT_FALSE(s.contact.sweep) << "the default";
+  EXPECT_FALSE(s.contact.speculative) << "the default";
+  const Scene on = parse_scene(minimal(R"("contact": {"sweep": true, "speculative": true})"), scene_path_);
+  EXPECT_TRUE(on.contact.sweep);
+  EXPECT_TRUE(on.contact.speculative);
+  expect_error(minimal(R"("contact": {"sweep": 1})"), "contact.sweep must be a boolean (true or false), got number 1");
   expect_error(minimal(R"("contact": [])"), "contact must be an object, got array []");
 }
 
