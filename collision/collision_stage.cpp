@@ -273,13 +273,17 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
 // jabbed its diameter in one frame ended inside the tissue untouched. The
 // path is sampled at sub-poses kSweepStepShare radii apart (positions
 // linear, orientation by slerp, as trajectories interpolate); a face first
-// touched at a sub-pose, and not at the end pose, gets that sub-pose's
-// deepest contact on it: its point and direction (the direction the tissue
-// was struck in), with the depth the point must move along it to leave the
-// end pose, round_exit_distance with the real radius (none where the ray
-// misses it: the probe went past, the point stays behind it). Where the
-// face is touched at the end pose the end pose's contact stays, so a slow
-// probe's rows are what they were. Returns whether it swept.
+// touched at a sub-pose, from outside, and not at the end pose, gets a row
+// along its inward normal, as deep as its point must move along it to
+// leave the end pose (round_exit_distance with the real radius; none where
+// that misses the end pose: a probe drawn sideways over the face left it
+// behind). The first version pushed along the direction the face was
+// struck in, which put the faces under a sideways stroke 3 cm ahead of the
+// probe. A path that meets a face from inside the tissue went through it,
+// as does an end pose moving out through a face it touches: no swept rows
+// that frame. Where the face is touched at the end pose the
+// end pose's contact stays, so a slow probe's rows are what they were.
+// Returns whether it swept.
 bool sweep_probe(const Simulation& sim, CollisionData& cd, size_t i) {
   const InstrumentSpec& spec = sim.scene.instruments[i];
   const ToolFrame& tf = sim.tools[i];
@@ -291,11 +295,31 @@ bool sweep_probe(const Simulation& sim, CollisionData& cd, size_t i) {
   const double move = std::max((end.a - sh.part[0].a).norm(), (end.b - sh.part[0].b).norm());
   if (!(move > kSweepStepShare * r)) return false;
   const int steps = static_cast<int>(std::min<double>(kMaxSweepSteps, std::ceil(move / (kSweepStepShare * r))));
+  const TissueSurface& s = cd.model.surface();
   std::vector<unsigned char>& seen = cd.sweep_face;
-  seen.assign(cd.model.surface().nface, 0);
+  seen.assign(s.nface, 0);
   std::vector<TissueContact>& contacts = cd.results[i].contacts;
   for (const TissueContact& c : contacts) seen[c.face] = 1;
-  for (int k = 0; k < steps; ++k) {  // t = k / steps, earliest first; t = 1 is the end pose's query
+  const size_t end_contacts = contacts.size();
+  bool exits = false;  // the path met a face from the tissue's side: it went through
+  // The triangle's unit outward normal, or zero for a degenerate one.
+  const auto outward = [&s](int tri) {
+    const int* tv = &s.tri[3 * static_cast<size_t>(tri)];
+    Eigen::Vector3d v[3];
+    for (int j = 0; j < 3; ++j) v[j] = Eigen::Vector3d(s.x[3 * tv[j]], s.x[3 * tv[j] + 1], s.x[3 * tv[j] + 2]);
+    const Eigen::Vector3d n = (v[1] - v[0]).cross(v[2] - v[0]);
+    return n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero();
+  };
+  // The end pose touching a face whose plane the axis crossed outwards
+  // during the frame (it started on the face's tissue side and moved along
+  // its outward normal): a jab that ends across a 4 mm plate, whose far
+  // side it reached from inside.
+  const Eigen::Vector3d start = sh.part[0].a, motion = end.a - start;
+  for (size_t k = 0; k < end_contacts && !exits; ++k) {
+    const Eigen::Vector3d n_out = outward(contacts[k].tri), x(contacts[k].point[0], contacts[k].point[1], contacts[k].point[2]);
+    exits = (start - x).dot(n_out) < 0 && motion.dot(n_out) > 0;
+  }
+  for (int k = 0; k < steps && !exits; ++k) {  // t = k / steps, earliest first; t = 1 is the end pose's query
     const double t = static_cast<double>(k) / steps;
     ToolPose pose = tf.after;
     for (int d = 0; d < 3; ++d) pose.p[d] = (1.0 - t) * tf.before.p[d] + t * tf.after.p[d];
@@ -305,14 +329,29 @@ bool sweep_probe(const Simulation& sim, CollisionData& cd, size_t i) {
     for (const TissueContact& c : cd.sweep_result.contacts) {  // deepest first: a face's first is its deepest
       if (seen[c.face]) continue;
       seen[c.face] = 1;
-      const Eigen::Vector3d x(c.point[0], c.point[1], c.point[2]), n(c.normal[0], c.normal[1], c.normal[2]);
-      const double depth = round_exit_distance(end.a, end.b, r, x, n);
+      const Eigen::Vector3d n_out = outward(c.tri), x(c.point[0], c.point[1], c.point[2]);
+      if (!(n_out.squaredNorm() > 0)) continue;
+      const ToolPart& at = sh.part[0];
+      const Eigen::Vector3d ab = at.b - at.a;
+      const double l2 = ab.squaredNorm();
+      const Eigen::Vector3d y = at.a + (l2 > 0 ? std::clamp((x - at.a).dot(ab) / l2, 0.0, 1.0) : 0.0) * ab;
+      if (!((y - x).dot(n_out) > 0)) {  // reached from inside the tissue
+        exits = true;
+        break;
+      }
+      const double depth = round_exit_distance(end.a, end.b, r, x, -n_out);
       if (!(depth > 0)) continue;
       TissueContact& kept = contacts.emplace_back(c);
+      for (int d = 0; d < 3; ++d) kept.normal[d] = -n_out[d];
       kept.depth = depth + cd.margin[i];  // the stage subtracts the margin
       kept.swept = true;
     }
   }
+  // A probe that went through the tissue (a plate, an edge) in the frame:
+  // its path has no side for the struck faces to go to but a tear, and
+  // pushing them to the end pose's far side wrecked a 4 mm plate (170 N,
+  // 279 inverted points); the end pose's rows alone, as without the sweep.
+  if (exits) contacts.resize(end_contacts);
   return true;
 }
 

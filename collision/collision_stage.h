@@ -16,13 +16,14 @@
 // Contacts are found with the tissue where it is (start of the frame) and
 // the tool where it will be (end), inflated by a margin so that tissue moving
 // towards a tool during the frame is caught too (such rows have a negative
-// target: inactive unless the tissue closes the gap). A probe that moves
-// more than half its radius in the frame is also swept: every face its path
-// touches and its end pose does not gets a row along the direction of the
-// first touch, as deep as the face must move to leave the end pose (a probe
-// jabbed its own diameter in a frame passed the surface and ended inside the
-// tissue at 0 N). Installed only when the scene has a probe that pushes or a
-// grasper.
+// target: inactive unless the tissue closes the gap). Two options, off by
+// default (docs/instruments.md, "Fast motion"): contact.sweep (a probe that
+// moves more than half its radius in the frame is swept; a face its path
+// struck from outside, and its end pose does not touch, gets a row along
+// its inward normal to leave the end pose; none for a path through the
+// tissue) and contact.speculative (rows with negative targets for tissue
+// that may run into a probe faster than the margin). Installed only when
+// the scene has a probe that pushes or a grasper.
 #include <vector>
 
 #include "collision/collision_model.h"
@@ -51,9 +52,10 @@ struct CollisionData {
   };
   std::vector<Candidate> candidates;     // this frame's, deepest first (kept: no allocation per frame)
   std::vector<char> warned_deep;         // (instruments) a probe's "deeper than half its radius" warning was given
-  // A fast probe's sweep (collision_stage.cpp, sweep_probe): its sub-poses'
-  // shapes (instruments; inflated as `shapes`), their query, and which
-  // surface faces already have a contact this frame.
+  // A fast probe's sweep and speculative query (collision_stage.cpp,
+  // sweep_probe, add_speculative_contacts): their shapes (instruments;
+  // inflated as `shapes`, their FCL geometry shared), their query, and
+  // which surface faces already have a contact this frame.
   std::vector<ToolShape> sweep_shapes;
   ContactResult sweep_result;
   std::vector<unsigned char> sweep_face;
