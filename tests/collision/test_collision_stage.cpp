@@ -361,6 +361,20 @@ TEST(CollisionStage, AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes)
   RecordProperty("jab_frame_top_mm", std::to_string(1000 * uz_jab));
 }
 
+// Soft tissue as the bundled beam scenes have it (nu 0.45, rho 1000,
+// Rayleigh 1.0 / 0.002, consistent tangent), clamped at x = 0.
+Scene clamped_soft_scene(double young) {
+  Scene scene = test::block_scene(2);
+  scene.material.young = young;
+  scene.material.poisson = 0.45;
+  scene.material.density = 1000;
+  scene.material.rayleigh_mass = 1.0;
+  scene.material.rayleigh_stiffness = 0.002;
+  scene.consistent_tangent = true;
+  scene.fixed.push_back(test::box({-1, -1, -1}, {1e-9, 1, 1}));
+  return scene;
+}
+
 // contact.sweep on a probe that goes through tissue within a frame: a
 // 5 mm probe jabbed 2 cm down through a 4 mm plate (clamped at both ends),
 // its end pose across the plate's underside. Its path crosses the plate,
@@ -369,15 +383,8 @@ TEST(CollisionStage, AProbeJabbedPastTheSurfaceInOneFramePushesAsASlowPressDoes)
 // were pushed to the end pose's far side: 14 swept rows, 43 inverted
 // points, 6.1 N here (90 N and 297 inverted points under realtime).
 TEST(CollisionStage, ASweptProbeThatGoesThroughAPlateTakesNoSweptRows) {
-  Scene scene = test::block_scene(2);
-  scene.material.young = 3e5;
-  scene.material.poisson = 0.45;
-  scene.material.density = 1000;
-  scene.material.rayleigh_mass = 1.0;
-  scene.material.rayleigh_stiffness = 0.002;
-  scene.consistent_tangent = true;
+  Scene scene = clamped_soft_scene(3e5);
   scene.contact.sweep = true;
-  scene.fixed.push_back(test::box({-1, -1, -1}, {1e-9, 1, 1}));
   scene.fixed.push_back(test::box({0.06 - 1e-9, -1, -1}, {1, 1, 1}, "fixed[1]"));
   const double r = 0.005, t0 = 0.1;
   scene.instruments.push_back(probe(r));
@@ -410,15 +417,8 @@ TEST(CollisionStage, ASweptProbeThatGoesThroughAPlateTakesNoSweptRows) {
 // probe's axis, stays within a fifth of the radius of the probe's top
 // (0.4 mm below it; 13.5 mm without: the beam slid past the probe).
 TEST(CollisionStage, TissueSwingingOntoARestingProbeStopsAtItsSurface) {
-  Scene scene = test::block_scene(2);
-  scene.material.young = 1e5;
-  scene.material.poisson = 0.45;
-  scene.material.density = 1000;
-  scene.material.rayleigh_mass = 1.0;
-  scene.material.rayleigh_stiffness = 0.002;
-  scene.consistent_tangent = true;
+  Scene scene = clamped_soft_scene(1e5);
   scene.contact.speculative = true;
-  scene.fixed.push_back(test::box({-1, -1, -1}, {1e-9, 1, 1}));
   const double r = 0.005, pz = -0.035;
   scene.instruments.push_back(probe(r));
   auto sim = make_probe_sim(make_beam(0.1, 0.02, 0.02, 10, 2, 2, 1), scene, [&](double) { return at(0.09, 0.01, pz); });
