@@ -56,13 +56,13 @@ VertexMotion vertex_motion(const Simulation& sim, const TissueSurface& s, int q)
 
 // How far the tissue near a probe may move in the frame, times
 // kSpeculativeShare: the largest vertex_motion (either way) over the
-// surface vertices within the probe's reach; a cheap bound over the DOF nodes first returns
-// 0 while that cannot exceed the detection margin (tissue at rest: no
-// speculative rows, nothing changes for a probe pressing it). Newmark's
-// acceleration is no estimate: it carries the Newton residual and the
-// contact impulses (it read 5-9 cm a frame on a beam moving 1 cm), and a
-// gravity term dt^2 |g| / 2 (5.4 mm at 30 Hz) would give a probe on a
-// supported organ speculative rows in every frame, each a substitution.
+// surface vertices within the probe's reach; a cheap bound over the DOF
+// nodes first returns 0 while that cannot exceed the detection margin
+// (tissue at rest: no speculative rows). Newmark's acceleration is no
+// estimate: it carries the Newton residual and the contact impulses (it
+// read 5-9 cm a frame on a beam moving 1 cm), and a gravity term
+// dt^2 |g| / 2 (5.4 mm at 30 Hz) would give a probe on a supported organ
+// speculative rows in every frame, each a substitution.
 double speculative_reach(const Simulation& sim, const CollisionData& cd, const InstrumentSpec& spec,
                          const ToolFrame& tf, double margin) {
   const double dt = sim.model.dt;
