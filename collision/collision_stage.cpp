@@ -32,6 +32,25 @@ double contact_margin(const InstrumentSpec& s) {
   return s.kind == InstrumentSpec::Kind::Probe ? kContactMarginShare * s.radius : 0.0;
 }
 
+// Triangle tri's unit outward normal at the surface's positions (zero for
+// a degenerate triangle).
+Eigen::Vector3d triangle_outward(const TissueSurface& s, int tri) {
+  const int* tv = &s.tri[3 * static_cast<size_t>(tri)];
+  Eigen::Vector3d v[3];
+  for (int j = 0; j < 3; ++j) v[j] = Eigen::Vector3d(s.x[3 * tv[j]], s.x[3 * tv[j] + 1], s.x[3 * tv[j] + 2]);
+  const Eigen::Vector3d n = (v[1] - v[0]).cross(v[2] - v[0]);
+  return n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero();
+}
+
+// cd.sweep_face with the faces instrument i's end pose already has a
+// contact on marked: the sweep and the speculative rows add only others.
+std::vector<unsigned char>& faces_found(CollisionData& cd, size_t i) {
+  std::vector<unsigned char>& seen = cd.sweep_face;
+  seen.assign(cd.model.surface().nface, 0);
+  for (const TissueContact& c : cd.results[i].contacts) seen[c.face] = 1;
+  return seen;
+}
+
 // Two estimates of surface vertex q's motion over the frame: its last
 // increment du and dt v, at its material point.
 struct VertexMotion {
@@ -124,21 +143,15 @@ void add_speculative_contacts(const Simulation& sim, CollisionData& cd, size_t i
   // Back to the margin: the sweep's shapes share their FCL geometry with `shapes`.
   set_probe_radius(sh, spec.radius + cd.margin[i]);
   const TissueSurface& s = cd.model.surface();
-  std::vector<unsigned char>& seen = cd.sweep_face;
-  seen.assign(s.nface, 0);
+  std::vector<unsigned char>& seen = faces_found(cd, i);
   std::vector<TissueContact>& contacts = cd.results[i].contacts;
-  for (const TissueContact& c : contacts) seen[c.face] = 1;
   const ToolPart& part = cd.shapes[i].part[0];
   for (const TissueContact& c : cd.sweep_result.contacts) {
     if (seen[c.face]) continue;
     seen[c.face] = 1;
     const int* tv = &s.tri[3 * static_cast<size_t>(c.tri)];
-    Eigen::Vector3d v[3];
-    for (int j = 0; j < 3; ++j) v[j] = Eigen::Vector3d(s.x[3 * tv[j]], s.x[3 * tv[j] + 1], s.x[3 * tv[j] + 2]);
-    const Eigen::Vector3d n_out = (v[1] - v[0]).cross(v[2] - v[0]), x(c.point[0], c.point[1], c.point[2]);
-    const Eigen::Vector3d ab = part.b - part.a;
-    const double l2 = ab.squaredNorm();
-    const Eigen::Vector3d y = part.a + (l2 > 0 ? std::clamp((x - part.a).dot(ab) / l2, 0.0, 1.0) : 0.0) * ab;
+    const Eigen::Vector3d n_out = triangle_outward(s, c.tri), x(c.point[0], c.point[1], c.point[2]);
+    const Eigen::Vector3d y = nearest_on_segment(part.a, part.b, x);
     const Eigen::Vector3d g = x - y;
     const double d = g.norm();
     if (!((y - x).dot(n_out) > 0) || !(d > spec.radius + cd.margin[i])) continue;  // behind the face, or found already
@@ -296,27 +309,18 @@ bool sweep_probe(const Simulation& sim, CollisionData& cd, size_t i) {
   if (!(move > kSweepStepShare * r)) return false;
   const int steps = static_cast<int>(std::min<double>(kMaxSweepSteps, std::ceil(move / (kSweepStepShare * r))));
   const TissueSurface& s = cd.model.surface();
-  std::vector<unsigned char>& seen = cd.sweep_face;
-  seen.assign(s.nface, 0);
+  std::vector<unsigned char>& seen = faces_found(cd, i);
   std::vector<TissueContact>& contacts = cd.results[i].contacts;
-  for (const TissueContact& c : contacts) seen[c.face] = 1;
   const size_t end_contacts = contacts.size();
   bool exits = false;  // the path met a face from the tissue's side: it went through
-  // The triangle's unit outward normal, or zero for a degenerate one.
-  const auto outward = [&s](int tri) {
-    const int* tv = &s.tri[3 * static_cast<size_t>(tri)];
-    Eigen::Vector3d v[3];
-    for (int j = 0; j < 3; ++j) v[j] = Eigen::Vector3d(s.x[3 * tv[j]], s.x[3 * tv[j] + 1], s.x[3 * tv[j] + 2]);
-    const Eigen::Vector3d n = (v[1] - v[0]).cross(v[2] - v[0]);
-    return n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero();
-  };
   // The end pose touching a face whose plane the axis crossed outwards
   // during the frame (it started on the face's tissue side and moved along
   // its outward normal): a jab that ends across a 4 mm plate, whose far
   // side it reached from inside.
   const Eigen::Vector3d start = sh.part[0].a, motion = end.a - start;
   for (size_t k = 0; k < end_contacts && !exits; ++k) {
-    const Eigen::Vector3d n_out = outward(contacts[k].tri), x(contacts[k].point[0], contacts[k].point[1], contacts[k].point[2]);
+    const Eigen::Vector3d n_out = triangle_outward(s, contacts[k].tri),
+                          x(contacts[k].point[0], contacts[k].point[1], contacts[k].point[2]);
     exits = (start - x).dot(n_out) < 0 && motion.dot(n_out) > 0;
   }
   for (int k = 0; k < steps && !exits; ++k) {  // t = k / steps, earliest first; t = 1 is the end pose's query
@@ -329,12 +333,9 @@ bool sweep_probe(const Simulation& sim, CollisionData& cd, size_t i) {
     for (const TissueContact& c : cd.sweep_result.contacts) {  // deepest first: a face's first is its deepest
       if (seen[c.face]) continue;
       seen[c.face] = 1;
-      const Eigen::Vector3d n_out = outward(c.tri), x(c.point[0], c.point[1], c.point[2]);
+      const Eigen::Vector3d n_out = triangle_outward(s, c.tri), x(c.point[0], c.point[1], c.point[2]);
       if (!(n_out.squaredNorm() > 0)) continue;
-      const ToolPart& at = sh.part[0];
-      const Eigen::Vector3d ab = at.b - at.a;
-      const double l2 = ab.squaredNorm();
-      const Eigen::Vector3d y = at.a + (l2 > 0 ? std::clamp((x - at.a).dot(ab) / l2, 0.0, 1.0) : 0.0) * ab;
+      const Eigen::Vector3d y = nearest_on_segment(sh.part[0].a, sh.part[0].b, x);
       if (!((y - x).dot(n_out) > 0)) {  // reached from inside the tissue
         exits = true;
         break;

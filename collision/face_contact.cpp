@@ -16,14 +16,6 @@ constexpr int kSubdivide = 4;  // sub-triangles per triangle edge: 16 samples pe
 // more start to chatter again on the coarse faces (2-10% frame to frame).
 double weight(double depth) { return depth * depth * depth; }
 
-// The point of segment [a, b] nearest x.
-Eigen::Vector3d nearest_on_axis(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& x) {
-  const Eigen::Vector3d ab = b - a;
-  const double l2 = ab.squaredNorm();
-  if (!(l2 > 0)) return a;
-  return a + std::clamp((x - a).dot(ab) / l2, 0.0, 1.0) * ab;
-}
-
 }  // namespace
 
 void weight_round_face_contact(const TissueSurface& s, const ToolPart& part, const double* u, TissueContact& c) {
@@ -53,7 +45,7 @@ void weight_round_face_contact(const TissueSurface& s, const ToolPart& part, con
           const double shift = down ? 2.0 / 3.0 : 1.0 / 3.0;
           const double b[3] = {1.0 - (i + shift) / k - (j + shift) / k, (i + shift) / k, (j + shift) / k};
           const Eigen::Vector3d x = b[0] * v[0] + b[1] * v[1] + b[2] * v[2];
-          const Eigen::Vector3d g = x - nearest_on_axis(part.a, part.b, x);
+          const Eigen::Vector3d g = x - nearest_on_segment(part.a, part.b, x);
           const double d = g.norm(), depth = r - d;
           if (!(depth > 0)) continue;
           deepest = std::max(deepest, depth);
@@ -78,7 +70,7 @@ void weight_round_face_contact(const TissueSurface& s, const ToolPart& part, con
   s.reference_position(c.elem, rst, X);
   point_position(pw, X, u, xm);
   const Eigen::Vector3d x(xm[0], xm[1], xm[2]);
-  const Eigen::Vector3d g = x - nearest_on_axis(part.a, part.b, x);
+  const Eigen::Vector3d g = x - nearest_on_segment(part.a, part.b, x);
   const double d = g.norm();
   // The axis on the far side of the point, seen along the samples' normals
   // or behind the face's plane (a probe pushed in deeper than the face: a

@@ -82,6 +82,13 @@ Vector3d closest_point_on_triangle(const Vector3d& p, const Vector3d& a, const V
   return set(1 - v - w, v, w);
 }
 
+Vector3d nearest_on_segment(const Vector3d& a, const Vector3d& b, const Vector3d& x) {
+  const Vector3d ab = b - a;
+  const double l2 = ab.squaredNorm();
+  if (!(l2 > 0)) return a;
+  return a + std::clamp((x - a).dot(ab) / l2, 0.0, 1.0) * ab;
+}
+
 double closest_segment_triangle(const Vector3d& p, const Vector3d& q, const Vector3d& v0, const Vector3d& v1,
                                 const Vector3d& v2, double& t, double bary[3]) {
   double bt[3];

@@ -41,6 +41,9 @@ struct TriangleContact {
 Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& v0,
                                           const Eigen::Vector3d& v1, const Eigen::Vector3d& v2, double bary[3]);
 
+// The point of segment [a, b] nearest x (a = b: a).
+Eigen::Vector3d nearest_on_segment(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& x);
+
 // Closest points of segment [p, q] and the triangle: returns the squared
 // distance; t in [0, 1] places the segment's point at p + t (q - p).
 double closest_segment_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& v0,
