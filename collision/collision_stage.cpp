@@ -274,9 +274,10 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
                "warning: %s: %s went %.3g m into the tissue by t = %g s, more than half its radius (%g m): the contact "
                "did not push the tissue out: it moved through the surface faster than half its radius a frame "
                "(contact.sweep: true sweeps its path), the tissue ran into it faster than the margin, %g m, a frame "
-               "(contact.speculative: true), or, pressed deeper than its diameter, the tissue closed over it (one row "
-               "per face lets a sphere sink: give it a shaft with its length, or set contact.rows \"triangle\"); the "
-               "motion near it is not physical from here (docs/instruments.md)\n",
+               "(contact.speculative: true), or, narrower than the faces or pressed deeper than its radius, the faces "
+               "folded round it (one row per face holds one point of each: contact.rows \"triangle\" with "
+               "contact.max_rows 600 and render.subdivision 4 holds them, at several times the contact stage's time); "
+               "the motion near it is not physical from here (docs/instruments.md)\n",
                sim.scene.path.c_str(), who.c_str(), depth, sim.state.time + sim.model.dt, spec.radius, cd.margin[i]);
 }
 

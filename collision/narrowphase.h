@@ -15,8 +15,15 @@
 // (over the face's interior that is -n_out and r - s, computed so). Once the
 // axis reaches or passes the face plane the geometric direction would pull
 // the tissue outward through the tool, so the contact follows the face:
-// normal = -n_out and depth = r - min over the axis ends of (end - x) . n_out,
-// continuous with the first rule where the axis point projects inside the face.
+// normal = -n_out and depth = r - min (z - x) . n_out over the axis points z
+// within r of x: to the tangent plane, parallel to the face, of the part of
+// the tool near the point (a sphere: r - s; at most 2r), continuous with the
+// first rule where the axis point projects inside the face.
+// Two exceptions: a capsule's side (y strictly between the ends) nearest an
+// edge or corner of the face passes beside it, not through it: geometric on
+// either side of the plane (a face beside a pressed shaft is pushed aside,
+// not below the tip); and an axis that meets the face (d <= 1e-9 r) takes
+// the face rule, whatever roundoff makes of the sign of s there.
 //
 // Boxes (scalpel blade, grasper jaws) always push along -n_out: depth is the
 // largest distance the triangle must move along -n_out to clear the box,

@@ -149,11 +149,51 @@ TEST(Narrowphase, CapsuleLyingOnAFaceAndPokingThroughIt) {
   ASSERT_TRUE(round_triangle_contact(Vector3d(-0.5, 0, 0.1), Vector3d(0.5, 0, 0.1), 0.25, T0, T1, T2, c));
   EXPECT_NEAR(c.depth, 0.15, 1e-15);
   EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
-  // Axis through the face, its lower end 0.3 under it: the tissue must clear the end by r.
+  // Axis through the face, its lower end 0.3 under it (further than r from
+  // the crossing): the face goes to the tangent plane of the part of the
+  // tool within r of its point, r below the crossing along the axis.
   ASSERT_TRUE(round_triangle_contact(Vector3d(0, 0, 0.5), Vector3d(0.1, 0, -0.3), 0.25, T0, T1, T2, c));
-  EXPECT_NEAR(c.depth, 0.55, 1e-15);
+  EXPECT_NEAR(c.depth, 0.25 + 0.25 * 0.8 / std::hypot(0.1, 0.8), 1e-14);
   EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
   EXPECT_NEAR(c.point.z(), 0.0, 1e-15);
+  // A 2 m shaft through the face at 45 degrees, pierced at its middle:
+  // r (1 + sin 45), not r + 0.7 (its lower end's tangent plane).
+  ASSERT_TRUE(round_triangle_contact(Vector3d(-0.7, 0, 0.7), Vector3d(0.7, 0, -0.7), 0.25, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.25 * (1 + std::sqrt(0.5)), 1e-14);
+  // A vertical shaft whose tip is 3 under the face: 2r, not r + 3.
+  ASSERT_TRUE(round_triangle_contact(Vector3d(0, 0, -3), Vector3d(0, 0, 2), 0.25, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, 0.5, 1e-14);
+}
+
+// A shaft pressed down beside a face (the face's edge at y = -1, the
+// vertical axis 0.3 beyond it): the face is pushed aside, radially, by r - d,
+// whichever side of the face's plane the axis's nearest point lies on.
+// The face rule took a face tilted a little past the axis for one the shaft
+// came through and pushed it below the tip: depth r + 0.8 here.
+TEST(Narrowphase, AShaftBesideAFacePushesItAsideWhicheverWayTheFaceTilts) {
+  const double r = 0.4;
+  const Vector3d tip(0.5, -1.3, -0.8), top(0.5, -1.3, 2.0);
+  int behind = 0;
+  for (double tilt : {-0.05, 0.0, 0.05}) {
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(tilt, Vector3d(1, 0, 0)).toRotationMatrix();
+    const Vector3d v0 = R * T0, v1 = R * T1, v2 = R * T2, n = (v1 - v0).cross(v2 - v0).normalized();
+    TriangleContact c;
+    ASSERT_TRUE(round_triangle_contact(tip, top, r, v0, v1, v2, c)) << tilt;
+    const Vector3d y = nearest_on_segment(tip, top, c.point);
+    const double d = (c.point - y).norm();
+    behind += (y - c.point).dot(n) < 0;
+    EXPECT_NEAR(d, 1.3 - std::cos(tilt), 1e-12) << tilt;  // the edge's nearest point
+    EXPECT_NEAR(c.depth, r - d, 1e-14) << tilt;
+    EXPECT_LT((c.normal - (c.point - y) / d).norm(), 1e-14) << tilt;
+    EXPECT_LT(std::abs(c.normal.z()), 0.06) << tilt;  // sideways, not down
+  }
+  EXPECT_GE(behind, 1) << "one tilt puts the axis behind the face's plane";
+  // The tip (an end of the axis) under the face's interior keeps the face
+  // rule: the tissue must clear it.
+  TriangleContact c;
+  ASSERT_TRUE(round_triangle_contact(Vector3d(0, 0, -0.1), Vector3d(0, 0, 2), r, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, r + 0.1, 1e-14);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
 }
 
 TEST(Narrowphase, BoxPressedIntoAFaceHasDepthAlongTheInwardNormal) {

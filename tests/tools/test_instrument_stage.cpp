@@ -170,6 +170,53 @@ TEST_F(InstrumentStage, ACutFrameKeepsTheProbesForceInTheAcceleration) {
   EXPECT_LT(change, 0.1 * pushed);
 }
 
+// A probe with a shaft (1 cm across, 5 cm long, upright) pressed slowly 2 cm
+// into organ_3k and held, with one row per face (the default) against the
+// converged contact (one row per triangle of faces cut 4 x 4). The face
+// rule took faces beside the shaft, whose planes tilt a little past its
+// axis, for faces it came through, and pushed them below the tip: rows
+// 5.4 cm deep (the shaft's length), the held force 7.5 N on average and up
+// to 20.8 N, against the converged 3.8 N (3.6-3.9). With the fix: rows at
+// most 2r + margin (11.2 mm), the held force 2.9 N on average, at most
+// 4.6 N (the face rows let the coarse faces into the tool a little).
+TEST_F(InstrumentStage, AProbesShaftPressedIntoAnOrganPushesNoFaceFurtherThanItsDiameter) {
+  write("press.csv",
+        "t,x,y,z,qw,qx,qy,qz\n0, -0.015, 0, 0.056, 1, 0, 0, 0\n0.1, -0.015, 0, 0.056, 1, 0, 0, 0\n"
+        "0.4333333, -0.015, 0, 0.036, 1, 0, 0, 0\n2, -0.015, 0, 0.036, 1, 0, 0, 0\n");
+  const double r = 0.005, margin = 0.25 * r;
+  double mean[2] = {0, 0}, largest[2] = {0, 0}, deepest = 0;
+  for (int converged = 0; converged < 2; ++converged) {
+    write("scene.json", std::string(R"({"mesh": {"file": ")") + INCISE_SOURCE_DIR + R"(/assets/meshes/organ_3k.msh"},
+        "material": {"young": 30000, "poisson": 0.45, "density": 1000, "rayleigh": {"mass": 1.0, "stiffness": 0.002}},
+        "gravity": [0, 0, -9.81], "integrator": {"tangent": "consistent"},
+        "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}],
+        "solver": {"preset": "reference"},
+        "instruments": [{"type": "probe", "radius": 0.005, "length": 0.05, "trajectory": "press.csv"}])" +
+                              std::string(converged ? R"(, "contact": {"rows": "triangle", "max_rows": 600},
+        "render": {"subdivision": 4}})"
+                                                    : "}"));
+    auto sim = load_checked_simulation(path("scene.json"));
+    int held = 0;
+    for (int k = 0; k < 40; ++k) {
+      advance_frame(*sim);
+      if (!converged) deepest = std::max(deepest, sim->ws.timing.max_depth);
+      if (k < 15) continue;  // pressing until frame 13
+      const double f = sim->ws.timing.contact_force;
+      mean[converged] += f;
+      largest[converged] = std::max(largest[converged], f);
+      ++held;
+    }
+    mean[converged] /= held;
+  }
+  RecordProperty("deepest_row_mm", std::to_string(1e3 * deepest));
+  RecordProperty("face_rows_mean_N", std::to_string(mean[0]));
+  RecordProperty("face_rows_largest_N", std::to_string(largest[0]));
+  RecordProperty("converged_mean_N", std::to_string(mean[1]));
+  EXPECT_LE(deepest, 2 * r + margin + 1e-12) << "a row deeper than the tool is wide";
+  EXPECT_LT(largest[0], 2 * mean[1]) << "the held force, against the converged contact's";
+  EXPECT_NEAR(mean[0], mean[1], 0.4 * mean[1]) << "the mean held force";
+}
+
 TEST_F(InstrumentStage, TrajectoryErrorsNameTheSceneTheKeyAndTheLine) {
   write("bad.csv", "t,x,y,z,qw,qx,qy,qz\n0, 0,0,0, 1,0,0,0\n1, 0,0,0, 1,0,0,0\n0.5, 0,0,0, 1,0,0,0\n");
   const std::string s = scene(R"([{"type": "probe", "radius": 0.05}, {"type": "probe", "radius": 0.05, "trajectory": "bad.csv"}])");
