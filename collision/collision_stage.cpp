@@ -477,6 +477,7 @@ void install_collision_stage(Simulation& sim) {
   cd->sweep_shapes = cd->shapes;  // the FCL geometry is shared, the poses are the sweep's own
   // Several triangles per face: enough candidates for max_rows faces.
   cd->request.max_contacts = 8 * std::max(sim.scene.contact.max_rows, 1);
+  cd->request.edges_geometric = sim.scene.contact.rows == ContactSettings::Rows::Triangle;
   sim.module_data[kStageCollision] = cd;
   sim.pipeline.set(kStageCollision, collision_stage);
 }

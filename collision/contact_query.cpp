@@ -85,7 +85,7 @@ void query_contacts(const CollisionModel& model, const ToolShape& tool, const Co
       TriangleContact tc;
       const bool hit = part.kind == ToolPart::Kind::Box
                            ? box_triangle_contact(part.tf.translation(), part.tf.linear(), part.half, v0, v1, v2, tc)
-                           : round_triangle_contact(part.a, part.b, part.radius, v0, v1, v2, tc);
+                           : round_triangle_contact(part.a, part.b, part.radius, v0, v1, v2, tc, request.edges_geometric);
       if (!hit) continue;  // a box overlap, or FCL's test (an epsilon of slack): no depth
       TissueContact& c = result.contacts.emplace_back();
       c.tri = t;

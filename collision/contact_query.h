@@ -40,6 +40,9 @@ struct ContactRequest {
   // Triangles the tree may pass per tool part; the descent stops there (in
   // tree order, not by depth), so this must exceed what a tool can touch.
   int max_candidates = 4096;
+  // Round parts nearest a triangle's edge or corner are geometric on either
+  // side of its plane (narrowphase.h; contact.rows "triangle").
+  bool edges_geometric = false;
 };
 
 struct TissueContact {

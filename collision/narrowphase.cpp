@@ -128,7 +128,7 @@ double closest_segment_triangle(const Vector3d& p, const Vector3d& q, const Vect
 }
 
 bool round_triangle_contact(const Vector3d& p, const Vector3d& q, double r, const Vector3d& v0, const Vector3d& v1,
-                            const Vector3d& v2, TriangleContact& out) {
+                            const Vector3d& v2, TriangleContact& out, bool edges_geometric) {
   Vector3d n = (v1 - v0).cross(v2 - v0);
   const double len = n.norm();
   if (!(len > 0)) return false;
@@ -147,8 +147,12 @@ bool round_triangle_contact(const Vector3d& p, const Vector3d& q, double r, cons
   // probe came through and pushed it below the tip: 1.3 cm for a face 1 mm
   // into the shaft, and 100 N, 366 inverted points under a 1 cm capsule
   // pressed 2 cm (docs/benchmarks.md, "A probe's shaft beside a face").
-  const bool beside_shaft = t > 0 && t < 1 && !interior;
-  if ((s > 0 || beside_shaft) && !interior && d > 1e-9 * r) {
+  // edges_geometric: every round part so (narrowphase.h; docs/benchmarks.md,
+  // "A probe's shaft": under triangle rows the face rule pushed the small
+  // triangles folded over a 5-8 mm sphere pressed 1.4 cm below it, 282-1103
+  // inverted points).
+  const bool beside = !interior && (edges_geometric || (t > 0 && t < 1));
+  if ((s > 0 || beside) && !interior && d > 1e-9 * r) {
     out.normal = (out.point - y) / d;  // off an edge or a corner: the geometric direction
     out.depth = r - d;
   } else if (s > 0 && d > 1e-9 * r) {

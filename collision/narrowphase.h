@@ -23,7 +23,10 @@
 // edge or corner of the face passes beside it, not through it: geometric on
 // either side of the plane (a face beside a pressed shaft is pushed aside,
 // not below the tip); and an axis that meets the face (d <= 1e-9 r) takes
-// the face rule, whatever roundoff makes of the sign of s there.
+// the face rule, whatever roundoff makes of the sign of s there. With
+// edges_geometric any round part nearest an edge or corner is geometric on
+// either side (contact.rows "triangle": small triangles folded round a
+// sphere pressed deeper than its radius lie beside it, not over it).
 //
 // Boxes (scalpel blade, grasper jaws) always push along -n_out: depth is the
 // largest distance the triangle must move along -n_out to clear the box,
@@ -59,7 +62,7 @@ double closest_segment_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d&
 // false: no contact (also for a triangle of zero area).
 bool round_triangle_contact(const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
                             const Eigen::Vector3d& v0, const Eigen::Vector3d& v1, const Eigen::Vector3d& v2,
-                            TriangleContact& out);
+                            TriangleContact& out, bool edges_geometric = false);
 // How far x must move along the unit direction n to leave the round solid
 // (segment [a, b] inflated by r; a = b: a sphere): the far end of the ray's
 // interval inside it, the largest root over the two end spheres and the

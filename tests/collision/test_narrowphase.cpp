@@ -196,6 +196,27 @@ TEST(Narrowphase, AShaftBesideAFacePushesItAsideWhicheverWayTheFaceTilts) {
   EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
 }
 
+// A sphere whose centre is behind the plane of a triangle it lies beside
+// (nearest point on the edge y = -1): the face rule pushes the triangle to
+// the sphere's far tangent plane; with edges_geometric (triangle rows) it
+// is pushed away from the centre, as off an edge above the plane.
+TEST(Narrowphase, ASphereBehindAnEdgesPlaneIsGeometricWithEdgesGeometric) {
+  const Vector3d centre(0.5, -1.3, -0.2);
+  const double r = 0.6;
+  TriangleContact c;
+  ASSERT_TRUE(round_triangle_contact(centre, centre, r, T0, T1, T2, c));
+  EXPECT_NEAR(c.depth, r + 0.2, 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
+  ASSERT_TRUE(round_triangle_contact(centre, centre, r, T0, T1, T2, c, true));
+  EXPECT_LT((c.point - Vector3d(0.5, -1, 0)).norm(), 1e-15);
+  EXPECT_NEAR(c.depth, r - std::hypot(0.3, 0.2), 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0.3, 0.2) / std::hypot(0.3, 0.2)).norm(), 1e-15);
+  // Over the triangle's interior the face rule stays either way.
+  ASSERT_TRUE(round_triangle_contact(Vector3d(0, 0, -0.2), Vector3d(0, 0, -0.2), r, T0, T1, T2, c, true));
+  EXPECT_NEAR(c.depth, r + 0.2, 1e-15);
+  EXPECT_LT((c.normal - Vector3d(0, 0, -1)).norm(), 1e-15);
+}
+
 TEST(Narrowphase, BoxPressedIntoAFaceHasDepthAlongTheInwardNormal) {
   TriangleContact c;
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
