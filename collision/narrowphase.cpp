@@ -142,15 +142,13 @@ bool round_triangle_contact(const Vector3d& p, const Vector3d& q, double r, cons
   const bool interior = out.bary[0] > 0 && out.bary[1] > 0 && out.bary[2] > 0;
   // The capsule's side (not an end) nearest an edge or corner of the face:
   // the axis passes beside the face, not through it, whichever side of the
-  // face's plane it lies on. The face rule there took a face beside a
+  // face's plane it lies on. The face rule there took a face touching a
   // pressed shaft (its plane tilted a little past the axis) for one the
-  // probe came through and pushed it below the tip: 1.3 cm for a face 1 mm
-  // into the shaft, and 100 N, 366 inverted points under a 1 cm capsule
-  // pressed 2 cm (docs/benchmarks.md, "A probe's shaft beside a face").
-  // edges_geometric: every round part so (narrowphase.h; docs/benchmarks.md,
-  // "A probe's shaft": under triangle rows the face rule pushed the small
-  // triangles folded over a 5-8 mm sphere pressed 1.4 cm below it, 282-1103
-  // inverted points).
+  // probe came through and pushed it 1.3 cm, below the tip: 100 N and 366
+  // inverted points under a 1 cm capsule pressed 2 cm. edges_geometric:
+  // every round part so (under triangle rows the face rule pushed the small
+  // triangles folded over a 5-8 mm sphere pressed 1.35 cm below it: 282-1103
+  // inverted points). docs/benchmarks.md, "A probe's shaft".
   const bool beside = !interior && (edges_geometric || (t > 0 && t < 1));
   if ((s > 0 || beside) && !interior && d > 1e-9 * r) {
     out.normal = (out.point - y) / d;  // off an edge or a corner: the geometric direction
