@@ -52,6 +52,8 @@ struct CollisionData {
   };
   std::vector<Candidate> candidates;     // this frame's, deepest first (kept: no allocation per frame)
   std::vector<char> warned_deep;         // (instruments) a probe's "deeper than half its radius" warning was given
+  std::vector<int> untouched_frames;     // (instruments) frames since the probe last found a contact (capped)
+  std::vector<char> warned_inside;       // (instruments) its "lost its contact inside the tissue" warning was given
   // A fast probe's sweep and speculative query (collision_stage.cpp,
   // sweep_probe, add_speculative_contacts): their shapes (instruments;
   // inflated as `shapes`, their FCL geometry shared), their query, and
@@ -66,6 +68,10 @@ struct CollisionData {
 inline constexpr double kSweepStepShare = 0.5;
 // At most this many sub-poses a frame (a stroke of 500 radii a frame).
 inline constexpr int kMaxSweepSteps = 1000;
+
+// A probe that lost its contacts is checked for lying inside the tissue
+// for this many frames after (collision_stage.cpp, check_probe_inside).
+inline constexpr int kInsideCheckFrames = 10;
 
 // Fraction of an instrument's smallest dimension used as detection margin.
 inline constexpr double kContactMarginShare = 0.25;

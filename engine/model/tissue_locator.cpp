@@ -1,0 +1,98 @@
+#include "engine/model/tissue_locator.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+namespace incise {
+
+TissueLocator::TissueLocator(const Model& m, const double* u) : model_(&m) {
+  const int npe = m.mesh.npe(), nt = m.mesh.ntet();
+  corners_.resize(12 * static_cast<size_t>(nt));
+  box_.resize(6 * static_cast<size_t>(nt));
+  for (int d = 0; d < 3; ++d) lo_[d] = 1e300, hi_[d] = -1e300;
+  for (int e = 0; e < nt; ++e) {
+    const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * npe];
+    double* c = &corners_[12 * static_cast<size_t>(e)];
+    double* b = &box_[6 * static_cast<size_t>(e)];
+    for (int d = 0; d < 3; ++d) b[d] = 1e300, b[3 + d] = -1e300;
+    for (int k = 0; k < 4; ++k)
+      for (int d = 0; d < 3; ++d) {
+        c[3 * k + d] = m.X[3 * nodes[k] + d] + (u ? u[3 * nodes[k] + d] : 0.0);
+        b[d] = std::min(b[d], c[3 * k + d]);
+        b[3 + d] = std::max(b[3 + d], c[3 * k + d]);
+      }
+    // A point within roundoff of a face counts as inside (below): the box
+    // grows by more than that.
+    for (int d = 0; d < 3; ++d) {
+      const double slack = 1e-6 * (b[3 + d] - b[d]) + 1e-300;
+      b[d] -= slack, b[3 + d] += slack;
+      lo_[d] = std::min(lo_[d], b[d]);
+      hi_[d] = std::max(hi_[d], b[3 + d]);
+    }
+  }
+}
+
+// Barycentric coordinates of x in element e's deformed corner tetrahedron.
+Eigen::Vector4d TissueLocator::barycentric(int e, const double x[3]) const {
+  const double* c = &corners_[12 * static_cast<size_t>(e)];
+  Eigen::Matrix3d J;
+  for (int d = 0; d < 3; ++d) J.col(d) << c[3 * (d + 1)] - c[0], c[3 * (d + 1) + 1] - c[1], c[3 * (d + 1) + 2] - c[2];
+  const Eigen::Vector3d l = J.partialPivLu().solve(Eigen::Vector3d(x[0] - c[0], x[1] - c[1], x[2] - c[2]));
+  return Eigen::Vector4d(1.0 - l.sum(), l[0], l[1], l[2]);
+}
+
+// The element with the largest smallest barycentric coordinate among
+// `all` elements or those whose box holds x; best_min is that coordinate.
+int TissueLocator::best_element(const double x[3], bool all, double& best_min, Eigen::Vector4d& best_L) const {
+  int best = -1;
+  best_min = -1e300;
+  const int nt = static_cast<int>(box_.size() / 6);
+  for (int e = 0; e < nt; ++e) {
+    const double* b = &box_[6 * static_cast<size_t>(e)];
+    if (!all && !(x[0] >= b[0] && x[0] <= b[3] && x[1] >= b[1] && x[1] <= b[4] && x[2] >= b[2] && x[2] <= b[5]))
+      continue;
+    const Eigen::Vector4d L = barycentric(e, x);
+    const double mn = L.minCoeff();
+    if (std::isfinite(mn) && mn > best_min) {
+      best_min = mn;
+      best = e;
+      best_L = L;
+    }
+  }
+  return best;
+}
+
+bool TissueLocator::inside(const double x[3]) const {
+  for (int d = 0; d < 3; ++d)
+    if (!(x[d] >= lo_[d] && x[d] <= hi_[d])) return false;
+  double mn;
+  Eigen::Vector4d L;
+  return best_element(x, false, mn, L) >= 0 && mn >= -1e-9;
+}
+
+std::array<double, 3> TissueLocator::reference(const double x[3], bool* inside) const {
+  double mn = -1e300;
+  Eigen::Vector4d L(0.25, 0.25, 0.25, 0.25);
+  // Inside, the element holding x is among those whose box does; outside
+  // the nearest one (the extrapolation) may be any.
+  int best = best_element(x, false, mn, L);
+  if (best < 0 || mn < -1e-9) best = best_element(x, true, mn, L);
+  std::array<double, 3> X{x[0], x[1], x[2]};
+  *inside = best >= 0 && mn >= -1e-9;
+  if (best < 0) return X;
+  const Model& m = *model_;
+  const int* nodes = &m.mesh.tet[static_cast<size_t>(best) * m.mesh.npe()];
+  for (int d = 0; d < 3; ++d) {
+    X[d] = 0.0;
+    for (int k = 0; k < 4; ++k) X[d] += L[k] * m.X[3 * nodes[k] + d];
+  }
+  return X;
+}
+
+std::array<double, 3> reference_point(const Model& m, const State& s, const double x[3], bool* inside) {
+  return TissueLocator(m, s).reference(x, inside);
+}
+
+}  // namespace incise
