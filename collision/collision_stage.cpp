@@ -9,8 +9,8 @@
 
 #include "collision/face_contact.h"
 #include "collision/narrowphase.h"
-#include "engine/runtime/trajectory.h"
 #include "engine/model/tissue_locator.h"
+#include "engine/runtime/trajectory.h"
 #include "engine/util/error.h"
 
 namespace incise {
