@@ -57,6 +57,7 @@ void query_contacts(const CollisionModel& model, const ToolShape& tool, const Co
   result.contacts.clear();
   result.candidates = 0;
   result.capped = false;
+  result.face_rule = 0;
   if (!model.built()) return;
   const TissueSurface& s = model.surface();
   const int max_candidates = std::max(1, request.max_candidates);
@@ -85,8 +86,10 @@ void query_contacts(const CollisionModel& model, const ToolShape& tool, const Co
       TriangleContact tc;
       const bool hit = part.kind == ToolPart::Kind::Box
                            ? box_triangle_contact(part.tf.translation(), part.tf.linear(), part.half, v0, v1, v2, tc)
-                           : round_triangle_contact(part.a, part.b, part.radius, v0, v1, v2, tc, request.edges_geometric);
+                           : round_triangle_contact(part.a, part.b, part.radius, v0, v1, v2, tc, request.edges_geometric,
+                                                    request.outside_tissue);
       if (!hit) continue;  // a box overlap, or FCL's test (an epsilon of slack): no depth
+      result.face_rule += tc.face_rule;
       TissueContact& c = result.contacts.emplace_back();
       c.tri = t;
       c.face = s.tri_face[t];

@@ -43,6 +43,9 @@ struct ContactRequest {
   // Round parts nearest a triangle's edge or corner are geometric on either
   // side of its plane (narrowphase.h; contact.rows "triangle").
   bool edges_geometric = false;
+  // The tool's centre lies outside the tissue (the collision stage's
+  // TissueLocator says so): no face rule (narrowphase.h).
+  bool outside_tissue = false;
 };
 
 struct TissueContact {
@@ -76,6 +79,7 @@ struct ContactResult {
   std::vector<TissueContact> contacts;  // deepest first (ties: lower triangle id first)
   int candidates = 0;                   // triangles given to the exact test, all parts
   bool capped = false;                  // a part reached max_candidates: contacts may be missing
+  int face_rule = 0;                    // contacts that took the face rule (narrowphase.h)
   double max_depth() const { return contacts.empty() ? 0.0 : contacts.front().depth; }
   // Scratch kept between queries, so a frame allocates nothing.
   std::vector<int> candidate_tris, stack;

@@ -128,7 +128,7 @@ double closest_segment_triangle(const Vector3d& p, const Vector3d& q, const Vect
 }
 
 bool round_triangle_contact(const Vector3d& p, const Vector3d& q, double r, const Vector3d& v0, const Vector3d& v1,
-                            const Vector3d& v2, TriangleContact& out, bool edges_geometric) {
+                            const Vector3d& v2, TriangleContact& out, bool edges_geometric, bool outside_tissue) {
   Vector3d n = (v1 - v0).cross(v2 - v0);
   const double len = n.norm();
   if (!(len > 0)) return false;
@@ -150,7 +150,8 @@ bool round_triangle_contact(const Vector3d& p, const Vector3d& q, double r, cons
   // triangles folded over a 5-8 mm sphere pressed 1.35 cm below it: 282-1103
   // inverted points). docs/benchmarks.md, "A probe's shaft".
   const bool beside = !interior && (edges_geometric || (t > 0 && t < 1));
-  if ((s > 0 || beside) && !interior && d > 1e-9 * r) {
+  out.face_rule = false;
+  if ((s > 0 || beside || outside_tissue) && d > 1e-9 * r && (!interior || outside_tissue)) {
     out.normal = (out.point - y) / d;  // off an edge or a corner: the geometric direction
     out.depth = r - d;
   } else if (s > 0 && d > 1e-9 * r) {
@@ -175,6 +176,7 @@ bool round_triangle_contact(const Vector3d& p, const Vector3d& q, double r, cons
     }
     out.normal = -n;
     out.depth = r - std::min((w + t0 * e).dot(n), (w + t1 * e).dot(n));
+    out.face_rule = true;
   }
   return out.depth > 0;
 }

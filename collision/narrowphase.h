@@ -26,7 +26,10 @@
 // the face rule, whatever roundoff makes of the sign of s there. With
 // edges_geometric any round part nearest an edge or corner is geometric on
 // either side (contact.rows "triangle": small triangles folded round a
-// sphere pressed deeper than its radius lie beside it, not over it).
+// sphere pressed deeper than its radius lie beside it, not over it). With
+// outside_tissue (the caller found the tool's centre outside the tissue, so
+// it came through no face: the faces behind it have folded round it) every
+// round contact is geometric but where the axis meets the face.
 //
 // Boxes (scalpel blade, grasper jaws) always push along -n_out: depth is the
 // largest distance the triangle must move along -n_out to clear the box,
@@ -44,6 +47,7 @@ struct TriangleContact {
   Eigen::Vector3d normal{0, 0, 0};
   double depth = 0.0;
   double bary[3] = {0, 0, 0};  // of point: point = bary0 v0 + bary1 v1 + bary2 v2
+  bool face_rule = false;      // round tools: the axis point at or behind the face's plane took the face rule
 };
 
 // Closest point of triangle (v0, v1, v2) to p (Ericson, Real-Time Collision
@@ -62,7 +66,7 @@ double closest_segment_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d&
 // false: no contact (also for a triangle of zero area).
 bool round_triangle_contact(const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
                             const Eigen::Vector3d& v0, const Eigen::Vector3d& v1, const Eigen::Vector3d& v2,
-                            TriangleContact& out, bool edges_geometric = false);
+                            TriangleContact& out, bool edges_geometric = false, bool outside_tissue = false);
 // How far x must move along the unit direction n to leave the round solid
 // (segment [a, b] inflated by r; a = b: a sphere): the far end of the ray's
 // interval inside it, the largest root over the two end spheres and the
