@@ -242,6 +242,12 @@ std::string instrument_label(const InstrumentSpec& spec) {
   return spec.json_path + (!spec.name.empty() && spec.name != spec.json_path ? " (\"" + spec.name + "\")" : "");
 }
 
+// What holds a probe narrower than the faces or pressed deeper than its
+// radius (docs/instruments.md, "Known limits"), for both warnings below.
+constexpr const char* kNarrowProbeRecipe =
+    "contact.rows \"triangle\" with contact.max_rows 600 and render.subdivision 4, at several times the contact "
+    "stage's time";
+
 // A probe deeper in the tissue than half its radius: its rows' normals and
 // depths no longer say where the surface is (the far side of the sphere is
 // nearer), and one frame's contact solve cannot push that much tissue out:
@@ -276,10 +282,10 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
                "did not push the tissue out: it moved through the surface faster than half its radius a frame "
                "(contact.sweep: true sweeps its path), the tissue ran into it faster than the margin, %g m, a frame "
                "(contact.speculative: true), or, narrower than the faces or pressed deeper than its radius, the faces "
-               "folded round it (one row per face holds one point of each: contact.rows \"triangle\" with "
-               "contact.max_rows 600 and render.subdivision 4 holds them, at several times the contact stage's time); "
-               "the motion near it is not physical from here (docs/instruments.md)\n",
-               sim.scene.path.c_str(), who.c_str(), depth, sim.state.time + sim.model.dt, spec.radius, cd.margin[i]);
+               "folded round it (one row per face holds one point of each; %s holds them); the motion near it is not "
+               "physical from here (docs/instruments.md)\n",
+               sim.scene.path.c_str(), who.c_str(), depth, sim.state.time + sim.model.dt, spec.radius, cd.margin[i],
+               kNarrowProbeRecipe);
 }
 
 // Whether sphere probe i's centre lies outside the tissue (the deformed
@@ -293,13 +299,21 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
 // from it: none, 3.7 N held). Not for capsules (a shaft can be in the tissue
 // with its tip outside) and not in scenes with cuts (an element's corner
 // tetrahedron spans its cut's gap).
+// Whether probe i's tip centre lies in the tissue; `locator` is made on
+// first use in the frame (O(elements)) and serves the frame's other asks.
+bool centre_in_tissue(const Simulation& sim, const CollisionData& cd, size_t i,
+                      std::unique_ptr<TissueLocator>& locator) {
+  if (!locator) locator = std::make_unique<TissueLocator>(sim.model, sim.state);
+  const Eigen::Vector3d& c = cd.shapes[i].part[0].a;
+  const double x[3] = {c[0], c[1], c[2]};
+  return locator->inside(x);
+}
+
 bool centre_outside_tissue(const Simulation& sim, const CollisionData& cd, size_t i,
                            std::unique_ptr<TissueLocator>& locator) {
   const ToolPart& part = cd.shapes[i].part[0];
   if (part.kind == ToolPart::Kind::Box || part.a != part.b || sim.model.has_cuts()) return false;
-  if (!locator) locator = std::make_unique<TissueLocator>(sim.model, sim.state);
-  const double x[3] = {part.a[0], part.a[1], part.a[2]};
-  return !locator->inside(x);
+  return !centre_in_tissue(sim, cd, i, locator);
 }
 
 // A probe that lost all its contacts and, within kInsideCheckFrames frames,
@@ -309,20 +323,19 @@ bool centre_outside_tissue(const Simulation& sim, const CollisionData& cd, size_
 // faces pushed off it), the tissue closed over it at frame 19 and it sat
 // inside at 0 N for 35 frames. Not in scenes with cuts: an element's corner
 // tetrahedron spans its cut's gap. Once per instrument; the locator is made
-// only in those frames (O(elements)).
-void check_probe_inside(const Simulation& sim, CollisionData& cd, size_t i) {
+// only in those frames.
+void check_probe_inside(const Simulation& sim, CollisionData& cd, size_t i, std::unique_ptr<TissueLocator>& locator) {
   if (cd.warned_inside[i] || cd.untouched_frames[i] < 1 || sim.model.has_cuts()) return;
-  const Eigen::Vector3d& c = cd.shapes[i].part[0].a;  // the tip's centre
-  const double x[3] = {c[0], c[1], c[2]};
-  if (!TissueLocator(sim.model, sim.state).inside(x)) return;
+  if (!centre_in_tissue(sim, cd, i, locator)) return;
   cd.warned_inside[i] = 1;
   const InstrumentSpec& spec = sim.scene.instruments[i];
   std::fprintf(stderr,
                "warning: %s: %s lost its contact, and at t = %g s its centre is inside the tissue: the tissue closed "
                "over it and it pushes nothing from here. A probe narrower than the faces it presses or pressed deeper "
-               "than its radius needs contact.rows \"triangle\" with contact.max_rows 600 and render.subdivision 4; "
-               "one moved faster than half its radius (%g m) a frame, contact.sweep: true (docs/instruments.md)\n",
-               sim.scene.path.c_str(), instrument_label(spec).c_str(), sim.state.time + sim.model.dt, spec.radius);
+               "than its radius needs %s; one moved faster than half its radius (%g m) a frame, contact.sweep: true "
+               "(docs/instruments.md)\n",
+               sim.scene.path.c_str(), instrument_label(spec).c_str(), sim.state.time + sim.model.dt, kNarrowProbeRecipe,
+               spec.radius);
 }
 
 // A probe that moves more than kSweepStepShare of its radius in the frame
@@ -469,7 +482,7 @@ void collision_stage(Simulation& sim) {
     if (probe && !found.empty()) check_probe_depth(sim, cd, i, found, swept);
     if (probe) {
       cd.untouched_frames[i] = found.empty() ? std::min(cd.untouched_frames[i] + 1, kInsideCheckFrames + 1) : 0;
-      if (cd.untouched_frames[i] <= kInsideCheckFrames) check_probe_inside(sim, cd, i);
+      if (cd.untouched_frames[i] <= kInsideCheckFrames) check_probe_inside(sim, cd, i, locator);
     }
     for (size_t k = 0; k < found.size(); ++k) {
       TissueContact& c = found[k];
