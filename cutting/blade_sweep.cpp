@@ -14,17 +14,20 @@ namespace incise {
 
 namespace {
 
-// The after-row (edge samples at the end) of tool i's last band, and the
-// frame that swept it (-1: none).
-int last_edge(const State& s, int tool, std::array<std::array<double, 3>, kSweepSegments + 1>& row) {
+using Point = std::array<double, 3>;
+
+// The after-row (ns + 1 edge samples at the end) of tool i's last band, and
+// the frame that swept it (-1: none).
+int last_edge(const State& s, int tool, int ns, std::vector<Point>& row) {
   const int nt = static_cast<int>(s.swept_tool.size());
   int last = nt - 1;
   while (last >= 0 && static_cast<int>(s.swept_tool[last]) != tool) --last;
   // The band's triangles, segment j: (a0_j, b0_j, b1_j), (a0_j, b1_j, a1_j);
   // b1_j is after-row point j + 1 and a1_j point j.
-  const int first = last - (2 * kSweepSegments - 1);
+  const int first = last - (2 * ns - 1);
   if (last < 0 || first < 0) return -1;
-  for (int j = 0; j < kSweepSegments; ++j) {
+  row.assign(ns + 1, Point{});
+  for (int j = 0; j < ns; ++j) {
     const double* t0 = &s.swept[9 * static_cast<size_t>(first + 2 * j)];
     const double* t1 = t0 + 9;
     for (int d = 0; d < 3; ++d) {
@@ -42,18 +45,6 @@ double element_size(const Model& m) {
   return std::cbrt(v / std::max(1, m.nelem));
 }
 
-// The step a frame's edge motion is sampled at: half the size (cube root
-// of the volume) the smallest 5% of the elements stay under, so thin tissue
-// meshed one or two elements thick is not stepped over.
-double sweep_spacing(const Model& m) {
-  std::vector<double> h(m.nelem);
-  for (int e = 0; e < m.nelem; ++e) h[e] = std::cbrt(std::max(0.0, m.elem_volume[e]));
-  if (h.empty()) return 1e300;
-  const size_t k = h.size() / 20;
-  std::nth_element(h.begin(), h.begin() + k, h.end());
-  return 0.5 * h[k];
-}
-
 // The pose a fraction w of the way from a to b (position linear,
 // orientation by slerp, as trajectories interpolate).
 ToolPose pose_between(const ToolPose& a, const ToolPose& b, double w) {
@@ -65,6 +56,29 @@ ToolPose pose_between(const ToolPose& a, const ToolPose& b, double w) {
 
 }  // namespace
 
+double sweep_spacing(const Mesh& mesh) {
+  const int nt = mesh.ntet(), npe = mesh.npe();
+  std::vector<double> h(nt);
+  for (int e = 0; e < nt; ++e) {
+    const int* n = &mesh.tet[static_cast<size_t>(e) * npe];
+    Eigen::Matrix3d J;
+    for (int c = 0; c < 3; ++c)
+      for (int d = 0; d < 3; ++d) J(d, c) = mesh.X[3 * n[c + 1] + d] - mesh.X[3 * n[0] + d];
+    h[e] = std::cbrt(std::max(0.0, J.determinant() / 6.0));
+  }
+  if (h.empty()) return 1e300;
+  const size_t k = h.size() / 20;
+  std::nth_element(h.begin(), h.begin() + k, h.end());
+  return 0.5 * h[k];
+}
+
+int edge_segments(const InstrumentSpec& spec, double spacing) {
+  double length = 0;
+  for (int d = 0; d < 3; ++d) length += (spec.edge[1][d] - spec.edge[0][d]) * (spec.edge[1][d] - spec.edge[0][d]);
+  const double s = std::ceil(std::sqrt(length) / (4.0 * spacing));
+  return static_cast<int>(std::clamp(s, double(kMinEdgeSegments), double(kMaxEdgeSegments)));
+}
+
 int sweep_blades(Simulation& sim) {
   int added = 0;
   State& st = sim.state;
@@ -72,23 +86,30 @@ int sweep_blades(Simulation& sim) {
   std::unique_ptr<TissueLocator> body;     // the reference configuration, made once, when a band may re-cut
   const double h = element_size(sim.model);
   double spacing = -1;
-  using Row = std::array<std::array<double, 3>, kSweepSegments + 1>;
   for (size_t i = 0; i < sim.scene.instruments.size() && i < sim.tools.size(); ++i) {
     const InstrumentSpec& spec = sim.scene.instruments[i];
     if (spec.kind != InstrumentSpec::Kind::Scalpel) continue;
     const ToolFrame& f = sim.tools[i];
-    std::array<std::array<double, 3>, kSweepSegments + 1> edge;  // samples in the tool frame
-    for (int j = 0; j <= kSweepSegments; ++j) {
-      const double w = static_cast<double>(j) / kSweepSegments;
-      for (int d = 0; d < 3; ++d) edge[j][d] = (1.0 - w) * spec.edge[0][d] + w * spec.edge[1][d];
+    if (spacing < 0) spacing = sweep_spacing(sim.mesh);
+    const int ns = edge_segments(spec, spacing);
+    double length = 0;
+    for (int d = 0; d < 3; ++d) length += (spec.edge[1][d] - spec.edge[0][d]) * (spec.edge[1][d] - spec.edge[0][d]);
+    length = std::sqrt(length);
+    // Samples along the edge in the tool frame: every `spacing` or finer
+    // (m + 1 of them), the band's ns + 1 among them (every r-th).
+    const int r = std::max(1, std::min(static_cast<int>(std::ceil(length / spacing / ns)), kMaxEdgeSamples / ns));
+    const int m = ns * r;
+    std::vector<Point> edge(m + 1);
+    for (int q = 0; q <= m; ++q) {
+      const double w = static_cast<double>(q) / m;
+      for (int d = 0; d < 3; ++d) edge[q][d] = (1.0 - w) * spec.edge[0][d] + w * spec.edge[1][d];
     }
-    double moved = 0, length = 0;
-    for (int j = 0; j <= kSweepSegments; ++j) {
-      const auto a = tool_to_world(f.before, edge[j]), b = tool_to_world(f.after, edge[j]);
+    double moved = 0;
+    for (int q = 0; q <= m; q += r) {
+      const auto a = tool_to_world(f.before, edge[q]), b = tool_to_world(f.after, edge[q]);
       moved = std::max(moved, std::sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) +
                                         (b[2] - a[2]) * (b[2] - a[2])));
     }
-    for (int d = 0; d < 3; ++d) length += (spec.edge[1][d] - spec.edge[0][d]) * (spec.edge[1][d] - spec.edge[0][d]);
     // A blade at rest (to roundoff: poses computed two ways from a
     // trajectory) sweeps no band, even where the tissue moves under it:
     // joined to the last band's row, mapped through the tissue before it
@@ -96,26 +117,30 @@ int sweep_blades(Simulation& sim) {
     // motion's, and the level set near the blade would take it (the layout
     // lost the incision's enriched nodes and the energy grew 1e6-fold; test
     // BladeSweep.AScalpelThatStopsAndGoesOnCutsAsIfItHadNot).
-    if (!(moved > 1e-9 * std::sqrt(length))) continue;
+    if (!(moved > 1e-9 * length)) continue;
     if (!locator) locator = std::make_unique<TissueLocator>(sim.model, st);
     // Edge samples in the world at the frame's start (row 0) and end (row
     // n), and in between every `spacing` of motion: a blade outside the
     // tissue at both ends of a frame may have passed through it (a thin
     // plate chopped at 1 m/s, an 8 cm organ at 4.5 m/s: nothing was cut).
-    if (spacing < 0) spacing = sweep_spacing(sim.model);
     const int n = std::clamp(static_cast<int>(std::ceil(moved / spacing)), 1, kMaxSweepSteps);
-    std::vector<Row> row(n + 1);
+    std::vector<Point> world(static_cast<size_t>(n + 1) * (m + 1));  // (n + 1, m + 1) samples in the world
+    std::vector<int> elem(world.size(), -1);                         // (n + 1, m + 1) the element holding each, or -1
     std::vector<char> in(n + 1, 0);
     for (int k = 0; k <= n; ++k) {
       const ToolPose pose = k == 0 ? f.before : k == n ? f.after : pose_between(f.before, f.after, double(k) / n);
-      for (int j = 0; j <= kSweepSegments; ++j) {
-        row[k][j] = tool_to_world(pose, edge[j]);
-        in[k] = in[k] || locator->inside(row[k][j].data());
+      for (int q = 0; q <= m; ++q) {
+        const size_t at = static_cast<size_t>(k) * (m + 1) + q;
+        world[at] = tool_to_world(pose, edge[q]);
+        elem[at] = locator->locate(world[at].data());
+        in[k] = in[k] || elem[at] >= 0;
       }
     }
     // The rows from the last one before the blade met the tissue to the
     // first one after it left, mapped to the reference configuration the
-    // tissue is in now (outside it extrapolated).
+    // tissue is in now: a sample in the tissue by the element holding it,
+    // one outside by that of the nearest sample in the tissue (on its row,
+    // else on the nearest row that has one), extrapolated.
     int k0 = 0;
     while (k0 <= n && !in[k0]) ++k0;
     if (k0 > n) continue;
@@ -123,11 +148,24 @@ int sweep_blades(Simulation& sim) {
     while (!in[k1]) --k1;
     k0 = std::max(0, k0 - 1);
     k1 = std::min(n, k1 + 1);
-    for (int k = k0; k <= k1; ++k)
-      for (int j = 0; j <= kSweepSegments; ++j) {
-        bool inside = false;
-        row[k][j] = locator->reference(row[k][j].data(), &inside);
+    std::vector<std::vector<Point>> row(n + 1);  // (n + 1) rows of ns + 1 band samples, reference coordinates
+    for (int k = k0; k <= k1; ++k) {
+      row[k].resize(ns + 1);
+      for (int j = 0; j <= ns; ++j) {
+        const int q = j * r;
+        int e = -1;
+        for (int dk = 0; e < 0 && dk <= n; ++dk)
+          for (const int kk : {k - dk, k + dk}) {
+            if (e >= 0 || kk < 0 || kk > n || !in[kk]) continue;
+            const int* at = &elem[static_cast<size_t>(kk) * (m + 1)];
+            for (int dq = 0; e < 0 && dq <= m; ++dq) {
+              if (q - dq >= 0 && at[q - dq] >= 0) e = at[q - dq];
+              else if (q + dq <= m && at[q + dq] >= 0) e = at[q + dq];
+            }
+          }
+        row[k][j] = locator->reference_by(e, world[static_cast<size_t>(k) * (m + 1) + q].data());
       }
+    }
     // Continue the last band where it ended, so the bands join without a
     // gap although the tissue moved in between: after a frame that swept
     // one when the edge is within an element of where it ended (it ended
@@ -137,11 +175,11 @@ int sweep_blades(Simulation& sim) {
     // it would otherwise leave a gap of that motion in the incision (7% of
     // an element in BladeSweep.AScalpelThatStops...), or an overlap.
     if (k0 == 0) {
-      Row prev;
-      const int prev_frame = last_edge(st, static_cast<int>(i), prev);
+      std::vector<Point> prev;
+      const int prev_frame = last_edge(st, static_cast<int>(i), ns, prev);
       if (prev_frame >= 0) {
         double far = 0;
-        for (int j = 0; j <= kSweepSegments; ++j) {
+        for (int j = 0; j <= ns; ++j) {
           double d2 = 0;
           for (int d = 0; d < 3; ++d) d2 += (prev[j][d] - row[0][j][d]) * (prev[j][d] - row[0][j][d]);
           far = std::max(far, std::sqrt(d2));
@@ -155,7 +193,7 @@ int sweep_blades(Simulation& sim) {
     // Triangle (a, b, c), as the nearest old facet faces where it continues
     // the incision in about its plane: (b, a, c) when it faced the other way
     // (the blade drawn back; last_edge reads the third corners).
-    const auto push = [&](const std::array<double, 3>& a, const std::array<double, 3>& b, const std::array<double, 3>& c) {
+    const auto push = [&](const Point& a, const Point& b, const Point& c) {
       bool flip = false;
       if (old) {
         const Eigen::Vector3d A(a.data()), B(b.data()), C(c.data()), n = (B - A).cross(C - A).normalized();
@@ -185,8 +223,8 @@ int sweep_blades(Simulation& sim) {
       bool any = false;
       for (int a = 0; a <= 2; ++a)
         for (int b = 0; b <= 4; ++b) {
-          const double s = 0.5 * a, t = 0.25 * b * kSweepSegments;
-          const int j = std::min(static_cast<int>(t), kSweepSegments - 1);
+          const double s = 0.5 * a, t = 0.25 * b * ns;
+          const int j = std::min(static_cast<int>(t), ns - 1);
           const double w = t - j;
           double x[3];
           for (int d = 0; d < 3; ++d)
@@ -206,11 +244,11 @@ int sweep_blades(Simulation& sim) {
       // A band of no area (the edge moved by roundoff, or along itself)
       // cuts nothing.
       bool flat = true;
-      for (int j = 0; j < kSweepSegments; ++j)
+      for (int j = 0; j < ns; ++j)
         flat = flat && degenerate_triangle(row[k][j].data(), row[k][j + 1].data(), row[k + 1][j + 1].data()) &&
                degenerate_triangle(row[k][j].data(), row[k + 1][j + 1].data(), row[k + 1][j].data());
       if (flat || recuts(k)) continue;
-      for (int j = 0; j < kSweepSegments; ++j) {
+      for (int j = 0; j < ns; ++j) {
         push(row[k][j], row[k][j + 1], row[k + 1][j + 1]);
         push(row[k][j], row[k + 1][j + 1], row[k + 1][j]);
       }

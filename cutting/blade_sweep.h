@@ -20,8 +20,32 @@ namespace incise {
 // Returns how many were added.
 int sweep_blades(Simulation& sim);
 
-// Edge segments sampled per frame: the band is (kSweepSegments) quads.
-inline constexpr int kSweepSegments = 2;
+// The band a scalpel sweeps in one motion step is a strip of quads along its
+// edge, one per segment: the edge is cut into segments of about two of the
+// smaller elements (four sweep_spacings), at least kMinEdgeSegments and at
+// most kMaxEdgeSegments, fixed for a run (edge_segments): samples in the
+// tissue map to reference coordinates by the element holding them, so the
+// band follows the tissue's deformation along the edge. Whether a step's
+// edge is in the tissue is asked finer, every sweep_spacing along it: three
+// samples (the ends and the middle) were the edge's only test, and an 8 cm
+// blade drawn through a 2 cm beam, or a 2 cm blade across a 3 mm sheet 6 mm
+// off its middle, cut nothing. (Each segment adds two facets a step to the
+// incision's surface, and the cut layout's queries scan them: eight
+// segments instead of two made organ_instruments' cut frames' layout 6 ->
+// 15 ms, docs/benchmarks.md "A scalpel's edge".)
+inline constexpr int kMinEdgeSegments = 2;
+inline constexpr int kMaxEdgeSegments = 8;
+// At most this many edge samples a motion step (the in-tissue test).
+inline constexpr int kMaxEdgeSamples = 256;
+
+// The step a frame's edge motion, and the edge itself, are sampled at: half
+// the size (cube root of the corner tetrahedron's volume) the smallest 5% of
+// the mesh's elements stay under, so thin tissue meshed one or two elements
+// thick is not stepped over. From the mesh as read, so that it (and
+// edge_segments) stays the same through a run's cuts.
+double sweep_spacing(const Mesh& mesh);
+// The band's segments along a scalpel's edge: about one per four spacings.
+int edge_segments(const InstrumentSpec& spec, double spacing);
 // A frame's motion is swept in steps of at most half the size of the
 // smaller elements (sweep_spacing), and at most this many: a blade that
 // passes through thin tissue within one frame, outside it at both ends,

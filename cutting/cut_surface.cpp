@@ -180,6 +180,16 @@ CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(st
   facets_.erase(std::remove_if(facets_.begin(), facets_.end(),
                                [](const Facet& f) { return !(vec(f.n).norm() > 0.5); }),
                 facets_.end());
+  centre_.assign(facets_.size(), Vec3{});
+  radius_.assign(facets_.size(), std::numeric_limits<double>::infinity());
+  for (size_t k = 0; k < facets_.size(); ++k) {
+    if (facets_[k].unbounded) continue;
+    const V c = (vec(facets_[k].v[0]) + vec(facets_[k].v[1]) + vec(facets_[k].v[2])) / 3.0;
+    double r = 0;
+    for (const Vec3& v : facets_[k].v) r = std::max(r, (vec(v) - c).norm());
+    centre_[k] = arr(c);
+    radius_[k] = r;
+  }
   std::vector<std::pair<std::array<Vec3, 2>, int>> edges;  // (sorted end points, 3 facet + edge)
   for (size_t k = 0; k < facets_.size(); ++k)
     for (int j = 0; j < 3 && !facets_[k].unbounded; ++j) {
@@ -254,11 +264,22 @@ double CutSurface::front_distance(const double x[3]) const {
   return psi;
 }
 
+// A lower bound of the distance from x to facet k's triangle, less a margin
+// far above the roundoff of triangle_distance, so that a facet it skips is
+// farther than the one compared with, to the last bit.
+double CutSurface::lower_bound(const double x[3], size_t k) const {
+  const V xv(x[0], x[1], x[2]), c = vec(centre_[k]);
+  const double d = (xv - c).norm();
+  // 1e-12 of the coordinates is far above 16 epsilon of them (roundoff()).
+  return d - radius_[k] - 1e-12 * (d + radius_[k] + xv.cwiseAbs().maxCoeff() + c.cwiseAbs().maxCoeff());
+}
+
 int CutSurface::nearest_facet(const double x[3]) const {
   int best = 0;
   double bd = 1e300;
   const V xv(x[0], x[1], x[2]);
   for (size_t k = 0; k < facets_.size(); ++k) {
+    if (lower_bound(x, k) > bd) continue;  // farther than the best so far: the scan would not take it
     const Facet& f = facets_[k];
     const double d = f.unbounded ? std::abs((xv - vec(f.p)).dot(vec(f.n)))
                                  : triangle_distance(xv, vec(f.v[0]), vec(f.v[1]), vec(f.v[2]));
@@ -318,9 +339,15 @@ double roundoff(const V& x, const Facet& f) {
 }  // namespace
 
 bool CutSurface::crosses_segment(const double a[3], const double b[3], double tol) const {
-  const V xa(a[0], a[1], a[2]), xb(b[0], b[1], b[2]);
-  for (const Facet& f : facets_) {
+  const V xa(a[0], a[1], a[2]), xb(b[0], b[1], b[2]), ab = xb - xa;
+  for (size_t k = 0; k < facets_.size(); ++k) {
+    const Facet& f = facets_[k];
     if (f.unbounded) return true;
+    // The crossing point y lies on a-b: skip a facet whose sphere is
+    // farther than tol from the whole segment.
+    const double t = ab.squaredNorm() > 0 ? std::clamp((vec(centre_[k]) - xa).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+    const V y0 = xa + t * ab;
+    if (lower_bound(y0.data(), k) > tol) continue;
     const V n = vec(f.n), p = vec(f.p);
     const double da = (xa - p).dot(n), db = (xb - p).dot(n);
     if ((da > 0 && db > 0) || (da < 0 && db < 0) || da == db) continue;
@@ -333,8 +360,12 @@ bool CutSurface::crosses_segment(const double a[3], const double b[3], double to
 bool CutSurface::covers(const double y[3], double tol) const {
   const V x(y[0], y[1], y[2]);
   tol *= 1.0 + slack_;
-  for (const Facet& f : facets_) {
+  for (size_t k = 0; k < facets_.size(); ++k) {
+    const Facet& f = facets_[k];
     if (f.unbounded) return true;
+    // Beyond what the test below takes (its roundoff() is at most this
+    // bound's 1e-12 margin; both are far below the tolerances used).
+    if (lower_bound(y, k) > tol) continue;
     if (triangle_distance(x, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(x, f)) return true;
   }
   return false;

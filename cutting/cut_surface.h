@@ -74,9 +74,18 @@ class CutSurface {
   // (Baerentzen and Aanaes, "Signed distance computation using the angle
   // weighted pseudonormal", IEEE TVCG 11(3), 2005).
   std::vector<std::array<Vec3, 3>> edge_normal_, corner_normal_;
+  // (facets) each facet's bounding sphere: centre (corner mean) and radius
+  // (infinite for the unbounded plane). |x - c| - r bounds the distance to
+  // the triangle from below, so the queries skip a facet that cannot be
+  // nearer than one already found (or within the tolerance) and return what
+  // the full scan would: a scalpel's surface has one band of 2 ns triangles
+  // per motion step (blade_sweep.h), hundreds after a long incision.
+  std::vector<Vec3> centre_;
+  std::vector<double> radius_;
   std::string name_;
   double slack_ = 0.0;
   int nearest_facet(const double x[3]) const;
+  double lower_bound(const double x[3], size_t k) const;
 };
 
 // Builds the surface of a scene cut at time t (a swept cut covers the part of

@@ -32,6 +32,48 @@ TissueLocator::TissueLocator(const Model& m, const double* u) : model_(&m) {
       hi_[d] = std::max(hi_[d], b[3 + d]);
     }
   }
+  if (nt == 0) return;
+  // About one cell per element (each box then meets a few): a scalpel's
+  // edge is asked every half element along it (blade_sweep.cpp), and a scan
+  // of every box for each sample cost O(elements).
+  const double ext[3] = {hi_[0] - lo_[0], hi_[1] - lo_[1], hi_[2] - lo_[2]};
+  const double side = std::cbrt(std::max(ext[0] * ext[1] * ext[2], 1e-300) / nt);
+  for (int d = 0; d < 3; ++d) {
+    dim_[d] = std::clamp(static_cast<int>(ext[d] / std::max(side, 1e-300)), 1, 256);
+    cell_[d] = ext[d] > 0 ? ext[d] / dim_[d] : 1.0;
+  }
+  const size_t ncell = static_cast<size_t>(dim_[0]) * dim_[1] * dim_[2];
+  std::vector<int> count(ncell + 1, 0);
+  const auto range = [&](const double* b, int d, int& i0, int& i1) {
+    i0 = std::clamp(static_cast<int>((b[d] - lo_[d]) / cell_[d]), 0, dim_[d] - 1);
+    i1 = std::clamp(static_cast<int>((b[3 + d] - lo_[d]) / cell_[d]), 0, dim_[d] - 1);
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    if (pass == 1) {
+      cell_ptr_.assign(ncell + 1, 0);
+      for (size_t c = 0; c < ncell; ++c) cell_ptr_[c + 1] = cell_ptr_[c] + count[c];
+      cell_elem_.resize(cell_ptr_[ncell]);
+      std::fill(count.begin(), count.end(), 0);
+    }
+    for (int e = 0; e < nt; ++e) {
+      const double* b = &box_[6 * static_cast<size_t>(e)];
+      int r[3][2];
+      for (int d = 0; d < 3; ++d) range(b, d, r[d][0], r[d][1]);
+      for (int i = r[0][0]; i <= r[0][1]; ++i)
+        for (int j = r[1][0]; j <= r[1][1]; ++j)
+          for (int k = r[2][0]; k <= r[2][1]; ++k) {
+            const size_t c = (static_cast<size_t>(k) * dim_[1] + j) * dim_[0] + i;
+            if (pass == 1) cell_elem_[cell_ptr_[c] + count[c]] = e;
+            ++count[c];
+          }
+    }
+  }
+}
+
+int TissueLocator::cell_of(const double x[3]) const {
+  int i[3];
+  for (int d = 0; d < 3; ++d) i[d] = std::clamp(static_cast<int>((x[d] - lo_[d]) / cell_[d]), 0, dim_[d] - 1);
+  return (i[2] * dim_[1] + i[1]) * dim_[0] + i[0];
 }
 
 // Barycentric coordinates of x in element e's deformed corner tetrahedron.
@@ -49,7 +91,13 @@ int TissueLocator::best_element(const double x[3], bool all, double& best_min, E
   int best = -1;
   best_min = -1e300;
   const int nt = static_cast<int>(box_.size() / 6);
-  for (int e = 0; e < nt; ++e) {
+  const bool in_box = x[0] >= lo_[0] && x[0] <= hi_[0] && x[1] >= lo_[1] && x[1] <= hi_[1] && x[2] >= lo_[2] &&
+                      x[2] <= hi_[2];
+  if (!all && (!in_box || cell_ptr_.empty())) return -1;
+  const int c = all ? 0 : cell_of(x);
+  const int n = all ? nt : cell_ptr_[c + 1] - cell_ptr_[c];
+  for (int k = 0; k < n; ++k) {
+    const int e = all ? k : cell_elem_[cell_ptr_[c] + k];
     const double* b = &box_[6 * static_cast<size_t>(e)];
     if (!all && !(x[0] >= b[0] && x[0] <= b[3] && x[1] >= b[1] && x[1] <= b[4] && x[2] >= b[2] && x[2] <= b[5]))
       continue;
@@ -64,12 +112,23 @@ int TissueLocator::best_element(const double x[3], bool all, double& best_min, E
   return best;
 }
 
-bool TissueLocator::inside(const double x[3]) const {
-  for (int d = 0; d < 3; ++d)
-    if (!(x[d] >= lo_[d] && x[d] <= hi_[d])) return false;
+bool TissueLocator::inside(const double x[3]) const { return locate(x) >= 0; }
+
+int TissueLocator::locate(const double x[3]) const {
   double mn;
   Eigen::Vector4d L;
-  return best_element(x, false, mn, L) >= 0 && mn >= -1e-9;
+  const int e = best_element(x, false, mn, L);
+  return e >= 0 && mn >= -1e-9 ? e : -1;
+}
+
+std::array<double, 3> TissueLocator::reference_by(int e, const double x[3]) const {
+  const Eigen::Vector4d L = barycentric(e, x);
+  const Model& m = *model_;
+  const int* nodes = &m.mesh.tet[static_cast<size_t>(e) * m.mesh.npe()];
+  std::array<double, 3> X{0.0, 0.0, 0.0};
+  for (int d = 0; d < 3; ++d)
+    for (int k = 0; k < 4; ++k) X[d] += L[k] * m.X[3 * nodes[k] + d];
+  return X;
 }
 
 std::array<double, 3> TissueLocator::reference(const double x[3], bool* inside) const {

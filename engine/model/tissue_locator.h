@@ -22,9 +22,11 @@ namespace incise {
 std::array<double, 3> reference_point(const Model& model, const State& state, const double x[3], bool* inside);
 
 // The same for many points of one configuration: the deformed corner
-// tetrahedra and their bounding boxes made once (O(elements)); a point
-// inside the tissue then tests only the elements whose box holds it, a
-// point outside all of them (its extrapolation).
+// tetrahedra, their bounding boxes and a uniform grid of those boxes made
+// once (O(elements)); a point then tests only the elements whose box
+// holds it (of its grid cell's), a point outside the tissue all of them
+// for its extrapolation (reference), or none with an element given
+// (reference_by).
 class TissueLocator {
  public:
   TissueLocator(const Model& model, const State& state) : TissueLocator(model, state.u.data()) {}
@@ -32,6 +34,11 @@ class TissueLocator {
   TissueLocator(const Model& model, const double* u);
   std::array<double, 3> reference(const double x[3], bool* inside) const;  // as reference_point
   bool inside(const double x[3]) const;  // whether x lies in the tissue (no mapping; cheap)
+  // The element whose deformed corner tetrahedron holds x (as reference
+  // picks it), or -1 outside the tissue.
+  int locate(const double x[3]) const;
+  // x mapped by element e's corner map (extrapolated when x is outside it).
+  std::array<double, 3> reference_by(int e, const double x[3]) const;
 
  private:
   Eigen::Vector4d barycentric(int e, const double x[3]) const;
@@ -40,6 +47,12 @@ class TissueLocator {
   std::vector<double> corners_;  // (ntet, 4, 3) deformed corner positions
   std::vector<double> box_;      // (ntet, 6) their bounding boxes (lo, hi), grown by 1e-6 of their size
   double lo_[3], hi_[3];         // the tissue's box
+  // Uniform grid over the tissue's box, about one cell per element: the
+  // elements whose box meets each cell, in element order (CSR).
+  int dim_[3] = {1, 1, 1};
+  double cell_[3] = {1, 1, 1};
+  std::vector<int> cell_ptr_, cell_elem_;
+  int cell_of(const double x[3]) const;
 };
 
 }  // namespace incise

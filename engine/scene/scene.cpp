@@ -162,6 +162,11 @@ class Parser {
 
   std::string string(const json& v, const std::string& where) const {
     if (!v.is_string()) fail(where, " must be a string, got " + describe(v));
+    // No field takes a NUL ("\u0000"): in a path the file system stops
+    // there, and "organ.msh\u0000.vtu" read organ.msh with an error that
+    // named neither the field nor the reason.
+    if (v.get_ref<const std::string&>().find('\0') != std::string::npos)
+      fail(where, " must not contain a NUL character (\\u0000), got " + show(v));
     return v.get<std::string>();
   }
 

@@ -79,7 +79,7 @@ TEST(BladeSweep, AScalpelDrivenThroughABlockSeparatesIt) {
   // outside it), each frame's motion in steps (kMaxSweepSteps).
   const std::set<double> band_frames(sim->state.swept_frame.begin(), sim->state.swept_frame.end());
   EXPECT_EQ(band_frames.size(), static_cast<size_t>(kFrames - 2));
-  EXPECT_EQ(sim->state.swept_tool.size() % (2 * kSweepSegments), 0u);
+  EXPECT_EQ(sim->state.swept_tool.size() % (2 * edge_segments(sim->scene.instruments[0], sweep_spacing(mesh))), 0u);
   EXPECT_GT(sim->model.cuts.n_enriched, 0);
   // Two bodies now: the layout of the swept surface on the uncut mesh.
   auto surface = make_swept_surface(sim->state.swept, sim->state.swept_tool, 0, "instruments[0]");
@@ -136,6 +136,41 @@ TEST(BladeSweep, ABladeThatPassesThroughThinTissueWithinAFrameCutsIt) {
   compute_cut_layout(build_model(mesh, scene), {surface.get()}, &report);
   EXPECT_EQ(report.bodies, 2) << "the plate is cut through";
   EXPECT_EQ(report.front_elements, 0);
+}
+
+// A blade whose edge is much longer than the tissue is thick cuts it
+// wherever along the edge the tissue lies. The edge was tested at its ends
+// and middle only: an 8 cm blade drawn through a 2 cm beam with its middle
+// above the beam, or a 2 cm blade across a 3 mm sheet 6 mm off its middle,
+// cut nothing (blade_sweep.h, edge_segments). Here the plate (0 <= z <=
+// 0.05) lies between the edge's end and middle (z -0.6, 1.4 and 3.4); the
+// blade is drawn along x across the plate's free half, through its whole
+// width.
+TEST(BladeSweep, AnEdgeWhoseEndsAndMiddleMissTheTissueStillCutsIt) {
+  const Mesh mesh = make_beam(2, 1, 0.05, 8, 4, 1, 2);
+  Scene scene = test::block_scene(2);
+  scene.gravity = {0, 0, 0};
+  scene.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  scene.instruments.push_back(edge_scalpel({4.0, 0.01, 0.1}, Vec3{0, 0, -0.6}, Vec3{0, 0, 3.4}));
+  auto sim = test::make_sim(mesh, scene);
+  ASSERT_GT(edge_segments(sim->scene.instruments[0], sweep_spacing(mesh)), 2);
+  // y from -0.3 to 1.3 over kFrames frames at x = 1.3.
+  sim->pipeline.set(kStageToolPoses, [](Simulation& s) {
+    const auto y = [](int f) { return -0.3 + 1.6 * std::min(f, kFrames) / kFrames; };
+    s.tools.resize(1);
+    s.tools[0].before.p = std::array<double, 3>{1.3, y(s.state.frame), 0.0};
+    s.tools[0].after.p = std::array<double, 3>{1.3, y(s.state.frame + 1), 0.0};
+  });
+  int cut_frames = 0;
+  for (int k = 0; k < kFrames + 2; ++k) cut_frames += advance_frame(*sim).cut_frame;
+  EXPECT_GT(cut_frames, 0);
+  auto surface = make_swept_surface(sim->state.swept, sim->state.swept_tool, 0, "instruments[0]");
+  ASSERT_TRUE(surface) << "the blade swept no band";
+  CutReport report;
+  compute_cut_layout(build_model(mesh, scene), {surface.get()}, &report);
+  EXPECT_EQ(report.bodies, 2) << "the plate is cut through";
+  EXPECT_EQ(report.front_elements, 0);
+  for (double v : sim->state.u) ASSERT_TRUE(std::isfinite(v));
 }
 
 // A blade drawn back out along its own incision, and cutting back and
@@ -241,7 +276,7 @@ TEST(BladeSweep, AScalpelThatStopsAndGoesOnCutsAsIfItHadNot) {
     // before-row point 0 is its first corner, the previous band's
     // after-row point 0 the last corner of its second triangle.
     const std::vector<double>& tri = sim->state.swept;
-    const int per_band = 2 * kSweepSegments, nb = static_cast<int>(tri.size() / 9) / per_band;
+    const int per_band = 2 * edge_segments(sim->scene.instruments[0], sweep_spacing(sim->mesh)), nb = static_cast<int>(tri.size() / 9) / per_band;
     for (int b = 1; b < nb; ++b) {
       const double* start = &tri[9 * static_cast<size_t>(b * per_band)];
       const double* end = &tri[9 * static_cast<size_t>((b - 1) * per_band + 1) + 6];

@@ -269,6 +269,15 @@ TEST_F(SceneTest, MissingMeshFile) {
                "mesh.file: required key is missing (expected a mesh file path string)");
 }
 
+// A NUL inside a path ended it where the file system reads it:
+// "m.vtu\u0000.x" read m.vtu, and an output.dir with one failed with an
+// error that named only the cut-off path.
+TEST_F(SceneTest, AStringWithANulCharacterIsRefusedNamingItsField) {
+  expect_error(R"({"mesh": {"file": "../meshes/m.vtu\u0000.x"}, "material": {"young": 1, "poisson": 0.3, "density": 1}})",
+               "mesh.file must not contain a NUL character (\\u0000), got \"../meshes/m.vtu\\u0000.x\"");
+  expect_error_contains(minimal(R"("output": {"dir": "out\u0000x"})"), "output.dir must not contain a NUL character");
+}
+
 TEST_F(SceneTest, MissingMeshSection) {
   expect_error(R"({"material": {"young": 1, "poisson": 0.3, "density": 1}})",
                "mesh: required key is missing (expected an object with file and order)");
