@@ -603,6 +603,33 @@ TEST_F(Cli, TheIncrementPredictorWithOneFrozenSolveIsWarnedAbout) {
   }
 }
 
+// Near-incompressible tissue cut under an iterative policy is warned about
+// (tools/cmd_summary.cpp: measured unstable on organ_instruments); the same
+// scene under the reference preset, or compressible, or without a cut, is not.
+TEST_F(Cli, ANearIncompressibleCutUnderTheRealtimePresetIsWarnedAbout) {
+  ASSERT_EQ(incise("mesh beam --size 4 1 1 --cells 4 1 1 --out " + path("beam.vtu")).code, 0);
+  const std::string cut = R"(, "cuts": [{"type": "plane", "point": [2, 0.5, 0.5], "normal": [1, 0, 0], "at_time": 0.0}])";
+  const auto scene = [&](const char* nu, const std::string& extra) {
+    write("scene.json", incise::test::beam_scene_json(
+                            2, std::string(R"("model": "corotated", "young": 1e5, "poisson": )") + nu + R"(, "density": 1)",
+                            R"(, "solver": {"preset": "realtime"})" + extra));
+  };
+  const std::string warning = "warning: near-incompressible tissue (material.poisson 0.49 >= 0.49) cut under solver.policy lagged";
+  scene("0.49", cut);
+  const Result r = incise("run " + path("scene.json") + " --frames 1");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find(warning), std::string::npos) << r.out;
+  const Result ref = incise("run " + path("scene.json") + " --frames 1 --set solver.preset=reference");
+  ASSERT_EQ(ref.code, 0) << ref.out;
+  EXPECT_EQ(ref.out.find("warning: near-incompressible"), std::string::npos) << ref.out;
+  scene("0.45", cut);
+  const Result soft = incise("run " + path("scene.json") + " --frames 1");
+  EXPECT_EQ(soft.out.find("warning: near-incompressible"), std::string::npos) << soft.out;
+  scene("0.49", "");
+  const Result uncut = incise("run " + path("scene.json") + " --frames 1");
+  EXPECT_EQ(uncut.out.find("warning: near-incompressible"), std::string::npos) << uncut.out;
+}
+
 TEST_F(Cli, SetErrorsNameThePatch) {
   cantilever_scene();
   Result r = incise("run " + path("scene.json") + " --frames 1 --set solver.policy=lagged2");
