@@ -448,12 +448,29 @@ void collision_stage(Simulation& sim) {
       if (!was_holding && cd.grasps[i].holding) cd.taken.push_back({sim.state.frame, static_cast<int>(i), cd.grasps[i].held});
       // A grasp that silently held nothing looked like a solver failure (the
       // tissue did not follow): say so once each time the jaws close on nothing.
-      if (cd.grasps[i].closed_empty && !was_empty)
-        std::fprintf(stderr,
-                     "warning: %s: %s closed its jaws at t = %g s with no tissue surface between them: it holds "
-                     "nothing (it takes tissue that comes between the closed jaws; to grasp, close them over the "
-                     "tissue, and slower if the jaws push it out while closing)\n",
-                     sim.scene.path.c_str(), instrument_label(spec).c_str(), sim.state.time + sim.model.dt);
+      // Jaws closed inside the tissue (a grasper started in it) meet no
+      // surface either; that message sent the user to close them over the
+      // tissue when they already were in it. No locator in scenes with cuts
+      // (an element's corner tetrahedron spans its cut's gap).
+      if (cd.grasps[i].closed_empty && !was_empty) {
+        bool inside = false;
+        if (!sim.model.has_cuts()) {
+          if (!locator) locator = std::make_unique<TissueLocator>(sim.model, sim.state);
+          inside = locator->inside(tf.after.p.data());
+        }
+        if (inside)
+          std::fprintf(stderr,
+                       "warning: %s: %s closed its jaws at t = %g s inside the tissue: it holds nothing (a grasper "
+                       "takes the tissue surface that comes between its closing jaws; start it outside the tissue and "
+                       "close it over the surface)\n",
+                       sim.scene.path.c_str(), instrument_label(spec).c_str(), sim.state.time + sim.model.dt);
+        else
+          std::fprintf(stderr,
+                       "warning: %s: %s closed its jaws at t = %g s with no tissue surface between them: it holds "
+                       "nothing (it takes tissue that comes between the closed jaws; to grasp, close them over the "
+                       "tissue, and slower if the jaws push it out while closing)\n",
+                       sim.scene.path.c_str(), instrument_label(spec).c_str(), sim.state.time + sim.model.dt);
+      }
       if (cd.grasps[i].holding) {
         add_grasp_rows(sim.state, cd.grasps[i], tf, sim.model.dt, static_cast<int>(i), surface, rows);
         continue;  // the jaws hold: no contact rows from them

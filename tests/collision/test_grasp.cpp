@@ -129,6 +129,42 @@ TEST(Grasp, JawsThatCloseOnNothingSayWhyNothingIsHeld) {
   EXPECT_TRUE(collision_data(*held)->grasps[0].holding);
 }
 
+// Jaws that close inside the tissue (a grasper started in it) take nothing
+// either, and the warning says where they are: it sent the user to close
+// them over the tissue when they already were in it.
+TEST(Grasp, JawsClosedInsideTheTissueSaySo) {
+  const Mesh mesh = test::tissue_block_mesh();  // 0.1 x 0.1 x 0.05
+  Scene scene = test::tissue_block_scene(3e5, 4.0);
+  InstrumentSpec g;
+  g.kind = InstrumentSpec::Kind::Grasper;
+  g.jaw_size = {0.01, 0.004, 0.02};
+  g.opening = 0.02;
+  g.contact = false;
+  g.json_path = "instruments[0]";
+  scene.instruments.push_back(g);
+  for (const double z : {0.025, 0.1}) {  // the block's middle; 5 cm above it
+    auto sim = test::make_sim(mesh, scene);
+    sim->tools.assign(1, ToolFrame{});
+    sim->pipeline.set(kStageToolPoses, [z](Simulation& s) {
+      for (ToolPose* p : {&s.tools[0].before, &s.tools[0].after}) {
+        p->p = {0.05, 0.05, z};
+        p->q = {std::sqrt(0.5), std::sqrt(0.5), 0.0, 0.0};
+      }
+      s.tools[0].before.jaw = std::min(1.0, s.state.time / 0.2);
+      s.tools[0].after.jaw = std::min(1.0, (s.state.time + s.model.dt) / 0.2);
+    });
+    install_collision_stage(*sim);
+    testing::internal::CaptureStderr();
+    while (sim->state.time < 0.3) advance_frame(*sim);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_FALSE(collision_data(*sim)->grasps[0].holding);
+    const bool inside = err.find("closed its jaws at t = 0.2 s inside the tissue: it holds nothing") != std::string::npos;
+    const bool above = err.find("with no tissue surface between them: it holds nothing") != std::string::npos;
+    EXPECT_EQ(inside, z < 0.05) << err;
+    EXPECT_EQ(above, z > 0.05) << err;
+  }
+}
+
 // A recovery step (State::recovery) is not taken in a frame with grasp rows
 // under a policy whose contact compliance comes from a factor of Newmark's
 // matrix (a dragged grasp under the realtime preset pulled 132 N instead of
