@@ -2,6 +2,7 @@
 #include "engine/mesh/mesh_tools.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -270,6 +271,23 @@ std::string format_quality(const MeshQuality& q) {
                 q.nnode, q.ntet, q.total_volume, q.min_volume, q.max_volume, q.min_dihedral_deg, q.worst_tet,
                 q.max_dihedral_deg);
   return buf;
+}
+
+CoincidentNodes coincident_nodes(const Mesh& m) {
+  std::vector<char> used(m.nnode(), 0);
+  for (int n : m.tet)
+    if (n >= 0 && n < m.nnode()) used[n] = 1;
+  std::vector<int> ids;
+  for (int i = 0; i < m.nnode(); ++i)
+    if (used[i]) ids.push_back(i);
+  const auto key = [&](int i) { return std::array<double, 3>{m.X[3 * i], m.X[3 * i + 1], m.X[3 * i + 2]}; };
+  std::sort(ids.begin(), ids.end(), [&](int i, int j) { return key(i) != key(j) ? key(i) < key(j) : i < j; });
+  CoincidentNodes c;
+  for (size_t k = 1; k < ids.size(); ++k)
+    if (key(ids[k]) == key(ids[k - 1])) {
+      if (c.count++ == 0) c.a = std::min(ids[k - 1], ids[k]), c.b = std::max(ids[k - 1], ids[k]);
+    }
+  return c;
 }
 
 void check_mesh(const Mesh& m) {

@@ -40,6 +40,18 @@ std::string format_quality(const MeshQuality& q);  // one human-readable block
 // "FILE:LINE: " and name the file's element id when the reader recorded them.
 void check_mesh(const Mesh& mesh);
 
+// Nodes used by elements that lie exactly where another used node lies: an
+// export that did not merge duplicate vertices leaves the elements on
+// either side unconnected there (the helper's beam came apart at x = 0.05,
+// silently). `count` such nodes (every node of a group but its first), the
+// first pair found (a < b), or count 0. A slit meshed on purpose
+// (cutting/conforming_slit.h) has them too.
+struct CoincidentNodes {
+  int count = 0;
+  int a = -1, b = -1;
+};
+CoincidentNodes coincident_nodes(const Mesh& mesh);
+
 // The barycentric points (L0..L3) where check_mesh() evaluates a tet10's
 // det J: its 4 corners, 6 mid-edge nodes, the 4-point stiffness rule
 // (cubature_tet4()), then the 27 volume points.

@@ -1,8 +1,11 @@
 #include "engine/runtime/simulation.h"
 
+#include <cstdio>
+
 #include "engine/dynamics/static_solve.h"
 #include "engine/dynamics/step.h"
 #include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
 #include "engine/runtime/failure_context.h"
 #include "engine/runtime/timing.h"
 #include "engine/util/error.h"
@@ -18,6 +21,13 @@ std::unique_ptr<Simulation> load_simulation(Scene scene) {
   auto sim = std::make_unique<Simulation>();
   sim->scene = std::move(scene);
   sim->mesh = read_mesh(sim->scene.mesh_file);
+  if (const CoincidentNodes c = coincident_nodes(sim->mesh); c.count > 0)
+    std::fprintf(stderr,
+                 "warning: %s: %d node(s) lie exactly where another node lies (first: nodes %d and %d at (%g, %g, %g)): "
+                 "the elements using one and those using the other are not connected there, as if the mesh were cut; "
+                 "merge duplicate vertices when exporting (unless the mesh models a slit on purpose)\n",
+                 sim->mesh.source.empty() ? sim->scene.mesh_file.c_str() : sim->mesh.source.c_str(), c.count, c.a, c.b,
+                 sim->mesh.X[3 * c.a], sim->mesh.X[3 * c.a + 1], sim->mesh.X[3 * c.a + 2]);
   sim->model = build_model(sim->mesh, sim->scene);
   sim->ws.runtime = sim->scene.runtime;
   init_state(sim->model, sim->state, sim->ws);

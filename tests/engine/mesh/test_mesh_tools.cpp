@@ -295,3 +295,34 @@ TEST(MeshTools, Tet10CheckPointsIncludeTheStiffnessRule) {
 
 }  // namespace
 }  // namespace incise
+
+namespace incise {
+namespace {
+
+// Duplicate vertices that an export did not merge leave the elements on
+// either side unconnected; load_simulation warns with what this finds.
+TEST(MeshTools, CoincidentNodesAreFoundOnlyWhereElementsUseThem) {
+  Mesh m = make_beam(1, 1, 1, 2, 1, 1, 1);
+  EXPECT_EQ(coincident_nodes(m).count, 0);
+  // A copy of node 1 at the end, used by the last element in its place, and
+  // an unused copy of node 2 (not counted: no element uses it).
+  const int n = m.nnode();
+  for (int src : {1, 2})
+    for (int d = 0; d < 3; ++d) m.X.push_back(m.X[3 * src + d]);
+  int replaced = 0;
+  for (int a = 0; a < 4; ++a) {
+    int& node = m.tet[m.tet.size() - 4 + a];
+    if (node == 1) node = n, ++replaced;
+  }
+  ASSERT_EQ(replaced, 1) << "the last element uses node 1";
+  bool other_uses_1 = false;
+  for (size_t k = 0; k + 4 < m.tet.size(); ++k) other_uses_1 = other_uses_1 || m.tet[k] == 1;
+  ASSERT_TRUE(other_uses_1);
+  const CoincidentNodes c = coincident_nodes(m);
+  EXPECT_EQ(c.count, 1);
+  EXPECT_EQ(c.a, 1);
+  EXPECT_EQ(c.b, n);
+}
+
+}  // namespace
+}  // namespace incise
