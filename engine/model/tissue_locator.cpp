@@ -7,6 +7,12 @@
 
 namespace incise {
 
+namespace {
+// floor(t) clamped to [0, n - 1]; NaN (a diverged state's coordinate) and
+// the infinities go to an end instead of an undefined cast.
+int clamped_index(double t, int n) { return t >= 0 ? (t < n ? static_cast<int>(t) : n - 1) : 0; }
+}  // namespace
+
 TissueLocator::TissueLocator(const Model& m, const double* u) : model_(&m) {
   const int npe = m.mesh.npe(), nt = m.mesh.ntet();
   corners_.resize(12 * static_cast<size_t>(nt));
@@ -39,14 +45,14 @@ TissueLocator::TissueLocator(const Model& m, const double* u) : model_(&m) {
   const double ext[3] = {hi_[0] - lo_[0], hi_[1] - lo_[1], hi_[2] - lo_[2]};
   const double side = std::cbrt(std::max(ext[0] * ext[1] * ext[2], 1e-300) / nt);
   for (int d = 0; d < 3; ++d) {
-    dim_[d] = std::clamp(static_cast<int>(ext[d] / std::max(side, 1e-300)), 1, 256);
+    dim_[d] = std::max(1, clamped_index(ext[d] / std::max(side, 1e-300), 257));  // 1..256
     cell_[d] = ext[d] > 0 ? ext[d] / dim_[d] : 1.0;
   }
   const size_t ncell = static_cast<size_t>(dim_[0]) * dim_[1] * dim_[2];
   std::vector<int> count(ncell + 1, 0);
   const auto range = [&](const double* b, int d, int& i0, int& i1) {
-    i0 = std::clamp(static_cast<int>((b[d] - lo_[d]) / cell_[d]), 0, dim_[d] - 1);
-    i1 = std::clamp(static_cast<int>((b[3 + d] - lo_[d]) / cell_[d]), 0, dim_[d] - 1);
+    i0 = clamped_index((b[d] - lo_[d]) / cell_[d], dim_[d]);
+    i1 = clamped_index((b[3 + d] - lo_[d]) / cell_[d], dim_[d]);
   };
   for (int pass = 0; pass < 2; ++pass) {
     if (pass == 1) {
@@ -72,7 +78,7 @@ TissueLocator::TissueLocator(const Model& m, const double* u) : model_(&m) {
 
 int TissueLocator::cell_of(const double x[3]) const {
   int i[3];
-  for (int d = 0; d < 3; ++d) i[d] = std::clamp(static_cast<int>((x[d] - lo_[d]) / cell_[d]), 0, dim_[d] - 1);
+  for (int d = 0; d < 3; ++d) i[d] = clamped_index((x[d] - lo_[d]) / cell_[d], dim_[d]);
   return (i[2] * dim_[1] + i[1]) * dim_[0] + i[0];
 }
 

@@ -21,14 +21,15 @@ std::unique_ptr<Simulation> load_simulation(Scene scene) {
   auto sim = std::make_unique<Simulation>();
   sim->scene = std::move(scene);
   sim->mesh = read_mesh(sim->scene.mesh_file);
+  sim->model = build_model(sim->mesh, sim->scene);  // (checks the mesh: no NaN reaches the sort below)
   if (const CoincidentNodes c = coincident_nodes(sim->mesh); c.count > 0)
     std::fprintf(stderr,
-                 "warning: %s: %d node(s) lie exactly where another node lies (first: nodes %d and %d at (%g, %g, %g)): "
-                 "the elements using one and those using the other are not connected there, as if the mesh were cut; "
-                 "merge duplicate vertices when exporting (unless the mesh models a slit on purpose)\n",
+                 "warning: %s: %d node(s) lie exactly where another node lies (first: nodes %d and %d, counted "
+                 "from 0, at (%g, %g, %g)): the elements using one and those using the other are not connected "
+                 "there, as if the mesh were cut; merge duplicate vertices when exporting (unless the mesh models "
+                 "a slit on purpose)\n",
                  sim->mesh.source.empty() ? sim->scene.mesh_file.c_str() : sim->mesh.source.c_str(), c.count, c.a, c.b,
                  sim->mesh.X[3 * c.a], sim->mesh.X[3 * c.a + 1], sim->mesh.X[3 * c.a + 2]);
-  sim->model = build_model(sim->mesh, sim->scene);
   sim->ws.runtime = sim->scene.runtime;
   init_state(sim->model, sim->state, sim->ws);
   if (sim->scene.initial_static) {
