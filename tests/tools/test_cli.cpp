@@ -134,6 +134,13 @@ TEST_F(Cli, TetrahedralizeFillsAClosedSurfaceAndRefusesAnOpenOne) {
   };
   const double sphere = 4.0 / 3.0 * M_PI * 0.05 * 0.05 * 0.05;
   EXPECT_NEAR(volume(m) / sphere, 1.0, 0.01);
+  // The 5120 triangles of the surface set the size when --size is coarser
+  // (0.05, the sphere's radius, asks for about 100 tetrahedra): a note says so.
+  const std::string finer = "TetGen keeps the surface's triangles and grades the inside from them";
+  EXPECT_EQ(r.out.find(finer), std::string::npos) << r.out;
+  const Result coarse = incise("mesh tetrahedralize " + path("sphere.stl") + " --size 0.05 --order 1 --out " + path("c.vtu"));
+  ASSERT_EQ(coarse.code, 0) << coarse.out;
+  EXPECT_NE(coarse.out.find(finer), std::string::npos) << coarse.out;
   write("sphere.obj", sphere_stl(false, true));  // OBJ goes through an OFF file
   const Result o = incise("mesh tetrahedralize " + path("sphere.obj") + " --size 0.01 --order 1 --out " + path("o4.vtu"));
   ASSERT_EQ(o.code, 0) << o.out;
