@@ -288,27 +288,34 @@ void check_probe_depth(const Simulation& sim, CollisionData& cd, size_t i, const
                kNarrowProbeRecipe);
 }
 
-// Whether sphere probe i's centre lies outside the tissue (the deformed
-// corner tetrahedra), asked when its query used the face rule (the centre
-// at or behind a face's plane). The face rule assumes the probe came
-// through that face into the tissue; a probe whose centre is not in the
-// tissue came through none: the faces behind its centre have folded round
-// it (a sphere pressed deeper than its radius), and the face rule pushed
-// them through it, below the sphere (a 1 cm sphere pressed 2 cm into
-// organ_10k: 167 inverted points, 30 N; geometric, they are pushed away
-// from it: none, 3.7 N held). Not for capsules (a shaft can be in the tissue
-// with its tip outside) and not in scenes with cuts (an element's corner
-// tetrahedron spans its cut's gap).
-// Whether probe i's tip centre lies in the tissue; `locator` is made on
-// first use in the frame (O(elements)) and serves the frame's other asks.
-bool centre_in_tissue(const Simulation& sim, const CollisionData& cd, size_t i,
-                      std::unique_ptr<TissueLocator>& locator) {
+// Whether world point x lies in the tissue (the deformed corner
+// tetrahedra); `locator` is made on first use in the frame (O(elements))
+// and serves the frame's other asks. False in scenes with cuts: an
+// element's corner tetrahedron spans its cut's gap.
+bool in_tissue(const Simulation& sim, const double x[3], std::unique_ptr<TissueLocator>& locator) {
+  if (sim.model.has_cuts()) return false;
   if (!locator) locator = std::make_unique<TissueLocator>(sim.model, sim.state);
-  const Eigen::Vector3d& c = cd.shapes[i].part[0].a;
-  const double x[3] = {c[0], c[1], c[2]};
   return locator->inside(x);
 }
 
+// Whether probe i's tip centre lies in the tissue (in_tissue).
+bool centre_in_tissue(const Simulation& sim, const CollisionData& cd, size_t i,
+                      std::unique_ptr<TissueLocator>& locator) {
+  const Eigen::Vector3d& c = cd.shapes[i].part[0].a;
+  const double x[3] = {c[0], c[1], c[2]};
+  return in_tissue(sim, x, locator);
+}
+
+// Whether sphere probe i's centre lies outside the tissue, asked when its
+// query used the face rule (the centre at or behind a face's plane). The
+// face rule assumes the probe came through that face into the tissue; a
+// probe whose centre is not in the tissue came through none: the faces
+// behind its centre have folded round it (a sphere pressed deeper than its
+// radius), and the face rule pushed them through it, below the sphere (a 1
+// cm sphere pressed 2 cm into organ_10k: 167 inverted points, 30 N;
+// geometric, they are pushed away from it: none, 3.7 N held). Not for
+// capsules (a shaft can be in the tissue with its tip outside) and not in
+// scenes with cuts.
 bool centre_outside_tissue(const Simulation& sim, const CollisionData& cd, size_t i,
                            std::unique_ptr<TissueLocator>& locator) {
   const ToolPart& part = cd.shapes[i].part[0];
@@ -450,15 +457,9 @@ void collision_stage(Simulation& sim) {
       // tissue did not follow): say so once each time the jaws close on nothing.
       // Jaws closed inside the tissue (a grasper started in it) meet no
       // surface either; that message sent the user to close them over the
-      // tissue when they already were in it. No locator in scenes with cuts
-      // (an element's corner tetrahedron spans its cut's gap).
+      // tissue when they already were in it (not told in scenes with cuts).
       if (cd.grasps[i].closed_empty && !was_empty) {
-        bool inside = false;
-        if (!sim.model.has_cuts()) {
-          if (!locator) locator = std::make_unique<TissueLocator>(sim.model, sim.state);
-          inside = locator->inside(tf.after.p.data());
-        }
-        if (inside)
+        if (in_tissue(sim, tf.after.p.data(), locator))
           std::fprintf(stderr,
                        "warning: %s: %s closed its jaws at t = %g s inside the tissue: it holds nothing (a grasper "
                        "takes the tissue surface that comes between its closing jaws; start it outside the tissue and "

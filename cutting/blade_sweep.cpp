@@ -72,10 +72,16 @@ double sweep_spacing(const Mesh& mesh) {
   return 0.5 * h[k];
 }
 
+namespace {
+double edge_length(const InstrumentSpec& spec) {
+  double l2 = 0;
+  for (int d = 0; d < 3; ++d) l2 += (spec.edge[1][d] - spec.edge[0][d]) * (spec.edge[1][d] - spec.edge[0][d]);
+  return std::sqrt(l2);
+}
+}  // namespace
+
 int edge_segments(const InstrumentSpec& spec, double spacing) {
-  double length = 0;
-  for (int d = 0; d < 3; ++d) length += (spec.edge[1][d] - spec.edge[0][d]) * (spec.edge[1][d] - spec.edge[0][d]);
-  const double s = std::ceil(std::sqrt(length) / (4.0 * spacing));
+  const double s = std::ceil(edge_length(spec) / (4.0 * spacing));
   return static_cast<int>(std::clamp(s, double(kMinEdgeSegments), double(kMaxEdgeSegments)));
 }
 
@@ -92,9 +98,7 @@ int sweep_blades(Simulation& sim) {
     const ToolFrame& f = sim.tools[i];
     if (spacing < 0) spacing = sweep_spacing(sim.mesh);
     const int ns = edge_segments(spec, spacing);
-    double length = 0;
-    for (int d = 0; d < 3; ++d) length += (spec.edge[1][d] - spec.edge[0][d]) * (spec.edge[1][d] - spec.edge[0][d]);
-    length = std::sqrt(length);
+    const double length = edge_length(spec);
     // Samples along the edge in the tool frame: every `spacing` or finer
     // (m + 1 of them), the band's ns + 1 among them (every r-th).
     const int r = std::max(1, std::min(static_cast<int>(std::ceil(length / spacing / ns)), kMaxEdgeSamples / ns));

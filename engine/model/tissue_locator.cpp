@@ -138,22 +138,15 @@ std::array<double, 3> TissueLocator::reference_by(int e, const double x[3]) cons
 }
 
 std::array<double, 3> TissueLocator::reference(const double x[3], bool* inside) const {
-  double mn = -1e300;
-  Eigen::Vector4d L(0.25, 0.25, 0.25, 0.25);
-  // Inside, the element holding x is among those whose box does; outside
-  // the nearest one (the extrapolation) may be any.
-  int best = best_element(x, false, mn, L);
-  if (best < 0 || mn < -1e-9) best = best_element(x, true, mn, L);
-  std::array<double, 3> X{x[0], x[1], x[2]};
-  *inside = best >= 0 && mn >= -1e-9;
-  if (best < 0) return X;
-  const Model& m = *model_;
-  const int* nodes = &m.mesh.tet[static_cast<size_t>(best) * m.mesh.npe()];
-  for (int d = 0; d < 3; ++d) {
-    X[d] = 0.0;
-    for (int k = 0; k < 4; ++k) X[d] += L[k] * m.X[3 * nodes[k] + d];
+  int e = locate(x);
+  *inside = e >= 0;
+  if (e < 0) {  // outside: the nearest element's map (the largest smallest coordinate), extrapolated
+    double mn;
+    Eigen::Vector4d L;
+    e = best_element(x, true, mn, L);
   }
-  return X;
+  if (e < 0) return {x[0], x[1], x[2]};
+  return reference_by(e, x);
 }
 
 std::array<double, 3> reference_point(const Model& m, const State& s, const double x[3], bool* inside) {
