@@ -29,7 +29,8 @@ void element_slots(const Model& m, AssemblyPlan& p) {
   }
   for (int e = 0; e < m.nelem; ++e) p.max_elem_nodes = std::max(p.max_elem_nodes, m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e]);
   p.slot_volume.assign(m.nrot, 0.0);
-  for (size_t q = 0; q < m.qp_rot.size(); ++q) p.slot_volume[m.qp_rot[q]] += m.qp_weight[q];
+  for (size_t q = 0; q < m.qp_rot.size(); ++q)
+    if (!m.qp_extension[q]) p.slot_volume[m.qp_rot[q]] += m.qp_weight[q];
 }
 
 // Block of each element: slabs of equal element count across the longest

@@ -30,7 +30,7 @@ struct AssemblyPlan {
   std::vector<char> qp_own_rot;   // (nqp) 1 where the point's rotation slot is its own (rotation_stiffness.h)
   std::vector<char> qp_slot_F;    // (nqp) 1 where the point's F is its slot's (one point, same gradients): computed once
   int max_elem_slots = 0;         // most rotation slots of one element
-  std::vector<double> slot_volume;  // (nrot) the volume of the slot's points (sum of their qp_weight)
+  std::vector<double> slot_volume;  // (nrot) the volume of the slot's points (sum of their qp_weight, extension points not)
   std::vector<double> slot_weight;  // (nrot) shared_slot_weights: > 0 where a shared slot gets the rotation term
   bool exact_rotation_term = false;  // the term unprojected (rotation_stiffness.h, `exact`): the static solve's Newton
   std::vector<char> elem_condensed;  // (nelem) 1 where every slot of the element has a rest stiffness (Model::rot_K0)

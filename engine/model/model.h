@@ -75,6 +75,10 @@ struct Model {
   std::vector<int> qp_grad_ptr;    // (nqp + 1) into qp_grad, 3 * (element's DOF nodes) each
   std::vector<double> qp_grad;     // dN_a/dX of the element's DOF nodes at the point
   std::vector<int> qp_rot;         // (nqp) rotation slot used by the point
+  // (nqp) 1: an extension point of a small piece (its field over the whole
+  // element, a small weight; model_build.cpp add_piece_extension): in the
+  // energy, forces and stiffness, not in the piece's volume.
+  std::vector<unsigned char> qp_extension;
 
   // Rotation slots: F = sum_a (X_a + u_a) (x) rot_grad_a (computed as I + sum_a u_a (x) rot_grad_a), R its rotation
   int nrot = 0;

@@ -123,6 +123,7 @@ void reserve_like_base(Model& m, const Model& base, std::vector<int>& slot_src) 
   room(m.qp_grad, base.qp_grad.size());
   room(m.qp_grad_ptr, base.qp_grad_ptr.size());
   room(m.qp_rot, base.qp_rot.size());
+  room(m.qp_extension, base.qp_extension.size());
   room(m.rot_elem, base.rot_elem.size());
   room(slot_src, base.rot_elem.size());
   room(m.rot_grad, base.rot_grad.size());
@@ -183,6 +184,7 @@ void copy_element_from_base(Model& m, const Model& B, int e, const std::vector<i
     m.qp_grad.insert(m.qp_grad.end(), B.qp_grad.begin() + B.qp_grad_ptr[q], B.qp_grad.begin() + B.qp_grad_ptr[q + 1]);
     m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
     m.qp_rot.push_back(B.qp_rot[q] + shift);
+    m.qp_extension.push_back(B.qp_extension[q]);
   }
   m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
   m.elem_volume[e] = B.elem_volume[e];
@@ -305,6 +307,7 @@ void add_piece_points(Model& m, const Cubature& cub0, int e, const PieceView& P,
         m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
       }
       m.qp_rot.push_back(point_rot ? static_cast<int>(m.rot_elem.size()) - 1 : slot);
+      m.qp_extension.push_back(0);
     }
   }
 }
@@ -329,6 +332,46 @@ void add_piece_rotation_gradients(Model& m, int q_first, bool split, const Piece
     m.rot_grad.insert(m.rot_grad.end(), w.gmask.begin(), w.gmask.end());
   }
   m.rot_grad_ptr.push_back(static_cast<int>(m.rot_grad.size()));
+}
+
+// A small piece of a tet10 element has modes its own points hardly see:
+// within a sliver of relative thickness delta, second-order combinations of
+// its DOFs (N_a ~ delta^2, grad N_a ~ delta) have stiffness ~ delta^2 of
+// their lumped mass (volume fraction times HRZ), so gravity and the body's
+// acceleration drove them as nearly free masses. A loop incision on
+// organ_10k passing 6e-4 h from three nodes had such DOFs at 20 m/s after
+// 2 s, until their points' rotations flipped and the tissue there flailed;
+// a cut 3e-2 h from them did the same (docs/cutting.md, "Small pieces").
+// So a piece below kStiffenBelow of its element also integrates its own
+// field over the whole element, at the element's 4 points with weight
+// kPieceStiffening times its volume fraction (full below half of
+// kStiffenBelow, to 0 at it), rotated with the piece: every mode keeps at
+// least that share of its mass as stiffness (an extension in the spirit of
+// CutFEM's ghost penalty). Rigid motions cost nothing; the pieces' own
+// points, volumes and rotations are unchanged. tet4 pieces (constant
+// gradients: a piece's stiffness is its share of the element's) need none.
+constexpr double kPieceStiffening = 0.1;
+constexpr double kStiffenBelow = 0.1;
+
+// The extension points of piece P (above), using rotation slot `slot`; none
+// for a large piece, a tet4 element or one with branch DOF nodes.
+void add_piece_extension(Model& m, const PieceView& P, int slot, ElementWork& w) {
+  const int npe = m.mesh.npe();
+  if (npe != 10 || !P.rst || !w.branch_j.empty()) return;
+  double fraction = 0.0;
+  for (int k = 0; k < P.nsub; ++k) fraction += 6.0 * subtet_ref_volume(P.rst + 12 * k);
+  const double weight = kPieceStiffening * fraction * std::clamp(2.0 * (kStiffenBelow - fraction) / kStiffenBelow, 0.0, 1.0);
+  if (!(weight > 0.0)) return;
+  const Cubature& cub = cubature_tet4();
+  for (int q = 0; q < cub.npoint(); ++q) {
+    const double detJ = shape_global_gradients(npe, w.Xe.data(), &cub.rst[3 * q], w.grad.data());
+    spread_gradients(npe, w.local, P, w.grad.data(), w.gmask);
+    m.qp_weight.push_back(weight * cub.weight[q] * detJ);
+    m.qp_grad.insert(m.qp_grad.end(), w.gmask.begin(), w.gmask.end());
+    m.qp_grad_ptr.push_back(static_cast<int>(m.qp_grad.size()));
+    m.qp_rot.push_back(slot);
+    m.qp_extension.push_back(1);
+  }
 }
 
 // Integrates element e (node ids `nodes`, DOF nodes in w.local): its pieces'
@@ -359,6 +402,7 @@ void integrate_element(Model& m, const Cubature& cub, bool per_point, int e, con
     const int slot = static_cast<int>(m.rot_elem.size()) - 1;
     add_piece_points(m, cub, e, P, point_rot, slot, w, slot_src);
     if (!point_rot) add_piece_rotation_gradients(m, q_first, split, P, gc, w);
+    if (split) add_piece_extension(m, P, slot, w);
   }
   m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
 }
