@@ -31,18 +31,19 @@ void print_model_summary(const Simulation& sim) {
       m.newton_iterations == 1 && m.material.poisson > 0.49)
     std::printf("  warning: undamped corotated tissue with nu > 0.49 and one linearised solve per step can gain\n"
                 "  energy at large dt; set material.rayleigh.stiffness (1e-4 s is enough) or more Newton iterations\n");
-  // Measured on organ_instruments (its probe and scalpel, 90 frames): under
-  // lagged, nu 0.49 with frozen_rotation, and 0.495 or 0.499 with either
-  // tangent, a cut piece turned ~3 rad a frame from the 60th frame on (up to
-  // 7000 inverted points, 377 N to 22 kN of contact force, or diverged);
-  // under the reference preset (exact) it held. docs/scene-format.md.
+  // Measured on organ_instruments (its probe and scalpel, 90 frames) under
+  // lagged, since small cut pieces integrate over their element
+  // (docs/cutting.md, "Small pieces"): nu 0.49-0.497 held with either
+  // tangent; 0.498 diverged (frozen_rotation) or reached 846 inverted points
+  // and 696 N of contact force (consistent), 0.499 up to 7265 and 1.4 kN.
+  // Under the reference preset (exact) 0.499 kept 1.3 N. docs/scene-format.md.
   bool cuts = !sim.scene.cuts.empty();
   for (const InstrumentSpec& ins : sim.scene.instruments) cuts = cuts || ins.kind == InstrumentSpec::Kind::Scalpel;
-  if (m.material.model == MaterialModel::Corotated && m.material.poisson >= 0.49 && cuts &&
+  if (m.material.model == MaterialModel::Corotated && m.material.poisson > 0.495 && cuts &&
       m.solver.policy != SolverPolicy::Exact)
-    std::printf("  warning: near-incompressible tissue (material.poisson %g >= 0.49) cut under solver.policy %s was\n"
-                "  measured unstable (cut pieces spinning, thousands of inverted points): use solver.preset \"reference\"\n"
-                "  for such scenes (docs/scene-format.md, \"Which keys to set\")\n",
+    std::printf("  warning: near-incompressible tissue (material.poisson %g > 0.495) cut under solver.policy %s was\n"
+                "  measured unstable from 0.498 (cut pieces spinning, hundreds of inverted points): use solver.preset\n"
+                "  \"reference\" for such scenes (docs/scene-format.md, \"Which keys to set\")\n",
                 m.material.poisson, policy_name(m.solver.policy));
   if (m.material.model == MaterialModel::Corotated && m.increment_predictor && !m.consistent_tangent &&
       !m.adaptive_newton())
