@@ -40,6 +40,7 @@ struct Model {
   bool consistent_tangent = false;  // integrator.tangent: add the rotation term (engine/fem/rotation_stiffness.h)
   bool increment_predictor = false;  // integrator.predictor "increment": Newton starts from State::du, not dt v
   double tangent_reuse = 0.0;       // integrator.tangent_reuse: F change below which element tangents are kept
+  double cut_stabilization = 0.1;   // scene cut_stabilization: weight of a small piece's extension points (qp_extension)
   SolverSettings solver;        // solver.* of the scene: policy, CG tolerance, threads
 
   // DOF nodes

@@ -112,6 +112,7 @@ struct ElementWork {
   std::vector<int> branch_j, branch_a, branch_k;
   std::vector<double> branch_F0;
   double node_phi[10] = {0}, node_psi[10] = {0}, N[10] = {0};
+  std::vector<char> anchored;  // (npiece of m.cuts) anchored_pieces: the pieces that may get extension points
 };
 
 // Reserves m's per-element arrays for about base's sizes: no regrowth copies
@@ -344,23 +345,41 @@ void add_piece_rotation_gradients(Model& m, int q_first, bool split, const Piece
 // a cut 3e-2 h from them did the same (docs/cutting.md, "Small pieces").
 // So a piece below kStiffenBelow of its element also integrates its own
 // field over the whole element, at the element's 4 points with weight
-// kPieceStiffening times its volume fraction (full below half of
-// kStiffenBelow, to 0 at it), rotated with the piece: every mode keeps at
-// least that share of its mass as stiffness (an extension in the spirit of
-// CutFEM's ghost penalty). Rigid motions cost nothing; the pieces' own
-// points, volumes and rotations are unchanged. tet4 pieces (constant
+// Model::cut_stabilization (scene cut_stabilization, 0.1) times its volume
+// fraction (full below half of kStiffenBelow, to 0 at it), rotated with the
+// piece: every mode keeps at least that share of its mass as stiffness (an
+// extension in the spirit of CutFEM's ghost penalty). Rigid motions cost
+// nothing; the pieces' own points, volumes and rotations are unchanged.
+// 0.01 left the loop incision at up to 17 m/s. tet4 pieces (constant
 // gradients: a piece's stiffness is its share of the element's) need none.
-constexpr double kPieceStiffening = 0.1;
 constexpr double kStiffenBelow = 0.1;
 
-// The extension points of piece P (above), using rotation slot `slot`; none
-// for a large piece, a tet4 element or one with branch DOF nodes.
-void add_piece_extension(Model& m, const PieceView& P, int slot, ElementWork& w) {
+// (npiece) 1 for the pieces of a body that holds a piece of at least
+// kStiffenBelow of its element (or a whole one): a body made of small
+// pieces only (a severed fragment) has no larger part its slivers' modes
+// could lag behind (gravity moves all its DOFs alike), and with extension
+// points such a free corner fragment turned 0.7 rad between Newton
+// iterations (0.04-0.1 without). Empty layout: none.
+std::vector<char> anchored_pieces(const CutLayout& L) {
+  const int np = L.npiece();
+  if (L.piece_body.size() != static_cast<size_t>(np)) return std::vector<char>(np, 1);
+  std::vector<char> body_large(L.bodies, 0);
+  for (int P = 0; P < np; ++P)
+    if (L.piece_fraction[P] >= kStiffenBelow) body_large[L.piece_body[P]] = 1;
+  std::vector<char> out(np);
+  for (int P = 0; P < np; ++P) out[P] = body_large[L.piece_body[P]];
+  return out;
+}
+
+// The extension points of piece P (above; layout piece `piece`), using
+// rotation slot `slot`; none for a large piece, a piece of a fragment
+// (anchored_pieces), a tet4 element or one with branch DOF nodes.
+void add_piece_extension(Model& m, const PieceView& P, int piece, int slot, ElementWork& w) {
   const int npe = m.mesh.npe();
-  if (npe != 10 || !P.rst || !w.branch_j.empty()) return;
+  if (npe != 10 || !P.rst || !w.branch_j.empty() || !w.anchored[piece]) return;
   double fraction = 0.0;
   for (int k = 0; k < P.nsub; ++k) fraction += 6.0 * subtet_ref_volume(P.rst + 12 * k);
-  const double weight = kPieceStiffening * fraction * std::clamp(2.0 * (kStiffenBelow - fraction) / kStiffenBelow, 0.0, 1.0);
+  const double weight = m.cut_stabilization * fraction * std::clamp(2.0 * (kStiffenBelow - fraction) / kStiffenBelow, 0.0, 1.0);
   if (!(weight > 0.0)) return;
   const Cubature& cub = cubature_tet4();
   for (int q = 0; q < cub.npoint(); ++q) {
@@ -396,13 +415,15 @@ void integrate_element(Model& m, const Cubature& cub, bool per_point, int e, con
     const double mid[3] = {0.25, 0.25, 0.25};
     shape_global_gradients(4, Xc, mid, gc);
   }
-  for (const PieceView& P : pieces) {
+  const int piece0 = m.has_cuts() ? m.cuts.elem_piece_ptr[e] : 0;
+  for (size_t k = 0; k < pieces.size(); ++k) {
+    const PieceView& P = pieces[k];
     const int q_first = static_cast<int>(m.qp_weight.size());
     if (!point_rot) m.rot_elem.push_back(e), slot_src.push_back(-1);  // the piece's slot; gradients below
     const int slot = static_cast<int>(m.rot_elem.size()) - 1;
     add_piece_points(m, cub, e, P, point_rot, slot, w, slot_src);
     if (!point_rot) add_piece_rotation_gradients(m, q_first, split, P, gc, w);
-    if (split) add_piece_extension(m, P, slot, w);
+    if (split) add_piece_extension(m, P, piece0 + static_cast<int>(k), slot, w);
   }
   m.elem_qp_ptr.push_back(static_cast<int>(m.qp_weight.size()));
 }
@@ -435,11 +456,24 @@ void build_elements(Model& m, const Scene& scene, const Model* base, std::vector
   slot_src.clear();
   const std::vector<int> base_slot = base ? element_slot_ptr(*base) : std::vector<int>{};
   if (base) reserve_like_base(m, *base, slot_src);
+  w.anchored = anchored_pieces(m.cuts);
+  // An element copied from base must have had the same extension points:
+  // its pieces the same and each as anchored (a fragment severed since
+  // loses them).
+  const std::vector<char> base_anchored = base ? anchored_pieces(base->cuts) : std::vector<char>{};
+  const auto same_anchoring = [&](int e) {
+    if (!m.has_cuts() || !m.cuts.elem_split[e]) return true;  // no extension points
+    if (!base->has_cuts()) return false;
+    const int p0 = m.cuts.elem_piece_ptr[e], b0 = base->cuts.elem_piece_ptr[e];
+    for (int k = 0; k < m.cuts.elem_piece_ptr[e + 1] - p0; ++k)
+      if (w.anchored[p0 + k] != base_anchored[b0 + k]) return false;
+    return true;
+  };
   for (int e = 0; e < m.nelem; ++e) {
     const int* nodes = &mesh.tet[static_cast<size_t>(e) * npe];
     const std::vector<PieceView> pieces = pieces_of(m, e);
     add_element_dof_nodes(m, nodes, pieces, w.local);
-    if (base && same_pieces(m, *base, e)) copy_element_from_base(m, *base, e, base_slot, slot_src);
+    if (base && same_pieces(m, *base, e) && same_anchoring(e)) copy_element_from_base(m, *base, e, base_slot, slot_src);
     else integrate_element(m, cub, per_point, e, nodes, pieces, w, slot_src);
   }
   m.nrot = static_cast<int>(m.rot_elem.size());
@@ -1244,6 +1278,7 @@ Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts
   m.consistent_tangent = scene.consistent_tangent;
   m.increment_predictor = scene.increment_predictor;
   m.tangent_reuse = scene.tangent_reuse;
+  m.cut_stabilization = scene.cut_stabilization;
   if (!(m.newmark_gamma >= 0.5 && m.newmark_beta >= 0.5 * m.newmark_gamma))
     throw Error(scene.path + ": integrator: newmark_gamma must be >= 0.5 and newmark_beta >= newmark_gamma / 2 (got " +
                 std::to_string(m.newmark_gamma) + ", " + std::to_string(m.newmark_beta) + ")");

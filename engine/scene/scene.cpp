@@ -961,8 +961,8 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   p.set_trajectories_needed(trajectories_needed);
   p.allowed_keys(root, "",
                  {"mesh", "material", "mass", "gravity", "fixed", "prescribed", "integrator",
-                  "solver", "static", "run", "output", "cuts", "cut_front", "render", "instruments", "contact", "haptics",
-                  "initial"});
+                  "solver", "static", "run", "output", "cuts", "cut_front", "cut_stabilization", "render", "instruments",
+                  "contact", "haptics", "initial"});
 
   Scene s;
   s.path = path;
@@ -1009,6 +1009,11 @@ Scene parse_scene(const std::string& json_text, const std::string& path, const s
   if (auto it = root.find("initial"); it != root.end()) s.initial_static = p.choice(*it, "initial", {"rest", "static"}) == 1;
   if (auto it = root.find("cut_front"); it != root.end())
     s.front_enrichment = p.choice(*it, "cut_front", {"faces", "enriched"}) == 1;
+  if (auto it = root.find("cut_stabilization"); it != root.end()) {
+    s.cut_stabilization = p.nonnegative(*it, "cut_stabilization");
+    if (!(s.cut_stabilization <= 1.0))
+      p.fail("cut_stabilization", " must be in [0, 1] (the weight of a small cut piece's field over its element; 0 = off), got " + show(*it));
+  }
   if (auto it = root.find("run"); it != root.end()) parse_run(p, *it, s);
   if (auto it = root.find("output"); it != root.end()) parse_output(p, *it, s);
   if (auto it = root.find("cuts"); it != root.end()) parse_cuts(p, *it, s);

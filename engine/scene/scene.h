@@ -338,6 +338,11 @@ struct Scene {
   // is complete; a scalpel's incision keeps its front on faces
   // (cutting/cut_apply.cpp prepare_cut, docs/cutting.md).
   bool front_enrichment = false;
+  // cut_stabilization: a piece under 10% of its tet10 element also
+  // integrates its field over the whole element with this weight times its
+  // volume fraction (engine/model/model_build.cpp add_piece_extension,
+  // docs/cutting.md "Small pieces"); 0 = off.
+  double cut_stabilization = 0.1;
   std::vector<InstrumentSpec> instruments;
   ContactSettings contact;
   HapticsSpec haptics;

@@ -523,8 +523,9 @@ TEST(HardCases, AStaticSolveWithASlitBesideANodeLayerConverges) {
 // the beam swings at a fraction of that, until the sliver's rotations
 // flipped (the loop incision on organ_10k, docs/cutting.md "Small pieces").
 // A small piece now also integrates its field over its whole element with a
-// small weight (model_build.cpp, add_piece_extension): every DOF node stays
-// within 3x the mesh nodes' largest speed.
+// small weight (model_build.cpp, add_piece_extension; scene
+// cut_stabilization): every DOF node stays within 3x the mesh nodes' largest
+// speed. With cut_stabilization 0 the sliver's DOFs fall again.
 TEST(HardCases, ASliverBesideANodeLayerDoesNotFallThroughTheBeam) {
   Scene s = test::block_scene(2);
   s.material.young = 1e5;
@@ -534,8 +535,9 @@ TEST(HardCases, ASliverBesideANodeLayerDoesNotFallThroughTheBeam) {
   s.material.rayleigh_stiffness = 0.002;
   s.fixed.push_back(box({-1, -1, -1}, {1e-9, 1, 1}));
   const Mesh beam = make_beam(0.1, 0.02, 0.02, 10, 2, 2, 1);
-  for (const double offset : {1e-6, 1e-3, 2e-2}) {
-    const double x = 0.05 + offset * 0.01;
+  for (const double offset : {1e-3, 2e-2, -1e-3}) {
+    s.cut_stabilization = offset < 0 ? 0.0 : 0.1;  // the last: 1e-3 h, without the extension
+    const double x = 0.05 + std::abs(offset) * 0.01;
     CutSpec slit;
     slit.type = CutSpec::Type::Polygon;
     slit.points = {{x, -1, 0.01}, {x, 1, 0.01}, {x, 1, 1}, {x, -1, 1}};
@@ -549,16 +551,68 @@ TEST(HardCases, ASliverBesideANodeLayerDoesNotFallThroughTheBeam) {
     for (int f = 0; f < 60; ++f) {
       ASSERT_NO_THROW(step(m, sim->state, sim->ws)) << "offset " << offset << " h, frame " << f;
       for (int q = 0; q < m.ndofnode; ++q) {
-        const double speed = std::hypot(sim->state.v[3 * q], sim->state.v[3 * q + 1], sim->state.v[3 * q + 2]);
-        (q < m.nnode ? mesh_max : enriched_max) = std::max(q < m.nnode ? mesh_max : enriched_max, speed);
+        double& top = q < m.nnode ? mesh_max : enriched_max;
+        top = std::max(top, std::hypot(sim->state.v[3 * q], sim->state.v[3 * q + 1], sim->state.v[3 * q + 2]));
       }
     }
-    std::printf("offset %g h: largest speed of a mesh node %.3g m/s, of an enriched DOF node %.3g m/s, %d inverted\n",
-                offset, mesh_max, enriched_max, sim->ws.timing.inverted_points);
+    std::printf("offset %g h, cut_stabilization %g: largest speed of a mesh node %.3g m/s, of an enriched DOF node "
+                "%.3g m/s, %d inverted\n",
+                std::abs(offset), s.cut_stabilization, mesh_max, enriched_max, sim->ws.timing.inverted_points);
     EXPECT_GT(mesh_max, 0.05) << "offset " << offset << " h: the beam swings";
+    if (offset < 0) {
+      EXPECT_GT(enriched_max, 5.0) << "without the extension the sliver's DOFs fell (14 m/s when measured)";
+      continue;
+    }
     EXPECT_LT(enriched_max, 3.0 * mesh_max) << "offset " << offset << " h";
     EXPECT_EQ(sim->ws.timing.inverted_points, 0) << "offset " << offset << " h";
   }
+}
+
+// Which pieces get extension points: the slivers of a slit beside a node
+// layer (attached to the beam) do; a severed corner fragment, all of whose
+// pieces are small, does not (gravity moves all its DOFs alike; with
+// extension points such a free fragment turned 0.7 rad between Newton
+// iterations, against 0.04-0.1 without: docs/benchmarks.md, "A sliver's
+// modes"); and none without cut_stabilization.
+TEST(HardCases, OnlyAttachedSmallPiecesGetExtensionPoints) {
+  const auto extension_points = [](const Model& m, int body) {
+    int n = 0;
+    for (size_t q = 0; q < m.qp_extension.size(); ++q)
+      n += m.qp_extension[q] && (body < 0 || m.rot_body.empty() || m.rot_body[m.qp_rot[q]] == body);
+    return n;
+  };
+  Scene s = test::block_scene(2);
+  s.fixed.push_back(box({-1, -1, -1}, {1e-9, 1, 1}));
+  CutSpec slit;
+  slit.type = CutSpec::Type::Polygon;
+  slit.points = {{0.05001, -1, 0.01}, {0.05001, 1, 0.01}, {0.05001, 1, 1}, {0.05001, -1, 1}};
+  slit.json_path = "cuts[0]";
+  s.cuts = {slit};
+  const Mesh beam = make_beam(0.1, 0.02, 0.02, 10, 2, 2, 1);
+  {
+    auto sim = test::make_sim(beam, s);
+    apply_all_cuts(*sim);
+    EXPECT_EQ(sim->model.nbody, 1);
+    EXPECT_GT(extension_points(sim->model, -1), 0) << "the slit's slivers";
+  }
+  s.cut_stabilization = 0.0;
+  {
+    auto sim = test::make_sim(beam, s);
+    apply_all_cuts(*sim);
+    EXPECT_EQ(extension_points(sim->model, -1), 0) << "cut_stabilization 0";
+  }
+  s.cut_stabilization = 0.1;
+  s.cuts = {test::plane_cut({0.1 - 0.0004, 0.02, 0.02}, {1, 1, 1})};  // a corner tip 2e-4 h^3 in volume
+  auto sim = test::make_sim(beam, s);
+  apply_all_cuts(*sim);
+  const Model& m = sim->model;
+  ASSERT_EQ(m.nbody, 2);
+  std::vector<double> vol(2, 0.0);  // of each body: the tip is the small one
+  for (size_t q = 0; q < m.qp_weight.size(); ++q)
+    if (!m.qp_extension[q]) vol[m.rot_body[m.qp_rot[q]]] += m.qp_weight[q];
+  const int tip_body = vol[0] < vol[1] ? 0 : 1;
+  EXPECT_LT(vol[tip_body], 1e-3 * vol[1 - tip_body]);
+  EXPECT_EQ(extension_points(m, tip_body), 0) << "the fragment";
 }
 
 TEST(HardCases, MillimetresAndMetresGiveTheSameDimensionlessResult) {

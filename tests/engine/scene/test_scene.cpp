@@ -398,8 +398,18 @@ TEST_F(SceneTest, SolverSettingsChecked) {
 TEST_F(SceneTest, UnknownTopLevelKey) {
   expect_error(minimal(R"("materal": {})"),
                "materal: unknown key; allowed: mesh, material, mass, gravity, fixed, "
-               "prescribed, integrator, solver, static, run, output, cuts, cut_front, render, instruments, contact, haptics, initial; did you mean "
+               "prescribed, integrator, solver, static, run, output, cuts, cut_front, cut_stabilization, render, instruments, contact, "
+               "haptics, initial; did you mean "
                "\"material\"?");
+}
+
+TEST_F(SceneTest, CutStabilizationIsAWeightFromZeroToOne) {
+  EXPECT_DOUBLE_EQ(parse_scene(minimal(), scene_path_).cut_stabilization, 0.1);
+  EXPECT_DOUBLE_EQ(parse_scene(minimal(R"("cut_stabilization": 0)"), scene_path_).cut_stabilization, 0.0);
+  expect_error(minimal(R"("cut_stabilization": 1.5)"),
+               "cut_stabilization must be in [0, 1] (the weight of a small cut piece's field over its element; 0 = off), "
+               "got 1.5");
+  expect_error_contains(minimal(R"("cut_stabilization": -0.1)"), "cut_stabilization");
 }
 
 TEST_F(SceneTest, InitialIsRestOrStatic) {
