@@ -470,6 +470,25 @@ TEST(HardCases, AThinSlabCutOffASwingingBeamStaysBounded) {
   }
 }
 
+// The slit tests' beam: 0.1 x 0.02 x 0.02 m, 10 x 2 x 2 tet10 cells (h =
+// 0.01), E 1e5, nu 0.45, rho 1000, clamped at x = 0; and a slit at x
+// through its top half (z >= 0.01).
+Scene slit_beam_scene() {
+  Scene s = test::block_scene(2);
+  s.material.young = 1e5;
+  s.material.poisson = 0.45;
+  s.material.density = 1000.0;
+  s.fixed.push_back(box({-1, -1, -1}, {1e-9, 1, 1}));
+  return s;
+}
+CutSpec top_half_slit(double x) {
+  CutSpec slit;
+  slit.type = CutSpec::Type::Polygon;
+  slit.points = {{x, -1, 0.01}, {x, 1, 0.01}, {x, 1, 1}, {x, -1, 1}};
+  slit.json_path = "cuts[0]";
+  return slit;
+}
+
 // The static solve of the bundled beam_cut beam (E = 1e5 Pa, lumped mass)
 // with its top half slit by a plane 1e-12..1e-4 h past a node layer (x =
 // 0.05, h = 0.01 m). The sliver between the layer and the cut gives the far
@@ -480,20 +499,11 @@ TEST(HardCases, AThinSlabCutOffASwingingBeamStaysBounded) {
 // singular tangent's enriched diagonals are raised by 1e-10: every offset
 // converges, and the mesh nodes' displacements are continuous in the offset.
 TEST(HardCases, AStaticSolveWithASlitBesideANodeLayerConverges) {
-  Scene s = test::block_scene(2);
-  s.material.young = 1e5;
-  s.material.poisson = 0.45;
-  s.material.density = 1000.0;
-  s.fixed.push_back(box({-1, -1, -1}, {1e-9, 1, 1}));
+  Scene s = slit_beam_scene();
   const Mesh beam = make_beam(0.1, 0.02, 0.02, 10, 2, 2, 1);
   std::vector<double> reference;  // at 1e-7 h
   for (const double offset : {1e-7, 1e-4, 1e-10, 1e-12}) {
-    const double x = 0.05 + offset * 0.01;
-    CutSpec slit;
-    slit.type = CutSpec::Type::Polygon;
-    slit.points = {{x, -1, 0.01}, {x, 1, 0.01}, {x, 1, 1}, {x, -1, 1}};
-    slit.json_path = "cuts[0]";
-    s.cuts = {slit};
+    s.cuts = {top_half_slit(0.05 + offset * 0.01)};
     auto sim = test::make_sim(beam, s);
     apply_all_cuts(*sim);
     ASSERT_GT(sim->model.ndofnode, sim->model.nnode);
@@ -527,22 +537,13 @@ TEST(HardCases, AStaticSolveWithASlitBesideANodeLayerConverges) {
 // cut_stabilization): every DOF node stays within 3x the mesh nodes' largest
 // speed. With cut_stabilization 0 the sliver's DOFs fall again.
 TEST(HardCases, ASliverBesideANodeLayerDoesNotFallThroughTheBeam) {
-  Scene s = test::block_scene(2);
-  s.material.young = 1e5;
-  s.material.poisson = 0.45;
-  s.material.density = 1000.0;
+  Scene s = slit_beam_scene();
   s.material.rayleigh_mass = 1.0;
   s.material.rayleigh_stiffness = 0.002;
-  s.fixed.push_back(box({-1, -1, -1}, {1e-9, 1, 1}));
   const Mesh beam = make_beam(0.1, 0.02, 0.02, 10, 2, 2, 1);
   for (const double offset : {1e-3, 2e-2, -1e-3}) {
     s.cut_stabilization = offset < 0 ? 0.0 : 0.1;  // the last: 1e-3 h, without the extension
-    const double x = 0.05 + std::abs(offset) * 0.01;
-    CutSpec slit;
-    slit.type = CutSpec::Type::Polygon;
-    slit.points = {{x, -1, 0.01}, {x, 1, 0.01}, {x, 1, 1}, {x, -1, 1}};
-    slit.json_path = "cuts[0]";
-    s.cuts = {slit};
+    s.cuts = {top_half_slit(0.05 + std::abs(offset) * 0.01)};
     auto sim = test::make_sim(beam, s);
     apply_all_cuts(*sim);
     const Model& m = sim->model;
@@ -581,13 +582,8 @@ TEST(HardCases, OnlyAttachedSmallPiecesGetExtensionPoints) {
       n += m.qp_extension[q] && (body < 0 || m.rot_body.empty() || m.rot_body[m.qp_rot[q]] == body);
     return n;
   };
-  Scene s = test::block_scene(2);
-  s.fixed.push_back(box({-1, -1, -1}, {1e-9, 1, 1}));
-  CutSpec slit;
-  slit.type = CutSpec::Type::Polygon;
-  slit.points = {{0.05001, -1, 0.01}, {0.05001, 1, 0.01}, {0.05001, 1, 1}, {0.05001, -1, 1}};
-  slit.json_path = "cuts[0]";
-  s.cuts = {slit};
+  Scene s = slit_beam_scene();
+  s.cuts = {top_half_slit(0.05001)};  // 1e-3 h beside the layer x = 0.05
   const Mesh beam = make_beam(0.1, 0.02, 0.02, 10, 2, 2, 1);
   {
     auto sim = test::make_sim(beam, s);
