@@ -359,7 +359,7 @@ constexpr double kStiffenBelow = 0.1;
 // pieces only (a severed fragment) has no larger part its slivers' modes
 // could lag behind (gravity moves all its DOFs alike), and with extension
 // points such a free corner fragment turned 0.7 rad between Newton
-// iterations (0.04-0.1 without). Empty layout: none.
+// iterations (0.04-0.1 without). Without body labels (one body): all.
 std::vector<char> anchored_pieces(const CutLayout& L) {
   const int np = L.npiece();
   if (L.piece_body.size() != static_cast<size_t>(np)) return std::vector<char>(np, 1);
