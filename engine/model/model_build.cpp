@@ -377,8 +377,7 @@ std::vector<char> anchored_pieces(const CutLayout& L) {
 void add_piece_extension(Model& m, const PieceView& P, int piece, int slot, ElementWork& w) {
   const int npe = m.mesh.npe();
   if (npe != 10 || !P.rst || !w.branch_j.empty() || !w.anchored[piece]) return;
-  double fraction = 0.0;
-  for (int k = 0; k < P.nsub; ++k) fraction += 6.0 * subtet_ref_volume(P.rst + 12 * k);
+  const double fraction = m.cuts.piece_fraction[piece];  // as anchored_pieces reads it
   const double weight = m.cut_stabilization * fraction * std::clamp(2.0 * (kStiffenBelow - fraction) / kStiffenBelow, 0.0, 1.0);
   if (!(weight > 0.0)) return;
   const Cubature& cub = cubature_tet4();

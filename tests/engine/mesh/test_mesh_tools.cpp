@@ -293,12 +293,6 @@ TEST(MeshTools, Tet10CheckPointsIncludeTheStiffnessRule) {
   }
 }
 
-}  // namespace
-}  // namespace incise
-
-namespace incise {
-namespace {
-
 // Duplicate vertices that an export did not merge leave the elements on
 // either side unconnected; load_simulation warns with what this finds.
 TEST(MeshTools, CoincidentNodesAreFoundOnlyWhereElementsUseThem) {
