@@ -393,11 +393,32 @@ int lcp_round(const Model& m, Workspace& ws, const std::vector<double>& Wsolve, 
   }
   const int sweeps = projected_gauss_seidel(c, Wsolve, b, lambda, c.max_sweeps, 1e-12 * ws.contact_scale);
   polish_active_set(c, Wsolve, b, lambda);
-  for (int i = 0; i < r; ++i) {
-    const double dl = lambda[i] - c.lambda[i];
-    if (dl == 0.0) continue;
-    const double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
-    for (int d = 0; d < n; ++d) ws.delta[d] += dl * y[d];
+  if (ws.contact_half) {  // Delta += P^-1 H^T dlambda: one solve
+    std::vector<double>& g = ws.contact_g;
+    std::vector<double>& y = ws.contact_gy;
+    g.assign(n, 0.0);
+    y.resize(n);
+    bool any = false;
+    for (int i = 0; i < r; ++i) {
+      const double dl = lambda[i] - c.lambda[i];
+      if (dl == 0.0) continue;
+      any = true;
+      for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
+        if (!m.constrained[c.dof[k]]) g[c.dof[k]] += c.coef[k] * dl;
+    }
+    if (any) {
+      apply_factor_inverse(m, ws, g.data(), y.data());  // (split over both threads: CG's substitution)
+      for (int d : m.fixed_dofs) y[d] = 0.0;
+      for (const auto& p : m.prescribed) y[p.dof] = 0.0;
+      for (int d = 0; d < n; ++d) ws.delta[d] += y[d];
+    }
+  } else {
+    for (int i = 0; i < r; ++i) {
+      const double dl = lambda[i] - c.lambda[i];
+      if (dl == 0.0) continue;
+      const double* y = ws.contact_work.data() + static_cast<size_t>(i) * n;
+      for (int d = 0; d < n; ++d) ws.delta[d] += dl * y[d];
+    }
   }
   c.lambda = lambda;
   return sweeps;
@@ -448,27 +469,75 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   // W itself is kept only where it was formed for these rows: the frame's
   // later iterations, or rows equal to Y's own while W is Y's own (not a
   // later frame's H Y).
-  const bool lagged_same = m.solver.policy != SolverPolicy::Exact && have && key >= 0 && key == ws.contact_Y_key;
+  // contact_work holds Y unless the last stage took the forward half (below).
+  const bool have_Y = have && !ws.contact_half;
+  const bool lagged_same = m.solver.policy != SolverPolicy::Exact && have_Y && key >= 0 && key == ws.contact_Y_key;
   const double change = lagged_same ? rows_change(c, ws) : std::numeric_limits<double>::infinity();
-  const bool reuse = (m.solver.policy != SolverPolicy::Exact && have && ws.contact_frame == s.frame) ||
+  const bool same_frame = ws.contact_frame == s.frame;
+  const bool reuse = (m.solver.policy != SolverPolicy::Exact && have_Y && same_frame) ||
                      (change == 0.0 && ws.contact_W_of_Y);
-  const bool similar = !reuse && change <= c.compliance_reuse;
-  if (!reuse) ws.contact_W_of_Y = !similar;
   resize_with_headroom(ws.contact_work, static_cast<size_t>(r) * n);
-  if (!reuse && !similar) {
-    ws.contact_Y_key = key;
-    ws.contact_Y_ptr = c.ptr;
-    ws.contact_Y_dof = c.dof;
-    ws.contact_Y_coef = c.coef;
-    ws.contact_Y_rowkey = c.key;
-    // H^T's columns, then all of them through the factor in one substitution
-    // (apply_factor_inverse_multi: L read once, not once per row).
+  const auto fill_columns = [&] {  // H^T's columns into contact_work
     std::fill(ws.contact_work.begin(), ws.contact_work.begin() + static_cast<size_t>(r) * n, 0.0);
     for (int i = 0; i < r; ++i) {
       double* h = ws.contact_work.data() + static_cast<size_t>(i) * n;
       for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
         if (!m.constrained[c.dof[k]]) h[c.dof[k]] += c.coef[k];
     }
+  };
+  const auto keep_rows = [&] {  // what Y (or W) is for
+    ws.contact_Y_key = key;
+    ws.contact_Y_ptr = c.ptr;
+    ws.contact_Y_dof = c.dof;
+    ws.contact_Y_coef = c.coef;
+    ws.contact_Y_rowkey = c.key;
+  };
+  // W without Y where the preconditioner is one factor whole (lagged before
+  // a cut; factor_compliance): W = Z^T Z from the forward half of the
+  // substitution over the factor's tree paths from the rows' DOFs, and each
+  // LCP round's correction one solve of H^T dlambda (lcp_round). The
+  // columns' backward halves read all of L once per 16 rows and were most of
+  // a probe frame's contact stage (haptics-20k: 14-16 ms for 16 rows). For
+  // contact rows (a probe's or a jaw's, at the faces' weighted points: they
+  // move every frame) W is formed again in every iteration, since the
+  // correction goes through the preconditioner as it is then (the warp
+  // turns with every iteration) and must be the one W was made with for the
+  // rows to be met exactly. Grasp rows alone (held bit for bit) take Y as
+  // before, which later frames keep. Not with the refinement (it needs Y) or
+  // a consistent mass (the contact kinematics read Y).
+  bool contact_rows = false;
+  for (RowKind kind : c.kind) contact_rows = contact_rows || kind != RowKind::Grasp;
+  bool half = false;
+  if (!reuse && contact_rows && !refinable(m, c) && m.mass_kind == MassKind::Lumped) {
+    fill_columns();
+    std::vector<char>& mark = ws.contact_node_mark;
+    mark.assign(m.ndofnode, 0);
+    ws.contact_nz.clear();
+    for (int k = 0; k < static_cast<int>(c.dof.size()); ++k) {
+      const int node = c.dof[k] / 3;
+      if (m.constrained[c.dof[k]] || mark[node]) continue;
+      mark[node] = 1;
+      for (int i = 0; i < 3; ++i) ws.contact_nz.push_back(3 * node + i);
+    }
+    half = factor_compliance(m, ws, r, ws.contact_work.data(), ws.contact_nz, ws.contact_zrows, ws.contact_zhalf);
+  }
+  const bool similar = !reuse && !half && change <= c.compliance_reuse;
+  if (!reuse) {
+    ws.contact_half = half;
+    ws.contact_W_of_Y = !similar;
+  }
+  if (half) {
+    keep_rows();
+    ws.timing.compliance_columns += r;
+    const Eigen::Map<const Eigen::MatrixXd> Z(ws.contact_zhalf.data(), static_cast<Eigen::Index>(ws.contact_zrows.size()), r);
+    ws.contact_W.resize(static_cast<size_t>(r) * r);
+    Eigen::Map<Eigen::MatrixXd>(ws.contact_W.data(), r, r).noalias() = Z.transpose() * Z;  // symmetric: either order
+  }
+  if (!reuse && !similar && !half) {
+    keep_rows();
+    // H^T's columns, then all of them through the factor in one substitution
+    // (apply_factor_inverse_multi: L read once, not once per row).
+    fill_columns();
     apply_factor_inverse_multi(m, ws, r, ws.contact_work.data(), ws.contact_work.data());
     ws.timing.compliance_columns += r;
     for (int i = 0; i < r; ++i) {
@@ -480,16 +549,17 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   // W = H Y (symmetrised for fresh columns: the lagged preconditioner is
   // symmetric up to roundoff).
   std::vector<double>& W = ws.contact_W;
-  if (!reuse) W.assign(static_cast<size_t>(r) * r, 0.0);
+  const bool form_W = !reuse && !half;
+  if (form_W) W.assign(static_cast<size_t>(r) * r, 0.0);
   ws.contact_frame = s.frame;
-  for (int i = 0; i < r && !reuse; ++i)
+  for (int i = 0; i < r && form_W; ++i)
     for (int j = 0; j < r; ++j) {
       const double* y = ws.contact_work.data() + static_cast<size_t>(j) * n;
       double w = 0.0;
       for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k) w += c.coef[k] * y[c.dof[k]];
       W[static_cast<size_t>(i) * r + j] = w;
     }
-  for (int i = 0; i < r && !reuse && !similar; ++i)
+  for (int i = 0; i < r && form_W && !similar; ++i)
     for (int j = 0; j < i; ++j) {
       const double w = 0.5 * (W[static_cast<size_t>(i) * r + j] + W[static_cast<size_t>(j) * r + i]);
       W[static_cast<size_t>(i) * r + j] = W[static_cast<size_t>(j) * r + i] = w;

@@ -406,11 +406,33 @@ void substitute_group(const SnFactor<T>& F, int nsuper, int nb, double* Y, doubl
 }
 
 // The worker's group of a multi-column substitution, on its own Y2 and W2.
+// The forward half of a group over the supernodes `path` only (forward_half_multi).
+template <class T, int NB>
+void forward_path(const SnFactor<T>& F, const std::vector<int>& path, double* Y, double* W, std::atomic<int>* progress) {
+  int done = 0;
+  for (int sn : path) {
+    forward_supernode_multi<T, NB>(F, sn, Y, W);
+    if (progress) progress->store(++done, std::memory_order_relaxed);
+  }
+}
+
+template <class T>
+void forward_path(const SnFactor<T>& F, const std::vector<int>& path, int nb, double* Y, double* W,
+                  std::atomic<int>* progress = nullptr) {
+  switch (nb) {
+    case 1: forward_path<T, 1>(F, path, Y, W, progress); break;
+    case 2: forward_path<T, 2>(F, path, Y, W, progress); break;
+    case 3: forward_path<T, 3>(F, path, Y, W, progress); break;
+    default: forward_path<T, 4>(F, path, Y, W, progress); break;
+  }
+}
+
 template <class T>
 void worker_multi(void* p) {
   auto& j = *static_cast<MultiJob*>(p);
   const SnFactor<T> F = sn_factor(j.L, static_cast<const T*>(j.Lx), j.inv_scale);
-  substitute_group<T>(F, static_cast<int>(j.L->nsuper), j.nb, j.Y2, j.W2, &j.progress);
+  if (j.path) forward_path<T>(F, *j.path, j.nb, j.Y2, j.W2, &j.progress);
+  else substitute_group<T>(F, static_cast<int>(j.L->nsuper), j.nb, j.Y2, j.W2, &j.progress);
 }
 
 #pragma GCC diagnostic pop
@@ -626,6 +648,27 @@ void CholmodSolver::analyze(int n, const std::vector<int>& Ap, const std::vector
   }
   if (!L_ || c_.status < CHOLMOD_OK) throw Error("CHOLMOD: symbolic analysis failed (status " + std::to_string(c_.status) + ")");
   split_ = split_supernodes(L_);  // O(supernodes); used when a worker is set
+  sn_of_col_.clear();
+  sn_parent_.clear();
+  iperm_.clear();
+  if (L_->is_super) {  // forward_half_multi's tree: a supernode's parent holds its first row below its own columns
+    const int* super = static_cast<const int*>(L_->super);
+    const int* pi = static_cast<const int*>(L_->pi);
+    const int* Ls = static_cast<const int*>(L_->s);
+    const int* Perm = static_cast<const int*>(L_->Perm);
+    const int nsuper = static_cast<int>(L_->nsuper);
+    sn_of_col_.resize(n);
+    sn_parent_.assign(nsuper, -1);
+    iperm_.resize(n);
+    for (int sn = 0; sn < nsuper; ++sn)
+      for (int j = super[sn]; j < super[sn + 1]; ++j) sn_of_col_[j] = sn;
+    for (int sn = 0; sn < nsuper; ++sn) {
+      const int nscol = super[sn + 1] - super[sn];
+      if (pi[sn + 1] - pi[sn] > nscol) sn_parent_[sn] = sn_of_col_[Ls[pi[sn] + nscol]];
+    }
+    for (int k = 0; k < n; ++k) iperm_[Perm[k]] = k;
+    sn_mark_.assign(nsuper, 0);
+  }
   stats_.nnz_L = c_.lnz;
   stats_.flops = c_.fl;
   // The method CHOLMOD kept (with nmethods = 0 it tries AMD, then METIS when AMD fills much).
@@ -927,6 +970,7 @@ void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k
     multi_job_.Lx = Lx;
     multi_job_.inv_scale = inv_scale;
     multi_job_.nb = nb;
+    multi_job_.path = nullptr;
     multi_job_.Y2 = multi_y2_.data();
     multi_job_.W2 = multi_w2_.data();
     multi_job_.progress.store(0, std::memory_order_relaxed);
@@ -951,6 +995,106 @@ void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k
   load_group(Perm, n_, c0, kg, 4 * nb, B, Y);  // (B's columns of that group are not written yet)
   substitute_group<T>(F, nsuper, nb, Y, W);
   store_group(Perm, n_, c0, kg, 4 * nb, Y, X);
+}
+
+bool CholmodSolver::forward_half_multi(int k, const double* B, const std::vector<int>& nz, std::vector<int>& rows,
+                                       std::vector<double>& Z) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (!L_->is_super || sn_of_col_.empty()) return false;
+  settle();
+  prepare_workspace();
+  const int* super = static_cast<const int*>(L_->super);
+  // The supernodes on the paths from nz's columns up (each path stops at one
+  // already marked: the rest of it is too).
+  sn_path_.clear();
+  for (int d : nz)
+    for (int sn = sn_of_col_[iperm_[d]]; sn >= 0 && !sn_mark_[sn]; sn = sn_parent_[sn]) {
+      sn_mark_[sn] = 1;
+      sn_path_.push_back(sn);
+    }
+  std::sort(sn_path_.begin(), sn_path_.end());  // supernodes are numbered children first
+  rows.clear();
+  for (int sn : sn_path_) {
+    sn_mark_[sn] = 0;
+    for (int j = super[sn]; j < super[sn + 1]; ++j) rows.push_back(j);
+  }
+  resize_with_headroom(multi_y_, static_cast<size_t>(n_) * kMultiGroup);
+  resize_with_headroom(multi_w_, work_w_.size() * kMultiGroup);
+  if (copy_valid_ && copy_ == FactorCopy::Half)
+    forward_half(Lx_half_.data(), half_inv_scale_.data(), k, B, rows, Z);
+  else if (copy_valid_ || single_current_)
+    forward_half(Lx_single_.data(), static_cast<const double*>(nullptr), k, B, rows, Z);
+  else
+    forward_half(static_cast<const double*>(L_->x), static_cast<const double*>(nullptr), k, B, rows, Z);
+  return true;
+}
+
+// Groups of up to 16 columns, each through the path's supernodes only (a
+// row of Y outside `rows` is never read: a supernode's rows below its own
+// columns are its ancestors' columns, on the path too); with the
+// substitution worker free, two groups of half each, the second on the
+// worker, as substitute_multi does (the same bits either way).
+template <class T>
+void CholmodSolver::forward_half(const T* Lx, const double* inv_scale, int k, const double* B,
+                                 const std::vector<int>& rows, std::vector<double>& Z) {
+  const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
+  const int* Perm = static_cast<const int*>(L_->Perm);
+  const size_t nr = rows.size();
+  resize_with_headroom(Z, nr * static_cast<size_t>(k));
+  const bool two = substitutes_on_two_threads() && !worker_->busy();
+  const int size = two && k > 1 && k <= 2 * kMultiGroup ? (k + 1) / 2 : kMultiGroup;
+  const int groups = (k + size - 1) / size;
+  const auto width = [&](int g, int& c0, int& kg, int& nb) {
+    c0 = g * size;
+    kg = std::min(size, k - c0);
+    nb = (kg + 3) / 4;
+  };
+  const auto load = [&](int c0, int kg, int kp, double* Y) {
+    for (int p : rows)
+      for (int c = 0; c < kp; ++c)
+        Y[static_cast<size_t>(p) * kp + c] = c < kg ? B[static_cast<size_t>(c0 + c) * n_ + Perm[p]] : 0.0;
+  };
+  const auto store = [&](int c0, int kg, int kp, const double* Y) {
+    for (int c = 0; c < kg; ++c)
+      for (size_t t = 0; t < nr; ++t) Z[static_cast<size_t>(c0 + c) * nr + t] = Y[static_cast<size_t>(rows[t]) * kp + c];
+  };
+  int c0, kg, nb;
+  uint64_t started = 0;
+  const int wg = 1;  // the worker's group
+  if (groups > wg && two) {
+    width(wg, c0, kg, nb);
+    resize_with_headroom(multi_y2_, multi_y_.size());
+    resize_with_headroom(multi_w2_, multi_w_.size());
+    load(c0, kg, 4 * nb, multi_y2_.data());
+    multi_job_.L = L_;
+    multi_job_.Lx = Lx;
+    multi_job_.inv_scale = inv_scale;
+    multi_job_.nb = nb;
+    multi_job_.Y2 = multi_y2_.data();
+    multi_job_.W2 = multi_w2_.data();
+    multi_job_.path = &sn_path_;
+    multi_job_.progress.store(0, std::memory_order_relaxed);
+    started = worker_->try_start(&worker_multi<T>, &multi_job_);
+  }
+  double *Y = multi_y_.data(), *W = multi_w_.data();
+  for (int g = 0; g < groups; ++g) {
+    if (started && g == wg) continue;
+    width(g, c0, kg, nb);
+    load(c0, kg, 4 * nb, Y);
+    forward_path<T>(F, sn_path_, nb, Y, W);
+    store(c0, kg, 4 * nb, Y);
+  }
+  if (!started) return;
+  width(wg, c0, kg, nb);
+  if (worker_->await(multi_job_.progress, kWorkerStallMs)) {
+    store(c0, kg, 4 * nb, multi_y2_.data());
+    return;
+  }
+  ++stats_.takeovers;
+  left_running_ = started;  // (it reads sn_path_ and multi_y2_: settle() before either changes)
+  load(c0, kg, 4 * nb, Y);
+  forward_path<T>(F, sn_path_, nb, Y, W);
+  store(c0, kg, 4 * nb, Y);
 }
 
 void CholmodSolver::solve_copy(const double* b, double* x) {

@@ -142,6 +142,16 @@ class CholmodSolver {
   // grows.
   void solve_copy_multi(int k, const double* B, double* X);
 
+  // The forward half of solve_copy_multi for k columns B (n x k,
+  // column-major) that are zero outside the DOFs `nz` (original numbering):
+  // Z = L^-1 P B, so that B_i^T A^-1 B_j = Z_i . Z_j (A = P^T L L^T P; the
+  // copy's, as solve_copy). Only the supernodes on the elimination-tree
+  // paths from those DOFs to the roots are visited: the rest of Z is zero.
+  // `rows` gets the permuted rows those supernodes hold (Z's only nonzero
+  // rows) and Z (|rows| x k, column-major) their values. False, leaving both
+  // untouched, for a simplicial factor (no supernodal tree): solve in full.
+  bool forward_half_multi(int k, const double* B, const std::vector<int>& nz, std::vector<int>& rows,
+                          std::vector<double>& Z);
   // Substitutions (solve, solve_copy) on two threads: this thread and the
   // worker (not owned; null = one thread), over the split of the current
   // analysis (engine/solve/split_substitution.h). Results equal the one-thread
@@ -185,6 +195,16 @@ class CholmodSolver {
   MultiJob multi_job_;                       // what the worker's group reads (here: it may outlive the call)
   template <class T>
   void substitute_multi(const T* Lx, const double* inv_scale, int k, const double* B, double* X);
+  // forward_half_multi: the supernodal tree of the current analysis (set by
+  // analyze) and the visit's marks and list.
+  std::vector<int> sn_of_col_;   // (n) supernode holding each permuted column
+  std::vector<int> sn_parent_;   // (nsuper) parent supernode, -1 at a root
+  std::vector<int> iperm_;       // (n) permuted position of each DOF
+  std::vector<char> sn_mark_;    // (nsuper) on a path this call
+  std::vector<int> sn_path_;     // the marked supernodes, ascending (children before parents)
+  template <class T>
+  void forward_half(const T* Lx, const double* inv_scale, int k, const double* B, const std::vector<int>& rows,
+                    std::vector<double>& Z);
   SubstitutionWorker* worker_ = nullptr;   // set_substitution_worker
   SubstitutionSplit split_;                // of the current analysis
   std::vector<double> work_y2_, work_w2_, work_top_;  // the worker's y copy and gather, the top rows' start values

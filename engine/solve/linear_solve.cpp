@@ -1067,6 +1067,34 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
   }
 }
 
+bool factor_compliance(const Model& m, Workspace& ws, int k, const double* B, const std::vector<int>& nz,
+                       std::vector<int>& rows, std::vector<double>& Z) {
+  auto& w = ws.work;
+  if (m.solver.policy != SolverPolicy::Lagged || w.condensed.factored || !w.slot_map[w.front].empty() ||
+      !w.patch_dof.empty())
+    return false;
+  CholmodSolver& f = ws.slot(w.front);
+  const size_t n = static_cast<size_t>(m.ndof());
+  const double* Bq = B;
+  if (m.solver.warp) {  // Q^T B on nz's nodes (the rest is zero)
+    std::vector<double>& t = w.multi_t;
+    resize_with_headroom(t, n * k);
+    std::fill(t.begin(), t.begin() + n * k, 0.0);  // the paths read rows outside nz too
+    for (int c = 0; c < k; ++c)
+      for (size_t i = 0; i + 2 < nz.size(); i += 3) {
+        const int node = nz[i] / 3;
+        const Eigen::Map<const Mat3> R(&w.Q[9 * static_cast<size_t>(node)]);
+        Eigen::Map<Eigen::Vector3d>(t.data() + c * n + 3 * node) =
+            R.transpose() * Eigen::Map<const Eigen::Vector3d>(B + c * n + 3 * node);
+      }
+    Bq = t.data();
+  }
+  Stopwatch sw;
+  const bool done = f.forward_half_multi(k, Bq, nz, rows, Z);
+  ws.timing.solve_kernel_ms += sw.ms();
+  return done;
+}
+
 bool iterative_policy(const Model& m) {
   return m.solver.policy == SolverPolicy::Lagged || m.solver.policy == SolverPolicy::WarpedCG;
 }

@@ -79,6 +79,15 @@ void apply_factor_inverse(const Model& model, Workspace& ws, const double* b, do
 // one read of the factor for all of them where it applies whole (exact,
 // warped, lagged before a cut maps it), column by column otherwise.
 void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const double* B, double* X);
+// The compliance of k columns B (ndof x k, zero outside the DOFs nz, which
+// hold every DOF of their nodes) without their solves: Z (|rows| x k) with
+// B_i^T P^-1 B_j = Z_i . Z_j, from the forward half of the preconditioner's
+// substitution over the factor's tree paths from nz (CholmodSolver::
+// forward_half_multi). Only where P^-1 is a factor's Q F^-1 Q^T whole:
+// lagged with no cut map, patch or condensation; false otherwise (and for a
+// simplicial factor), Z untouched.
+bool factor_compliance(const Model& model, Workspace& ws, int k, const double* B, const std::vector<int>& nz,
+                       std::vector<int>& rows, std::vector<double>& Z);
 
 // The projection onto the constraints H_A x = 0 of the contact stage's
 // active rows (engine/dynamics/contact_solve.cpp): primal(z) takes z into

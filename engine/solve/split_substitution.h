@@ -57,6 +57,7 @@ struct MultiJob {
   const double* inv_scale = nullptr;
   int nb = 0;                           // four-column blocks in the group
   double *Y2 = nullptr, *W2 = nullptr;  // (n, 4 nb), (largest supernode rows, 4 nb)
+  const std::vector<int>* path = nullptr;  // set: the forward half over these supernodes only (forward_half_multi)
   std::atomic<int> progress{0};         // supernodes done (forward and backward), for SubstitutionWorker::await
 };
 

@@ -277,13 +277,15 @@ TEST_F(InstrumentStage, ASpherePressedItsDiameterDeepIsNotCrushedByTheFacesFolde
   EXPECT_GT(h.f_min, 0.9 * h.f_max) << "the held force from frame to frame";
 }
 
-// A 3 mm probe pressed 1 cm into organ_10k (1 cm faces) with one row per
-// face: its rows push the folded faces off it (frame 18), the tissue closes
-// over it (frame 19) and it sits inside at 0 N. That was silent; now a
-// warning names it, once. The same press drawn back out before it is lost
-// (4 mm) warns of nothing.
+// A 3 mm probe pressed 2 cm into organ_10k (1 cm faces) with one row per
+// face: its rows push the folded faces off it, the tissue closes over it
+// and it sits inside at 0 N. That was silent; now a warning names it, once.
+// The same press drawn back out before it is lost (4 mm) warns of nothing.
+// (At 1-1.5 cm whether the tissue closes over it within the 45 frames
+// changes with roundoff: it did at 1 cm until the contact compliance came
+// from the factor's forward half, and at 1.5 cm only since.)
 TEST_F(InstrumentStage, AProbeTheTissueClosedOverIsNamed) {
-  for (const double press : {0.01, 0.004}) {
+  for (const double press : {0.02, 0.004}) {
     write("press.csv", "t,x,y,z,qw,qx,qy,qz\n0, -0.015, 0, 0.055, 1, 0, 0, 0\n0.1666667, -0.015, 0, 0.055, 1, 0, 0, 0\n"
                        "0.4666667, -0.015, 0, " + std::to_string(0.055 - press) + ", 1, 0, 0, 0\n"
                        "1.0, -0.015, 0, " + std::to_string(0.055 - press) + ", 1, 0, 0, 0\n1.3, -0.015, 0, 0.06, 1, 0, 0, 0\n");

@@ -11,6 +11,7 @@
 #include "engine/dynamics/contact_solve.h"
 #include "engine/dynamics/step.h"
 #include "engine/mesh/mesh_tools.h"
+#include "engine/solve/linear_solve.h"
 #include "tests/engine/test_util.h"
 
 namespace incise {
@@ -407,6 +408,76 @@ TEST(ContactSolve, LaggedKeepsTheComplianceOfRowsThatMovedALittle) {
   EXPECT_GE(substituted, 3) << "a new factor brings a new Y";
   EXPECT_GT(tight_substituted, substituted) << "at 0.03, every 2 frames of turning (0.04) too";
   EXPECT_LT(e_kept, 1.25 * e_fresh);
+}
+
+// Contact rows (a probe's, whose coefficients move every frame) under a
+// warped lagged factor take their compliance from the forward half of the
+// factor's substitution (factor_compliance): W = Z^T Z, formed again in
+// every Newton iteration, and the correction one solve of H^T dlambda. Here
+// a floor under the tip nodes turns by 0.02 rad a frame. In every frame the
+// pushing rows are met exactly and the rest stay above the floor; after
+// each step the forward half's W equals H Y with Y = P^-1 H^T through the
+// preconditioner as it stands (apply_factor_inverse_multi) to roundoff.
+TEST(ContactSolve, LaggedContactRowsTakeTheirComplianceFromTheForwardHalf) {
+  const ExactAndLagged models = exact_and_warped_lagged(3);
+  const Model& m = models.lagged;
+  const std::vector<int> tip = tip_nodes(m);
+  const int n = m.ndof(), r = static_cast<int>(tip.size());
+  State s;
+  Workspace ws;
+  init_state(m, s, ws);
+  int pushing = 0;
+  for (int frame = 0; frame < 10; ++frame) {
+    ws.contacts.clear();
+    const double a = 0.02 * frame, nrm[3] = {0.0, std::sin(a), std::cos(a)};
+    std::vector<double> target(r);
+    for (int k = 0; k < r; ++k) {  // n . (u + Delta) >= -0.01 (the floor), as a row on Delta
+      const int i = tip[k];
+      target[k] = -0.01 - (nrm[1] * s.u[3 * i + 1] + nrm[2] * s.u[3 * i + 2]);
+      const double p[3] = {0, 0, 0};
+      ws.contacts.begin_row(RowKind::Contact, target[k], 0, p, nrm);
+      ws.contacts.key.back() = row_key(0, 3, i);
+      for (int c = 1; c < 3; ++c) ws.contacts.add(3 * i + c, nrm[c]);
+    }
+    const std::vector<double> u0 = s.u;
+    step(m, s, ws);
+    ASSERT_TRUE(ws.contact_half) << "frame " << frame;
+    EXPECT_EQ(ws.timing.compliance_columns, r * ws.timing.newton) << "W formed again in every iteration";
+    for (int k = 0; k < r; ++k) {
+      const int i = tip[k];
+      const double moved = nrm[1] * (s.u[3 * i + 1] - u0[3 * i + 1]) + nrm[2] * (s.u[3 * i + 2] - u0[3 * i + 2]);
+      if (ws.contacts.lambda[k] > 0.0) {
+        EXPECT_NEAR(moved, target[k], 1e-12) << "frame " << frame << ", a pushing row";
+        ++pushing;
+      } else {
+        EXPECT_GE(moved, target[k] - 1e-12) << "frame " << frame;
+      }
+    }
+    // W from the forward half against H Y, through the preconditioner as it is now.
+    const ContactRows& c = ws.contacts;
+    std::vector<double> B(static_cast<size_t>(r) * n, 0.0), Y;
+    std::vector<int> nz;
+    for (int k = 0; k < r; ++k) {
+      for (int e = c.ptr[k]; e < c.ptr[k + 1]; ++e) B[static_cast<size_t>(k) * n + c.dof[e]] += c.coef[e];
+      for (int d = 0; d < 3; ++d) nz.push_back(3 * tip[k] + d);
+    }
+    std::vector<int> rows;
+    std::vector<double> Z;
+    ASSERT_TRUE(factor_compliance(m, ws, r, B.data(), nz, rows, Z));
+    Y = B;
+    apply_factor_inverse_multi(m, ws, r, B.data(), Y.data());
+    double diff = 0.0, norm = 0.0;
+    for (int i = 0; i < r; ++i)
+      for (int j = 0; j < r; ++j) {
+        double zz = 0.0, hy = 0.0;
+        for (size_t t = 0; t < rows.size(); ++t) zz += Z[i * rows.size() + t] * Z[j * rows.size() + t];
+        for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e) hy += c.coef[e] * Y[static_cast<size_t>(j) * n + c.dof[e]];
+        diff = std::max(diff, std::abs(zz - hy));
+        norm = std::max(norm, std::abs(hy));
+      }
+    EXPECT_LT(diff, 1e-10 * norm) << "frame " << frame;
+  }
+  EXPECT_GT(pushing, 10) << "the floor should push";
 }
 
 // The tip's lowest node falls under gravity; a floor row below it is

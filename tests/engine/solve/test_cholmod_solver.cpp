@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <random>
 #include <string>
@@ -270,6 +271,65 @@ TEST(Cholmod, MultiColumnSolveMatchesOneColumnAtATime) {
       EXPECT_LT(diff, 1e-12 * norm) << c.name << " column " << col;
     }
   }
+}
+
+// forward_half_multi (the contact compliance without Y): for columns that
+// are zero outside a few nodes' DOFs (a contact row's support),
+// Z_i . Z_j = B_i^T X_j with X = solve_copy_multi(B), for the double factor,
+// the float and half copies and the single-precision factorization, from a
+// part of the factor's rows (the paths from those DOFs up the tree); 20
+// columns are two groups. A simplicial factor has no supernodal tree: false.
+TEST(Cholmod, ForwardHalfGivesTheComplianceOfSparseColumns) {
+  const Model m = test::tissue_beam(8, 2);
+  const std::vector<double> A = test::system_matrix(m, 3600.0);
+  const int n = m.ndof(), k = 20;
+  std::vector<int> nz;
+  for (int node : {0, 1, 5})
+    for (int i = 0; i < 3; ++i) nz.push_back(3 * node + i);
+  const std::vector<double> values = test::random_vector(static_cast<int>(nz.size()) * k, 12);
+  std::vector<double> B(static_cast<size_t>(n) * k, 0.0);
+  for (int c = 0; c < k; ++c)
+    for (size_t t = 0; t < nz.size(); ++t) B[static_cast<size_t>(c) * n + nz[t]] = values[c * nz.size() + t];
+  struct Case {
+    const char* name;
+    FactorCopy copy;
+    bool single;
+  };
+  for (const Case c : {Case{"double", FactorCopy::None, false}, Case{"float copy", FactorCopy::Float, false},
+                       Case{"half copy", FactorCopy::Half, false}, Case{"single factorization", FactorCopy::Float, true}}) {
+    CholmodSolver f;
+    f.configure(FactorMethod::Supernodal, OrderingMethod::Amd);
+    f.set_factor_copy(c.copy);
+    f.set_single_factorization(c.single);
+    f.analyze(n, m.Ap, m.Ai);
+    f.factorize(A.data());
+    std::vector<double> X(B.size()), Z;
+    std::vector<int> rows;
+    f.solve_copy_multi(k, B.data(), X.data());
+    ASSERT_TRUE(f.forward_half_multi(k, B.data(), nz, rows, Z)) << c.name;
+    ASSERT_EQ(Z.size(), rows.size() * k);
+    EXPECT_LT(rows.size(), static_cast<size_t>(n)) << c.name << ": the paths skip part of the factor";
+    double diff = 0.0, norm = 0.0;
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; j < k; ++j) {
+        double zz = 0.0, bx = 0.0;
+        for (size_t t = 0; t < rows.size(); ++t) zz += Z[i * rows.size() + t] * Z[j * rows.size() + t];
+        for (int d = 0; d < n; ++d) bx += B[static_cast<size_t>(i) * n + d] * X[static_cast<size_t>(j) * n + d];
+        diff = std::max(diff, std::abs(zz - bx));
+        norm = std::max(norm, std::abs(bx));
+      }
+    EXPECT_LT(diff, 1e-12 * norm) << c.name;
+    if (std::string(c.name) == "double") std::printf("[ forward half: %zu of %d rows ]\n", rows.size(), n);
+  }
+  CholmodSolver simplicial;
+  simplicial.configure(FactorMethod::Simplicial, OrderingMethod::Amd);
+  simplicial.analyze(n, m.Ap, m.Ai);
+  simplicial.factorize(A.data());
+  std::vector<int> rows{-1};
+  std::vector<double> Z{-1.0};
+  EXPECT_FALSE(simplicial.forward_half_multi(k, B.data(), nz, rows, Z));
+  EXPECT_EQ(rows, std::vector<int>{-1});
+  EXPECT_EQ(Z, std::vector<double>{-1.0});
 }
 
 }  // namespace

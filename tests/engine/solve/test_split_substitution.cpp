@@ -329,6 +329,17 @@ TEST(SplitSubstitution, MultiColumnSolveGivesAGroupToTheWorkerWithTheSameBits) {
     two.solve_copy_multi(kk, B.data(), Y2.data());
     ASSERT_EQ(Y2, Y1) << kk << " columns";
   }
+  for (int kk : {1, 9, 27}) {  // the forward half's groups the same way (forward_half_multi)
+    std::vector<int> nz, r1, r2;
+    for (int d = 0; d < 12; ++d) nz.push_back(d);
+    std::vector<double> Bs(static_cast<size_t>(n) * kk, 0.0), Z1, Z2;
+    for (int c = 0; c < kk; ++c)
+      for (int d : nz) Bs[static_cast<size_t>(c) * n + d] = B[static_cast<size_t>(c) * n + d];
+    ASSERT_TRUE(one.forward_half_multi(kk, Bs.data(), nz, r1, Z1));
+    ASSERT_TRUE(two.forward_half_multi(kk, Bs.data(), nz, r2, Z2));
+    EXPECT_EQ(r2, r1);
+    ASSERT_EQ(Z2, Z1) << kk << " columns, forward half";
+  }
   two.solve_copy_multi(k, inplace.data(), inplace.data());
   EXPECT_EQ(inplace, X1) << "in place";
   late.solve_copy_multi(k, B.data(), X3.data());
