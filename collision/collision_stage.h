@@ -54,6 +54,8 @@ struct CollisionData {
   std::vector<char> warned_deep;         // (instruments) a probe's "deeper than half its radius" warning was given
   std::vector<int> untouched_frames;     // (instruments) frames since the probe last found a contact (capped)
   std::vector<char> warned_inside;       // (instruments) its "lost its contact inside the tissue" warning was given
+  std::vector<char> grasped_dof;         // (ndof) this frame: a grasp row holds the DOF
+  std::vector<char> warned_held;         // (instruments) its "pressed tissue a grasper holds" warning was given
   // A fast probe's sweep and speculative query (collision_stage.cpp,
   // sweep_probe, add_speculative_contacts): their shapes (instruments;
   // inflated as `shapes`, their FCL geometry shared), their query, and

@@ -88,6 +88,22 @@ struct ContactRows {
     coef.push_back(c);
     ptr.back() = static_cast<int>(dof.size());
   }
+  // Removes the last row (before the contact stage: no lambda yet).
+  void pop_row() {
+    if (nrow() == 0) return;
+    velocity.pop_back();
+    key.pop_back();
+    target.pop_back();
+    kind.pop_back();
+    normal_row.pop_back();
+    tool.pop_back();
+    point.resize(point.size() - 3);
+    dir.resize(dir.size() - 3);
+    depth.pop_back();
+    ptr.pop_back();
+    dof.resize(ptr.back());
+    coef.resize(ptr.back());
+  }
 };
 
 }  // namespace incise

@@ -79,6 +79,7 @@ struct FrameTiming {
   double max_depth = 0;       // deepest penetration collision found at the frame's start (before the response)
   int swept_rows = 0;         // contact rows from a fast probe's sweep (faces it went through: collision_stage.h)
   int speculative_rows = 0;   // speculative rows for tissue that may reach a probe within the frame (collision_stage.h)
+  int held_rows_dropped = 0;  // contact rows left out on tissue a grasp holds (collision_stage.cpp)
   int bvh_refits = 0;         // tissue collision model refitted this frame
   int bvh_rebuilds = 0;       // rebuilt (after a topology change)
 };
