@@ -451,7 +451,29 @@ void collision_stage(Simulation& sim) {
       for (const GraspTaken& g : cd.imposed)
         if (g.frame == sim.state.frame && g.tool == static_cast<int>(i)) imposed = &g.held;
       const bool was_empty = cd.grasps[i].closed_empty;
-      update_grasp(sim.model, spec, tf, surface, sim.model_version, cd.grasps[i], imposed);
+      // Both jaws pushed the tissue in the last frame's query (a grasper
+      // with contact, closing): it takes hold now. Squeezed between two
+      // contacts up to grasp_at, a 1.5 cm bite of the liver had no solution:
+      // 618 N and 99 inverted points. Not where another run's grasp points
+      // are imposed (incise compare): they come with the frame they were taken in.
+      // Pushed from both sides: jaw 0 (-y) pushes the tissue toward +y, jaw 1
+      // toward -y (tool frame); jaws pressed up into a face together (a
+      // grasper brought up under the tissue) push it the same way and squeeze nothing.
+      bool pressed = false;
+      if (spec.contact && !cd.grasps[i].holding) {
+        const std::array<double, 3> o = tool_to_world(tf.before, {0, 0, 0}), e = tool_to_world(tf.before, {0, 1, 0});
+        bool jaw0 = false, jaw1 = false;
+        for (const TissueContact& c : cd.results[i].contacts) {
+          if (c.speculative) continue;
+          const double along = c.normal[0] * (e[0] - o[0]) + c.normal[1] * (e[1] - o[1]) + c.normal[2] * (e[2] - o[2]);
+          if (c.part == 0 && along > 0.5) jaw0 = true;
+          if (c.part == 1 && along < -0.5) jaw1 = true;
+        }
+        bool imposing = false;
+        for (const GraspTaken& g : cd.imposed) imposing = imposing || g.tool == static_cast<int>(i);
+        pressed = jaw0 && jaw1 && !imposing;
+      }
+      update_grasp(sim.model, spec, tf, surface, sim.model_version, cd.grasps[i], imposed, pressed);
       if (!was_holding && cd.grasps[i].holding) cd.taken.push_back({sim.state.frame, static_cast<int>(i), cd.grasps[i].held});
       // A grasp that silently held nothing looked like a solver failure (the
       // tissue did not follow): say so once each time the jaws close on nothing.

@@ -10,14 +10,19 @@
 namespace incise {
 
 void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFrame& tool, const TissueSurface& surface,
-                  int model_version, Grasp& grasp, const std::vector<HeldPoint>* imposed) {
-  const bool closed = tool.after.jaw >= spec.grasp_at;
+                  int model_version, Grasp& grasp, const std::vector<HeldPoint>* imposed, bool pressed) {
+  // Closed from grasp_at on, or, holding, down to the jaw it took hold at;
+  // jaws that pressed the tissue from both sides while closing take it now.
+  const double at = grasp.holding ? std::min(grasp.took_at, spec.grasp_at) : spec.grasp_at;
+  const bool closing_onto = pressed && tool.after.jaw > 0.0 && tool.after.jaw >= tool.before.jaw;
+  const bool closed = tool.after.jaw >= at || (!grasp.holding && (closing_onto || imposed));
   if (!closed) {
     grasp.holding = false;
     grasp.closed_empty = false;
     grasp.held.clear();
     return;
   }
+  if (!grasp.holding) grasp.took_at = std::min(tool.after.jaw, spec.grasp_at);
   if (grasp.holding) {
     if (grasp.model_version != model_version) {  // a cut renumbered the pieces
       for (HeldPoint& h : grasp.held) h.piece = piece_containing(model, h.elem, h.rst);
@@ -49,7 +54,7 @@ void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFram
       inside.push_back({l[0] * l[0] + l[1] * l[1] + l[2] * l[2], v, l});
   }
   if (inside.empty()) {  // closed on nothing: taken when tissue comes between the closed jaws
-    grasp.closed_empty = true;
+    grasp.closed_empty = tool.after.jaw >= spec.grasp_at;
     return;
   }
   grasp.closed_empty = false;

@@ -29,6 +29,10 @@ struct Grasp {
   bool closed_empty = false;
   int model_version = -1;       // of the pieces in `held`
   std::vector<HeldPoint> held;
+  // The jaw value the grasp took hold at: grasp_at, or less when the jaws
+  // closed onto the tissue from both sides first (update_grasp's `pressed`);
+  // it lets go once the jaw falls below it.
+  double took_at = 1.0;
 };
 
 // The points a grasp took when it closed (frame: State::frame of the frame
@@ -51,8 +55,12 @@ inline constexpr int kMaxHeldPoints = 6;
 // (a new model version) the held points' pieces are looked up on `model`.
 // imposed: when closing, take these points instead (their pieces looked up
 // on `model`).
+// pressed: both jaws pushed the tissue in the last frame while closing (a
+// grasper with `contact`): the grasp takes hold now, below grasp_at, instead
+// of squeezing the tissue between two contacts until then.
 void update_grasp(const Model& model, const InstrumentSpec& spec, const ToolFrame& tool, const TissueSurface& surface,
-                  int model_version, Grasp& grasp, const std::vector<HeldPoint>* imposed = nullptr);
+                  int model_version, Grasp& grasp, const std::vector<HeldPoint>* imposed = nullptr,
+                  bool pressed = false);
 
 // The rows of a holding grasp: each point from where it is now to where the
 // jaws carry it at the frame's end (moving with them: the rows' velocity).

@@ -175,6 +175,51 @@ TEST(Grasp, AProbePressingTissueTheGrasperHoldsLeavesTheGraspAlone) {
   }
 }
 
+// A grasper with contact closing over a plate thicker than the jaws'
+// closed gap: the jaws push it from both sides, and once they do the grasp
+// takes hold (before the jaw reaches grasp_at) instead of squeezing the
+// tissue between two contacts. Squeezed to grasp_at, a 1.5 cm bite of the
+// liver had no solution (618 N, 99 inverted points). Here: held from jaw
+// 0.56, no inverted point, 4.6 N at most, and let go once the jaw opens
+// below the value it took hold at (measured without the rule: held from
+// jaw 1, 1 inverted point, 6.4 N).
+TEST(Grasp, JawsThatPressTheTissueFromBothSidesTakeHold) {
+  const Mesh mesh = make_beam(0.1, 0.02, 0.05, 5, 2, 3, 1);  // a 2 cm plate, fixed at its base
+  Scene scene = test::tissue_block_scene(3e4, 4.0);
+  InstrumentSpec g;
+  g.kind = InstrumentSpec::Kind::Grasper;
+  g.jaw_size = {0.02, 0.004, 0.01};
+  g.opening = 0.035;
+  g.json_path = "instruments[0]";
+  scene.instruments.push_back(g);  // contact: true (the default)
+  auto sim = test::make_sim(mesh, scene);
+  sim->tools.assign(1, ToolFrame{});
+  // Jaws across y over the plate's top edge; closing from 0.1 to 0.4 s, opening from 0.6 to 0.9 s.
+  const auto jaw = [](double t) { return std::clamp((t - 0.1) / 0.3, 0.0, 1.0) - std::clamp((t - 0.6) / 0.3, 0.0, 1.0); };
+  sim->pipeline.set(kStageToolPoses, [jaw](Simulation& s) {
+    for (ToolPose* p : {&s.tools[0].before, &s.tools[0].after}) p->p = {0.05, 0.01, 0.046};
+    s.tools[0].before.jaw = jaw(s.state.time);
+    s.tools[0].after.jaw = jaw(s.state.time + s.model.dt);
+  });
+  install_collision_stage(*sim);
+  double took = -1.0, let_go = -1.0, force = 0.0;
+  int inverted = 0;
+  while (sim->state.time < 1.0) {
+    const FrameTiming t = advance_frame(*sim);
+    const double j = jaw(sim->state.time);
+    if (t.grasp_rows > 0 && took < 0) took = j;
+    if (took >= 0 && t.grasp_rows == 0 && let_go < 0) let_go = j;
+    inverted = std::max(inverted, t.inverted_points);
+    force = std::max(force, t.contact_force);
+  }
+  EXPECT_GT(took, 0.2) << "the jaws' gap is the plate's first (0.035 -> 0.02 m at jaw 0.43)";
+  EXPECT_LT(took, 0.8) << "held before grasp_at (0.9)";
+  EXPECT_GE(let_go, 0.0) << "let go while opening";
+  EXPECT_LT(let_go, took);
+  EXPECT_EQ(inverted, 0);
+  EXPECT_LT(force, 20.0);
+}
+
 // Jaws that close 5 cm above the flap take nothing: a warning says so once
 // (it used to hold nothing silently, and the tissue not following looked
 // like a solver fault), and again only after they open and close again.
