@@ -451,14 +451,13 @@ void collision_stage(Simulation& sim) {
       for (const GraspTaken& g : cd.imposed)
         if (g.frame == sim.state.frame && g.tool == static_cast<int>(i)) imposed = &g.held;
       const bool was_empty = cd.grasps[i].closed_empty;
-      // Both jaws pushed the tissue in the last frame's query (a grasper
-      // with contact, closing): it takes hold now. Squeezed between two
-      // contacts up to grasp_at, a 1.5 cm bite of the liver had no solution:
-      // 618 N and 99 inverted points. Not where another run's grasp points
-      // are imposed (incise compare): they come with the frame they were taken in.
-      // Pushed from both sides: jaw 0 (-y) pushes the tissue toward +y, jaw 1
-      // toward -y (tool frame); jaws pressed up into a face together (a
-      // grasper brought up under the tissue) push it the same way and squeeze nothing.
+      // Jaws that pushed the tissue from both sides in the last frame's
+      // query (jaw 0, at -y, toward +y of the tool frame; jaw 1 toward -y)
+      // take hold now: squeezed between two contacts up to grasp_at, a 1.5
+      // cm bite of the liver had no solution (618 N, 99 inverted points).
+      // Jaws pressed up into a face together (a grasper brought up under the
+      // tissue) push it one way and squeeze nothing. Not where another run's
+      // grasp points are imposed (incise compare): they come with their frame.
       bool pressed = false;
       if (spec.contact && !cd.grasps[i].holding) {
         const std::array<double, 3> o = tool_to_world(tf.before, {0, 0, 0}), e = tool_to_world(tf.before, {0, 1, 0});
