@@ -943,16 +943,15 @@ void CholmodSolver::solve_copy_multi(int k, const double* B, double* X) {
 // it finished, and does it itself when the worker makes no progress (a
 // group it gave up on may still run on Y2, W2: settle() before they or the
 // factor change).
-template <class T>
-void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k, const double* B, double* X) {
-  const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
-  const int* Perm = static_cast<const int*>(L_->Perm);
+template <class T, class Load, class Pass, class Store>
+void CholmodSolver::multi_groups(const T* Lx, const double* inv_scale, int k, const std::vector<int>* path,
+                                 const Load& load, const Pass& pass, const Store& store) {
   // With the worker free, 2-32 columns go in two groups of half each (a
   // group's cost is its width: a grasp's 9 rows or a probe's 16 split too).
   // A column's arithmetic does not depend on its group: the same bits.
   const bool two = substitutes_on_two_threads() && !worker_->busy();
   const int size = two && k > 1 && k <= 2 * kMultiGroup ? (k + 1) / 2 : kMultiGroup;
-  const int nsuper = static_cast<int>(L_->nsuper), groups = (k + size - 1) / size;
+  const int groups = (k + size - 1) / size;
   const auto width = [&](int g, int& c0, int& kg, int& nb) {
     c0 = g * size;
     kg = std::min(size, k - c0);
@@ -965,12 +964,12 @@ void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k
     width(wg, c0, kg, nb);
     resize_with_headroom(multi_y2_, multi_y_.size());
     resize_with_headroom(multi_w2_, multi_w_.size());
-    load_group(Perm, n_, c0, kg, 4 * nb, B, multi_y2_.data());
+    load(c0, kg, 4 * nb, multi_y2_.data());
     multi_job_.L = L_;
     multi_job_.Lx = Lx;
     multi_job_.inv_scale = inv_scale;
     multi_job_.nb = nb;
-    multi_job_.path = nullptr;
+    multi_job_.path = path;
     multi_job_.Y2 = multi_y2_.data();
     multi_job_.W2 = multi_w2_.data();
     multi_job_.progress.store(0, std::memory_order_relaxed);
@@ -980,21 +979,32 @@ void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k
   for (int g = 0; g < groups; ++g) {
     if (started && g == wg) continue;
     width(g, c0, kg, nb);
-    load_group(Perm, n_, c0, kg, 4 * nb, B, Y);
-    substitute_group<T>(F, nsuper, nb, Y, W);
-    store_group(Perm, n_, c0, kg, 4 * nb, Y, X);
+    load(c0, kg, 4 * nb, Y);
+    pass(nb, Y, W);
+    store(c0, kg, 4 * nb, Y);
   }
   if (!started) return;
   width(wg, c0, kg, nb);
   if (worker_->await(multi_job_.progress, kWorkerStallMs)) {
-    store_group(Perm, n_, c0, kg, 4 * nb, multi_y2_.data(), X);
+    store(c0, kg, 4 * nb, multi_y2_.data());
     return;
   }
   ++stats_.takeovers;
-  left_running_ = started;
-  load_group(Perm, n_, c0, kg, 4 * nb, B, Y);  // (B's columns of that group are not written yet)
-  substitute_group<T>(F, nsuper, nb, Y, W);
-  store_group(Perm, n_, c0, kg, 4 * nb, Y, X);
+  left_running_ = started;  // (it reads multi_y2_, and the path: settle() before either changes)
+  load(c0, kg, 4 * nb, Y);  // (B's columns of that group are not written yet)
+  pass(nb, Y, W);
+  store(c0, kg, 4 * nb, Y);
+}
+
+template <class T>
+void CholmodSolver::substitute_multi(const T* Lx, const double* inv_scale, int k, const double* B, double* X) {
+  const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
+  const int* Perm = static_cast<const int*>(L_->Perm);
+  const int nsuper = static_cast<int>(L_->nsuper);
+  multi_groups(
+      Lx, inv_scale, k, nullptr, [&](int c0, int kg, int kp, double* Y) { load_group(Perm, n_, c0, kg, kp, B, Y); },
+      [&](int nb, double* Y, double* W) { substitute_group<T>(F, nsuper, nb, Y, W); },
+      [&](int c0, int kg, int kp, const double* Y) { store_group(Perm, n_, c0, kg, kp, Y, X); });
 }
 
 bool CholmodSolver::forward_half_multi(int k, const double* B, const std::vector<int>& nz, std::vector<int>& rows,
@@ -1041,60 +1051,18 @@ void CholmodSolver::forward_half(const T* Lx, const double* inv_scale, int k, co
   const int* Perm = static_cast<const int*>(L_->Perm);
   const size_t nr = rows.size();
   resize_with_headroom(Z, nr * static_cast<size_t>(k));
-  const bool two = substitutes_on_two_threads() && !worker_->busy();
-  const int size = two && k > 1 && k <= 2 * kMultiGroup ? (k + 1) / 2 : kMultiGroup;
-  const int groups = (k + size - 1) / size;
-  const auto width = [&](int g, int& c0, int& kg, int& nb) {
-    c0 = g * size;
-    kg = std::min(size, k - c0);
-    nb = (kg + 3) / 4;
-  };
-  const auto load = [&](int c0, int kg, int kp, double* Y) {
-    for (int p : rows)
-      for (int c = 0; c < kp; ++c)
-        Y[static_cast<size_t>(p) * kp + c] = c < kg ? B[static_cast<size_t>(c0 + c) * n_ + Perm[p]] : 0.0;
-  };
-  const auto store = [&](int c0, int kg, int kp, const double* Y) {
-    for (int c = 0; c < kg; ++c)
-      for (size_t t = 0; t < nr; ++t) Z[static_cast<size_t>(c0 + c) * nr + t] = Y[static_cast<size_t>(rows[t]) * kp + c];
-  };
-  int c0, kg, nb;
-  uint64_t started = 0;
-  const int wg = 1;  // the worker's group
-  if (groups > wg && two) {
-    width(wg, c0, kg, nb);
-    resize_with_headroom(multi_y2_, multi_y_.size());
-    resize_with_headroom(multi_w2_, multi_w_.size());
-    load(c0, kg, 4 * nb, multi_y2_.data());
-    multi_job_.L = L_;
-    multi_job_.Lx = Lx;
-    multi_job_.inv_scale = inv_scale;
-    multi_job_.nb = nb;
-    multi_job_.Y2 = multi_y2_.data();
-    multi_job_.W2 = multi_w2_.data();
-    multi_job_.path = &sn_path_;
-    multi_job_.progress.store(0, std::memory_order_relaxed);
-    started = worker_->try_start(&worker_multi<T>, &multi_job_);
-  }
-  double *Y = multi_y_.data(), *W = multi_w_.data();
-  for (int g = 0; g < groups; ++g) {
-    if (started && g == wg) continue;
-    width(g, c0, kg, nb);
-    load(c0, kg, 4 * nb, Y);
-    forward_path<T>(F, sn_path_, nb, Y, W);
-    store(c0, kg, 4 * nb, Y);
-  }
-  if (!started) return;
-  width(wg, c0, kg, nb);
-  if (worker_->await(multi_job_.progress, kWorkerStallMs)) {
-    store(c0, kg, 4 * nb, multi_y2_.data());
-    return;
-  }
-  ++stats_.takeovers;
-  left_running_ = started;  // (it reads sn_path_ and multi_y2_: settle() before either changes)
-  load(c0, kg, 4 * nb, Y);
-  forward_path<T>(F, sn_path_, nb, Y, W);
-  store(c0, kg, 4 * nb, Y);
+  multi_groups(
+      Lx, inv_scale, k, &sn_path_,
+      [&](int c0, int kg, int kp, double* Y) {
+        for (int p : rows)
+          for (int c = 0; c < kp; ++c)
+            Y[static_cast<size_t>(p) * kp + c] = c < kg ? B[static_cast<size_t>(c0 + c) * n_ + Perm[p]] : 0.0;
+      },
+      [&](int nb, double* Y, double* W) { forward_path<T>(F, sn_path_, nb, Y, W); },
+      [&](int c0, int kg, int kp, const double* Y) {
+        for (int c = 0; c < kg; ++c)
+          for (size_t t = 0; t < nr; ++t) Z[static_cast<size_t>(c0 + c) * nr + t] = Y[static_cast<size_t>(rows[t]) * kp + c];
+      });
 }
 
 void CholmodSolver::solve_copy(const double* b, double* x) {

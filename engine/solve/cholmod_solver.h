@@ -205,6 +205,13 @@ class CholmodSolver {
   template <class T>
   void forward_half(const T* Lx, const double* inv_scale, int k, const double* B, const std::vector<int>& rows,
                     std::vector<double>& Z);
+  // The groups of up to 16 columns of a multi-column pass (substitute_multi,
+  // forward_half; path: the forward half's supernodes, null for a whole
+  // substitution): load(c0, kg, kp, Y) interleaves a group's columns,
+  // pass(nb, Y, W) runs it here, store(c0, kg, kp, Y) takes its results.
+  template <class T, class Load, class Pass, class Store>
+  void multi_groups(const T* Lx, const double* inv_scale, int k, const std::vector<int>* path, const Load& load,
+                    const Pass& pass, const Store& store);
   SubstitutionWorker* worker_ = nullptr;   // set_substitution_worker
   SubstitutionSplit split_;                // of the current analysis
   std::vector<double> work_y2_, work_w2_, work_top_;  // the worker's y copy and gather, the top rows' start values
