@@ -477,7 +477,10 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   const bool reuse = (m.solver.policy != SolverPolicy::Exact && have_Y && same_frame) ||
                      (change == 0.0 && ws.contact_W_of_Y);
   resize_with_headroom(ws.contact_work, static_cast<size_t>(r) * n);
+  bool filled = false;
   const auto fill_columns = [&] {  // H^T's columns into contact_work
+    if (filled) return;
+    filled = true;
     std::fill(ws.contact_work.begin(), ws.contact_work.begin() + static_cast<size_t>(r) * n, 0.0);
     for (int i = 0; i < r; ++i) {
       double* h = ws.contact_work.data() + static_cast<size_t>(i) * n;
