@@ -80,7 +80,7 @@ void apply_factor_inverse(const Model& model, Workspace& ws, const double* b, do
 // warped, lagged before a cut maps it), column by column otherwise.
 void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const double* B, double* X);
 // The compliance of k columns B (ndof x k, zero outside the DOFs nz, which
-// hold every DOF of their nodes) without their solves: Z (|rows| x k) with
+// hold every DOF of their nodes, node by node: 3a, 3a+1, 3a+2) without their solves: Z (|rows| x k) with
 // B_i^T P^-1 B_j = Z_i . Z_j, from the forward half of the preconditioner's
 // substitution over the factor's tree paths from nz (CholmodSolver::
 // forward_half_multi). Only where P^-1 is a factor's Q F^-1 Q^T whole:
