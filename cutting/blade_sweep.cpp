@@ -85,9 +85,11 @@ int edge_segments(const InstrumentSpec& spec, double spacing) {
   return static_cast<int>(std::clamp(s, double(kMinEdgeSegments), double(kMaxEdgeSegments)));
 }
 
-int sweep_blades(Simulation& sim) {
+int sweep_blades(Simulation& sim, bool* blade_done_changed) {
   int added = 0;
   State& st = sim.state;
+  if (blade_done_changed) *blade_done_changed = false;
+  std::vector<char> out(sim.scene.instruments.size(), 0);  // a moving blade outside the tissue at the frame's end
   std::unique_ptr<TissueLocator> locator;  // made once, when a blade moved
   std::unique_ptr<TissueLocator> body;     // the reference configuration, made once, when a band may re-cut
   const double h = element_size(sim.model);
@@ -140,6 +142,7 @@ int sweep_blades(Simulation& sim) {
         in[k] = in[k] || elem[at] >= 0;
       }
     }
+    out[i] = !in[n];  // (a blade at rest was skipped above: it may rest inside the tissue)
     // The rows from the last one before the blade met the tissue to the
     // first one after it left, mapped to the reference configuration the
     // tissue is in now: a sample in the tissue by the element holding it,
@@ -257,6 +260,18 @@ int sweep_blades(Simulation& sim) {
         push(row[k][j], row[k + 1][j + 1], row[k + 1][j]);
       }
     }
+  }
+  // A scalpel out of the tissue at the frame's end has finished a stroke
+  // when it swept bands since its last one ended (this frame's included).
+  for (size_t i = 0; i < out.size() && sim.scene.front_enrichment; ++i) {
+    if (!out[i]) continue;
+    const double n = static_cast<double>(std::count(st.swept_tool.begin(), st.swept_tool.end(), double(i)));
+    double last = 0;
+    for (size_t k = 0; k + 1 < st.blade_done.size(); k += 2)
+      if (st.blade_done[k] == double(i)) last = st.blade_done[k + 1];
+    if (n <= last) continue;
+    st.blade_done.insert(st.blade_done.end(), {double(i), n});
+    if (blade_done_changed) *blade_done_changed = true;
   }
   return added;
 }

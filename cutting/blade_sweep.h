@@ -17,8 +17,11 @@ namespace incise {
 
 // Appends to sim.state.swept the triangles each scalpel's edge swept in the
 // coming frame (sim.tools: before -> after), when the band meets the tissue.
-// Returns how many were added.
-int sweep_blades(Simulation& sim);
+// Returns how many were added. Under cut_front "enriched" it also appends
+// to State::blade_done each stroke a scalpel finished (its edge at the
+// frame's end pose outside the tissue after it swept bands: that stroke's
+// front is enriched, cut_apply.cpp), and sets *blade_done_changed then.
+int sweep_blades(Simulation& sim, bool* blade_done_changed = nullptr);
 
 // The band a scalpel sweeps in one motion step is a strip of quads along its
 // edge, one per segment: the edge is cut into segments of about two of the

@@ -1,7 +1,5 @@
 #include "cutting/cut_stage.h"
 
-#include <cstdio>
-
 #include "cutting/blade_sweep.h"
 #include "cutting/cut_apply.h"
 #include "engine/dynamics/static_solve.h"
@@ -12,8 +10,9 @@ namespace incise {
 
 void cutting_stage(Simulation& sim) {
   const double t = sim.state.time, dt = sim.model.dt;
-  const int swept = sweep_blades(sim);  // the scalpels' bands of this frame
-  const CutUpdate cut = update_cuts(sim, t, t + dt, swept > 0);
+  bool blade_done_changed = false;
+  const int swept = sweep_blades(sim, &blade_done_changed);  // the scalpels' bands of this frame
+  const CutUpdate cut = update_cuts(sim, t, t + dt, swept > 0 || blade_done_changed);
   // The next frame's layout and model build run beside this step (the times
   // as the next frame will compute them: t1 = t + dt, then t1 + dt).
   // (t1 + dt, not t + 2 dt: the next frame sums its times the same way, and
@@ -46,11 +45,6 @@ void install_cutting_stage(Simulation& sim) {
       throw Error(sim.scene.path + ": initial \"static\" with the cuts at t = 0: " + with_failure_context(e, sim.model));
     }
   }
-  if (scalpel && sim.scene.front_enrichment)
-    std::fprintf(stderr,
-                 "warning: %s: cut_front \"enriched\" enriches the fronts of the scene's cuts once they are "
-                 "complete; the scalpels' incisions keep theirs on element faces (docs/cutting.md)\n",
-                 sim.scene.path.c_str());
 }
 
 }  // namespace incise

@@ -603,10 +603,13 @@ std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& c, double t) {
 }
 
 std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept, const std::vector<double>& swept_tool,
-                                               int tool, const std::string& name) {
+                                               int tool, const std::string& name, size_t begin, size_t end) {
   std::vector<Facet> facets;
+  size_t own = 0;  // the tool's triangles so far
   for (size_t t = 0; t < swept_tool.size(); ++t) {
     if (static_cast<int>(swept_tool[t]) != tool) continue;
+    if (own++ < begin) continue;
+    if (own > end) break;
     const double* v = &swept[9 * t];
     // A band's triangle of no area (an edge moved by roundoff, or along
     // itself) has no plane: its level set would be noise.

@@ -8,6 +8,7 @@
 // (cutting/exact_sign.h), so "node on the surface" is a yes/no question that
 // does not depend on the model's scale or a tolerance.
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -94,9 +95,11 @@ class CutSurface {
 std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& spec, double t);
 
 // The surface instrument `tool` swept (State::swept, swept_tool: (ntri, 9)
-// and (ntri)); nullptr when it swept nothing.
+// and (ntri)), from its triangles begin to end (counted over its own);
+// nullptr when that swept nothing.
 std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept, const std::vector<double>& swept_tool,
-                                               int tool, const std::string& name);
+                                               int tool, const std::string& name, size_t begin = 0,
+                                               size_t end = SIZE_MAX);
 
 // Whether triangle (a, b, c) (3 coordinates each) has no usable plane: twice
 // its area over its longest edge squared is <= 1e-12 (an angle below about

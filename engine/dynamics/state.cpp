@@ -37,9 +37,10 @@ std::uint64_t fnv(const std::vector<double>& x, std::uint64_t h = kFnvOffset) {
   return fnv1a(lane, sizeof lane, fnv1a(&n, sizeof n, h));
 }
 
-// Format version 5 (4: no recovery flag, read as false; 3: no du either,
-// read as empty; 2: the byte-wise field hash; 1: no swept cuts).
-constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '5'};
+// Format version 6 (5: no blade_done, read as empty; 4: no recovery flag
+// either, read as false; 3: no du either, read as empty; 2: the byte-wise
+// field hash; 1: no swept cuts).
+constexpr char kMagic[8] = {'I', 'N', 'C', 'S', 'T', 'A', 'T', '6'};
 
 template <class T>
 void put(std::ostream& os, const T& v) {
@@ -71,6 +72,8 @@ std::array<std::uint64_t, kNumStateFields> state_field_hashes(const State& s) {
   h[kFieldA] = fnv(s.a);
   h[kFieldR] = fnv(s.R);
   h[kFieldTopology] = fnv(s.swept_frame, fnv(s.swept_tool, fnv(s.swept, fnv(s.cut_progress))));
+  // blade_done likewise only when there is one (cut_front "enriched" with a scalpel).
+  if (!s.blade_done.empty()) h[kFieldTopology] = fnv(s.blade_done, h[kFieldTopology]);
   return h;
 }
 
@@ -84,7 +87,7 @@ void write_state(std::ostream& os, const State& s) {
   put(os, s.time);
   put<std::int64_t>(os, s.frame);
   for (const std::vector<double>* f :
-       {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool, &s.swept_frame, &s.du}) {
+       {&s.u, &s.v, &s.a, &s.R, &s.cut_progress, &s.swept, &s.swept_tool, &s.swept_frame, &s.du, &s.blade_done}) {
     put<std::uint64_t>(os, f->size());
     os.write(reinterpret_cast<const char*>(f->data()), static_cast<std::streamsize>(f->size() * sizeof(double)));
   }
@@ -94,13 +97,15 @@ void write_state(std::ostream& os, const State& s) {
 
 State read_state(std::istream& is, const std::string& what) {
   char magic[sizeof kMagic];
-  // Version 3 files (no du) and 4 (no recovery flag) are read too: the next
-  // step then starts from the velocity predictor, or as an ordinary step.
+  // Version 3 files (no du), 4 (no recovery flag) and 5 (no blade_done) are
+  // read too: the next step then starts from the velocity predictor, or as
+  // an ordinary step, and scalpels' fronts stay on faces until a blade moves.
   const bool read = static_cast<bool>(is.read(magic, sizeof magic));
   const bool v3 = read && std::memcmp(magic, "INCSTAT3", 8) == 0;
   const bool v4 = read && std::memcmp(magic, "INCSTAT4", 8) == 0;
-  if (!read || (!v3 && !v4 && std::memcmp(magic, kMagic, sizeof kMagic) != 0))
-    throw Error(what + ": not an incise state file of version 3 to 5 (header 'INCSTAT5' expected)");
+  const bool v5 = read && std::memcmp(magic, "INCSTAT5", 8) == 0;
+  if (!read || (!v3 && !v4 && !v5 && std::memcmp(magic, kMagic, sizeof kMagic) != 0))
+    throw Error(what + ": not an incise state file of version 3 to 6 (header 'INCSTAT6' expected)");
   // Bytes left, so a corrupted length is refused before anything is allocated.
   const auto here = is.tellg();
   is.seekg(0, std::ios::end);
@@ -113,10 +118,10 @@ State read_state(std::istream& is, const std::string& what) {
     throw Error(what + ": state time or frame out of range (time " + std::to_string(s.time) + ", frame " +
                 std::to_string(frame) + ")");
   s.frame = static_cast<int>(frame);
-  const char* names[] = {"u", "v", "a", "R", "cut_progress", "swept", "swept_tool", "swept_frame", "du"};
-  std::vector<double>* fields[] = {&s.u,  &s.v,     &s.a,          &s.R,          &s.cut_progress,
-                                   &s.swept, &s.swept_tool, &s.swept_frame, &s.du};
-  for (int k = 0; k < (v3 ? 8 : 9); ++k) {
+  const char* names[] = {"u", "v", "a", "R", "cut_progress", "swept", "swept_tool", "swept_frame", "du", "blade_done"};
+  std::vector<double>* fields[] = {&s.u,     &s.v,          &s.a,           &s.R,  &s.cut_progress,
+                                   &s.swept, &s.swept_tool, &s.swept_frame, &s.du, &s.blade_done};
+  for (int k = 0; k < (v3 ? 8 : v4 || v5 ? 9 : 10); ++k) {
     const std::uint64_t n = get<std::uint64_t>(is, what, names[k]);
     if (n > static_cast<std::uint64_t>(left) / sizeof(double))
       throw Error(what + ": state field " + names[k] + " claims " + std::to_string(n) + " values, more than the file holds");

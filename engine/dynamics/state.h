@@ -28,6 +28,12 @@ struct State {
   std::vector<double> swept;          // (ntri, 9) corners
   std::vector<double> swept_tool;     // (ntri) the instrument (scene.instruments index)
   std::vector<double> swept_frame;    // (ntri) the frame that swept it
+  // cut_front "enriched" only (empty otherwise): the scalpels' finished
+  // strokes, in order, as (instrument, how many of its swept triangles it
+  // had when its blade left the tissue). Each finished stroke is a surface
+  // with an enriched front; the triangles after its last one are the
+  // stroke in progress, on faces (cutting/cut_apply.cpp).
+  std::vector<double> blade_done;     // (nstroke, 2)
   // The next step is a recovery step (backward Euler, integrator.recovery):
   // a cut severed a piece before it, or the last step's Newton iteration stopped at
   // its cap with the rotations still moving (engine/dynamics/step.cpp,
@@ -37,7 +43,7 @@ struct State {
   bool operator==(const State& o) const {
     return time == o.time && frame == o.frame && u == o.u && v == o.v && a == o.a && R == o.R && du == o.du &&
            cut_progress == o.cut_progress && swept == o.swept && swept_tool == o.swept_tool &&
-           swept_frame == o.swept_frame && recovery == o.recovery;
+           swept_frame == o.swept_frame && blade_done == o.blade_done && recovery == o.recovery;
   }
   bool operator!=(const State& o) const { return !(*this == o); }
 };

@@ -289,8 +289,8 @@ TEST_F(CliErrors, EnrichedCutFrontRunsStaticFramesSweptCutsAndInstruments) {
   EXPECT_EQ(st.code, 0) << st.out;
   EXPECT_NE(st.out.find(" front elements enriched ("), std::string::npos) << st.out;
   // Frames run with a cut that does not move, with a probe too, and with a
-  // swept cut (enriched once complete); a scalpel's incision keeps its front
-  // on faces, which a warning says.
+  // swept cut (enriched once complete) and with a scalpel (its incision's
+  // front enriched once the blade is out of the tissue).
   EXPECT_EQ(incise("run " + path("scene.json") + " --frames 3").code, 0);
   const Result probe = incise("run " + path("scene.json") + " --frames 3 --set " +
                               R"('instruments=[{"type": "probe", "radius": 0.1, "pose": {"position": [2.3, 0.5, 1.05]}}]')");
@@ -305,11 +305,6 @@ TEST_F(CliErrors, EnrichedCutFrontRunsStaticFramesSweptCutsAndInstruments) {
       incise("run " + path("scene.json") + " --frames 3 --set " +
              R"('instruments=[{"type": "scalpel", "blade": [0.3, 0.01, 0.1], "pose": {"position": [1, 0.5, 1.2]}}]')");
   EXPECT_EQ(scalpel.code, 0) << scalpel.out;
-  EXPECT_NE(scalpel.out.find("warning: " + path("scene.json") +
-                             ": cut_front \"enriched\" enriches the fronts of the scene's cuts once they are complete; "
-                             "the scalpels' incisions keep theirs on element faces"),
-            std::string::npos)
-      << scalpel.out;
   const Result bad = incise("static " + path("scene.json") + " --set cut_front=edges");
   EXPECT_EQ(bad.code, 1) << bad.out;
   EXPECT_NE(bad.out.find("cut_front"), std::string::npos) << bad.out;

@@ -130,17 +130,23 @@ TEST(State, DamagedFilesAreRefusedWithTheField) {
   s.swept_frame = {3};
   const std::string good = saved(s);
   EXPECT_EQ(read_error(good), "");
-  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 3 to 5"), std::string::npos);
+  EXPECT_NE(read_error("INCSTAT2" + good.substr(8)).find("not an incise state file of version 3 to 6"), std::string::npos);
   {
-    // A version 4 file (no recovery flag: the byte before the hash dropped)
-    // is read with the flag off; a version 3 file (no du either: the 8 bytes
-    // of its empty length dropped too) with du empty. Their hash is the same.
-    const std::string v4 = "INCSTAT4" + good.substr(8, good.size() - 17) + good.substr(good.size() - 8);
+    // A version 5 file (no blade_done: the 8 bytes of its empty length
+    // before the recovery flag dropped) is read with blade_done empty; a
+    // version 4 file (no recovery flag either) with the flag off; a version
+    // 3 file (no du either: the 8 bytes of its empty length dropped too)
+    // with du empty. Their hash is the same.
+    const std::string body = good.substr(8, good.size() - 25);  // header, blade_done's length, flag and hash off
+    const std::string v5 = "INCSTAT5" + body + good.substr(good.size() - 9);
+    std::stringstream is5(v5);
+    EXPECT_TRUE(read_state(is5, "old.state") == s);
+    const std::string v4 = "INCSTAT4" + body + good.substr(good.size() - 8);
     std::stringstream is4(v4);
     const State r4 = read_state(is4, "old.state");
     EXPECT_TRUE(r4 == s);
     EXPECT_FALSE(r4.recovery);
-    const std::string v3 = "INCSTAT3" + good.substr(8, good.size() - 25) + good.substr(good.size() - 8);
+    const std::string v3 = "INCSTAT3" + body.substr(0, body.size() - 8) + good.substr(good.size() - 8);
     std::stringstream is(v3);
     const State r = read_state(is, "old.state");
     EXPECT_TRUE(r == s);
@@ -158,6 +164,16 @@ TEST(State, DamagedFilesAreRefusedWithTheField) {
     std::string two = bytes;
     two[two.size() - 9] = 2;
     EXPECT_NE(read_error(two).find("state field recovery is 2, not 0 or 1"), std::string::npos) << read_error(two);
+  }
+  {
+    // A scalpel's blade_done (cut_front "enriched") is kept and enters the
+    // hash only when there is one.
+    State out = s;
+    out.blade_done = {0, 24, 1, 10};
+    EXPECT_NE(state_hash(out), state_hash(s));
+    const std::string bytes = saved(out);
+    std::stringstream is(bytes);
+    EXPECT_TRUE(read_state(is, "out.state") == out);
   }
   // Cut inside u's values (u's length at byte 24, its values from byte 32).
   EXPECT_NE(read_error(good.substr(0, 40)).find("run.state: state truncated in u"), std::string::npos) << read_error(good.substr(0, 40));
