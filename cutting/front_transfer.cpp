@@ -83,6 +83,42 @@ bool same_fronts(const Model& from, const Model& to, const std::vector<char>& in
   return true;
 }
 
+// Whether the fronts in S (in_s) are all new and S's elements keep their
+// pieces: no element of S has a branch DOF node in `from`, and each has
+// the same pieces in both models, their enriched DOF nodes paired one to
+// one (the new model splits its front elements into sub-tetrahedra for
+// integration only). Then the old space is the new one's with the branch
+// DOFs at 0, and the nodal transfer is exact: a front enriched where it
+// stopped (a swept cut's at the end of its sweep, a scalpel's stroke once
+// the blade is out) needs no projection.
+bool fronts_only_added(const Model& from, const Model& to, const std::vector<char>& in_s) {
+  const int npe = to.mesh.npe();
+  const auto pieces = [](const Model& m, int e) {
+    return m.has_cuts() ? m.cuts.elem_piece_ptr[e + 1] - m.cuts.elem_piece_ptr[e] : 1;
+  };
+  for (int e = 0; e < to.nelem; ++e) {
+    if (!in_s[e]) continue;
+    if (element_has_branch(from, e) || pieces(from, e) != pieces(to, e)) return false;
+    const int p0 = to.has_cuts() ? to.cuts.elem_piece_ptr[e] : 0, q0 = from.has_cuts() ? from.cuts.elem_piece_ptr[e] : 0;
+    int xs[64], ys[64], nmap = 0;
+    for (int k = 0; k < pieces(to, e); ++k)
+      for (int a = 0; a < npe; ++a) {
+        const int x = to.has_cuts() ? to.cuts.piece_enr[static_cast<size_t>(p0 + k) * npe + a] : -1;
+        const int y = from.has_cuts() ? from.cuts.piece_enr[static_cast<size_t>(q0 + k) * npe + a] : -1;
+        if ((x < 0) != (y < 0)) return false;
+        if (x < 0) continue;
+        int j = 0;
+        while (j < nmap && xs[j] != x && ys[j] != y) ++j;
+        if (j < nmap && (xs[j] != x || ys[j] != y)) return false;
+        if (j == nmap) {
+          if (nmap == 64) return false;
+          xs[nmap] = x, ys[nmap++] = y;
+        }
+      }
+  }
+  return true;
+}
+
 }  // namespace
 
 void project_near_fronts(const Model& from, const State& os, const Model& to, int nf, Kinematics& ns) {
@@ -118,6 +154,15 @@ void project_near_fronts(const Model& from, const State& os, const Model& to, in
         for (int f = 0; f < nf; ++f)
           for (int d = 0; d < 3; ++d) (*newf[f])[3 * j + d] = (*oldf[f])[3 * o + d];
       }
+    return;
+  }
+  if (fronts_only_added(from, to, in_s)) {
+    std::vector<double>* newf[4] = {&ns.u, &ns.v, &ns.a, &ns.du};
+    for (int i = 0; i < nnode; ++i) {
+      const int b = to.cuts.node_branch[i];
+      for (int j = b; b >= 0 && j < b + kBranchFunctions; ++j)
+        for (int f = 0; f < nf; ++f) std::fill_n(newf[f]->begin() + 3 * static_cast<size_t>(j), 3, 0.0);
+    }
     return;
   }
   const double beta = 1e-2 / std::pow(vol / ns_elem, 2.0 / 3.0);
