@@ -21,8 +21,12 @@ namespace incise {
 // problem definite where S holds a whole free piece.
 // Where S keeps its sub-tetrahedra and fronts (another cut's rebuild) the
 // DOFs copy over one by one, exactly (same_fronts); face-snapped ->
-// enriched at the same front comes back exactly too (the new space contains
-// the old). Otherwise the old sqrt(r) is not in the new space and this is
+// enriched at the same front is the nodal transfer with the branch DOFs at
+// 0, exactly (fronts_only_added: the new space contains the old; the
+// projection cost 1.4 s on organ_10k). The velocity's correction (and a's
+// and du's with it) is scaled back where it would raise the kinetic energy
+// (with the model's lumped mass) over the old model's: sliver DOFs near a
+// node layer are near-null in L2 but not in the lumped mass. Otherwise the old sqrt(r) is not in the new space and this is
 // its best fit: a second cut through an enriched slit's front elements
 // (which takes that front to faces) changed the energy by 0.21 of the
 // gravity work, against 2.6 before (branch DOFs dropped by node, 4-point
