@@ -252,6 +252,31 @@ void launch_job(const Model& m, Workspace& ws, int frame) {
   w.job_frame = w.last_launch = frame;
 }
 
+// A now, synchronously (a rescue, or a patch too large to pay). With a job
+// running, into the slot neither holds and without waiting for it
+// (take_job drops it when it ends); otherwise into the front slot. Before,
+// a rescue waited for the job and then factored: up to two factorizations.
+// Two factorizations at once need a BLAS that allows it
+// (blas_concurrency_safe); with a serial one the job is waited for and
+// dropped, as before.
+void factor_synchronously(const Model& m, Workspace& ws, int f) {
+  auto& w = ws.work;
+  int slot = w.front;
+  if (w.job_running && blas_concurrency_safe()) {
+    slot = 0;
+    while (slot == w.front || slot == w.job_slot) ++slot;
+  } else if (w.job_running) {
+    w.wait_job();
+    w.job_running = false;
+    w.job_error = nullptr;
+    w.job_slot = -1;
+  }
+  factor_now(m, ws, slot);
+  w.front = slot;
+  w.front_frame = f;
+  if (!w.job_running) w.last_launch = f;
+}
+
 // Lagged: make the front factor current for this frame (refresh policy).
 void lagged_refresh(const Model& m, Workspace& ws, int frame) {
   auto& w = ws.work;
@@ -259,27 +284,7 @@ void lagged_refresh(const Model& m, Workspace& ws, int frame) {
   const int call = ws.refresh_frame == f ? ++ws.refresh_calls : (ws.refresh_calls = 0);
   ws.refresh_frame = f;
   if (ws.rescue_pending && ws.factor_current) {
-    // A rescue (CG stalled on the lagged factor): A now, synchronously. With
-    // a job running, into the slot neither holds and without waiting for it
-    // (take_job drops it when it ends); otherwise into the front slot. Before,
-    // a rescue waited for the job and then factored: up to two factorizations.
-    // Two factorizations at once need a BLAS that allows it
-    // (blas_concurrency_safe); with a serial one the job is waited for and
-    // dropped, as before.
-    int slot = w.front;
-    if (w.job_running && blas_concurrency_safe()) {
-      slot = 0;
-      while (slot == w.front || slot == w.job_slot) ++slot;
-    } else if (w.job_running) {
-      w.wait_job();
-      w.job_running = false;
-      w.job_error = nullptr;
-      w.job_slot = -1;
-    }
-    factor_now(m, ws, slot);
-    w.front = slot;
-    w.front_frame = f;
-    if (!w.job_running) w.last_launch = f;
+    factor_synchronously(m, ws, f);
     return;
   }
   if (!ws.factor_current) {  // first frame, or the factor was invalidated
@@ -855,6 +860,16 @@ void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
       if (rescue || ws.newton_iterations_done == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
       if (m.solver.warp) lagged_warp_rotations(m, ws);
       if (rescue || ws.newton_iterations_done == 0 || ws.work.patch_pattern < 0) lagged_patch(m, ws, ws.A.data());
+      // A patch over more than a quarter of the DOFs costs more than the
+      // whole factor, and every solve and contact column goes through it:
+      // A is factored now instead. (A scalpel stroke's front enriched on
+      // organ_10k: a 9,006-DOF patch of 10,557, 94-144 ms of patch
+      // factorization and 260 ms of contact in each of three frames.)
+      if (4 * ws.work.patch_dof.size() > static_cast<size_t>(m.ndof())) {
+        factor_synchronously(m, ws, s.frame);
+        if (m.solver.warp) lagged_warp_rotations(m, ws);
+        lagged_patch(m, ws, ws.A.data());
+      }
       if (!rescue) factor_condensed_dofs(ws.work.condensed, ws.A.data());  // this iteration's A (a rescue keeps it)
       // The coarse level: from this frame's first matrix (measured at 20k DOF
       // here: 5-6 ms to form A_c, 5.7 ms to factor it; later Newton

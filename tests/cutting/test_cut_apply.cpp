@@ -171,6 +171,43 @@ TEST(CutPolicies, TheLaggedPatchIsTheCurrentModelsSubmatrixEveryFrame) {
   std::printf("frames with a patch: %d; front slot 0/1/2: %d/%d/%d frames\n", patched, fronts[0], fronts[1], fronts[2]);
 }
 
+// A rebuild that leaves more than a quarter of the DOFs to the lagged
+// factor's patch (here a swept cut's front enriched once its sweep ends:
+// branch DOFs on every node of the front elements and their ring) factors
+// A at once instead: no frame solves through such a patch, the factor of
+// that frame is fresh, and the run matches `exact`.
+TEST(CutPolicies, APatchOverAQuarterOfTheDofsIsAFactorizationInstead) {
+  const auto run = [](const SolverSettings& solver, int* big_patch_frames, int* fresh_at_switch) {
+    Scene s = test::block_scene(2);
+    s.material.model = MaterialModel::Linear;
+    s.material.rayleigh_mass = 0.5;
+    s.front_enrichment = true;
+    s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+    s.cuts = {test::swept_blade({Vec3{2, -0.5, 1.2}, Vec3{2, 1.5, 1.2}}, {Vec3{2, -0.5, 0.3}, Vec3{2, 1.5, 0.3}}, 0.3)};
+    s.cuts[0].at_time = 0.05;
+    s.solver = solver;
+    auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
+    for (int k = 0; k < 24; ++k) {
+      const bool had_branch = sim->model.has_cuts() && sim->model.cuts.has_branch();
+      const FrameTiming t = advance_frame(*sim);
+      if (4 * t.patch_dofs > sim->model.ndof()) ++*big_patch_frames;
+      if (!had_branch && sim->model.cuts.has_branch())
+        *fresh_at_switch = sim->ws.work.slot_map[sim->ws.work.front].empty() && sim->ws.work.front_frame == k;
+    }
+    return sim->state.u;
+  };
+  int big = 0, fresh = -1, unused = 0, unused2 = 0;
+  const std::vector<double> lagged = run(lagged_settings(3, 1e-10, 400), &big, &fresh);
+  const std::vector<double> exact = run(SolverSettings{}, &unused, &unused2);
+  const double err = test::rel_diff(lagged, exact);
+  std::printf("frames through a patch over a quarter of the DOFs: %d; factor fresh at the switch: %d; error vs exact "
+              "%.3g\n",
+              big, fresh, err);
+  EXPECT_EQ(big, 0);
+  EXPECT_EQ(fresh, 1) << "the front was enriched in some frame, with A factored in it";
+  EXPECT_LT(err, 1e-7);
+}
+
 // integrator.tangent_reuse through cut frames: the kept blocks of elements
 // the cut left alone are carried to the rebuilt model (cut_apply.cpp), K
 // stays their sum, and the trajectory approaches the full assembly's as
