@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <exception>
 #include <map>
+#include <set>
 #include <memory>
 #include <thread>
 
@@ -75,6 +76,7 @@ struct PreparedCut {
   std::vector<double> progress;  // (scene.cuts) what the update applies
   size_t swept = 0;              // instrument-swept triangles it includes (State::swept_tool.size())
   std::vector<double> blade_done;  // the State::blade_done it was prepared with
+  std::vector<std::string> faces_strokes;  // finished scalpel strokes whose fronts stay on faces (warned once)
   double t_sweep = 0.0;
   int base_version = -1;         // Simulation::model_version it was prepared from
   bool rebuild = false;          // the layout changed: `next` holds the new model
@@ -121,6 +123,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   // there or had to be carried to faces through the whole incision's ring
   // at every rebuild (docs/cutting.md, "The element at the cut front").
   std::vector<char> branch;
+  std::vector<std::string> stroke;  // (surfaces) a finished stroke's name, "" for the others
   for (size_t k = 0; k < sim.scene.cuts.size(); ++k) {
     if (progress[k] <= 0.0) continue;
     auto s = make_cut_surface(sim.scene.cuts[k], t_sweep);
@@ -128,6 +131,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     surfaces.push_back(s.get());
     owned.push_back(std::move(s));
     branch.push_back(sim.scene.front_enrichment && progress[k] >= 1.0);
+    stroke.emplace_back();
   }
   for (size_t i = 0; i < sim.scene.instruments.size(); ++i) {
     // A scalpel's finished strokes, one surface each (enriched), and the
@@ -135,6 +139,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     // on faces.
     const std::string& name = sim.scene.instruments[i].json_path;
     size_t begin = 0;
+    int finished_strokes = 0;
     for (size_t k = 0; k + 1 < blade_done.size() + 2; k += 2) {
       const bool finished = k + 1 < blade_done.size();
       if (finished && blade_done[k] != double(i)) continue;
@@ -145,12 +150,15 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
       surfaces.push_back(s.get());
       owned.push_back(std::move(s));
       branch.push_back(sim.scene.front_enrichment && finished);
+      stroke.push_back(finished ? name + " stroke " + std::to_string(++finished_strokes) : std::string());
     }
   }
   if (surfaces.empty()) return p;
   Stopwatch part;
   CutLayout layout = compute_cut_layout(sim.model, surfaces, &p.report, branch);
   p.layout_ms = part.lap();
+  for (int c : p.report.fronts_on_faces)
+    if (!stroke[c].empty()) p.faces_strokes.push_back(stroke[c]);
   if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && p.report.cut_elements == 0))
     return p;
   p.next = std::make_unique<Model>(build_model(sim.mesh, sim.scene, &layout, &sim.model));
@@ -163,9 +171,27 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   return p;
 }
 
+// A finished scalpel stroke whose front the layout keeps on faces (beside
+// an earlier enriched front, or in an element another cut splits) is named
+// once a run, as fronts_left_on_faces names a scene cut's. The names seen
+// live in sim.module_data[kStageCutting].
+void warn_strokes_on_faces(Simulation& sim, const std::vector<std::string>& strokes) {
+  if (strokes.empty()) return;
+  auto& slot = sim.module_data[kStageCutting];
+  if (!slot) slot = std::make_shared<std::set<std::string>>();
+  auto& warned = *static_cast<std::set<std::string>*>(slot.get());
+  for (const std::string& s : strokes)
+    if (warned.insert(s).second)
+      std::fprintf(stderr,
+                   "warning: %s%s: its front stays on element faces: it lies a few elements from an earlier cut's "
+                   "enriched front, or in an element another cut splits (cut_front \"enriched\", docs/cutting.md)\n",
+                   sim.scene.path.empty() ? "" : (sim.scene.path + ": ").c_str(), s.c_str());
+}
+
 // Applies a prepared update: the new model, the kinematics and rotations
 // carried over, the solver set up for the new pattern, the acceleration.
 CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
+  warn_strokes_on_faces(sim, p.faces_strokes);
   CutUpdate up;
   up.report = p.report;
   up.part_ms[kCutLayout] = p.layout_ms;

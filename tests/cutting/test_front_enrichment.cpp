@@ -478,7 +478,8 @@ TEST(FrontEnrichment, AGrowingFrontStaysOnFacesAndIsEnrichedOnceItStops) {
 // faces changed the energy by 0.26 of the gravity work here, and by 55x
 // with the first stroke at x = 2.3, 2.5% of an element from a node layer).
 // (The second stroke's front, two element columns from the first, is left
-// on faces by the layout: a corner carries one front's level sets.)
+// on faces by the layout, a corner carrying one front's level sets, and a
+// warning names it.)
 // Undamped and linear: E = T + U - f.u jumps only at the rebuilds.
 TEST(FrontEnrichment, AScalpelsIncisionFrontIsEnrichedOnceTheBladeIsOut) {
   // The edge's centre (x, z) at frame f: down at x = 2 (frames 0-8), at
@@ -527,6 +528,7 @@ TEST(FrontEnrichment, AScalpelsIncisionFrontIsEnrichedOnceTheBladeIsOut) {
     }
     biggest = std::max(biggest, change);
   });
+  testing::internal::CaptureStderr();
   for (int k = 0; k < 46; ++k) {
     advance_frame(*sim);
     const bool branch = sim->model.cuts.has_branch();
@@ -566,7 +568,14 @@ TEST(FrontEnrichment, AScalpelsIncisionFrontIsEnrichedOnceTheBladeIsOut) {
       }
     }
   }
+  const std::string err = testing::internal::GetCapturedStderr();
   for (double v : sim->state.u) ASSERT_TRUE(std::isfinite(v));
+  // The second stroke's front, two element columns from the first, stays on
+  // faces, and a warning (once) names it.
+  const std::string warning = "warning: test-scene: instruments[0] stroke 2: its front stays on element faces";
+  EXPECT_NE(err.find(warning), std::string::npos) << err;
+  EXPECT_EQ(err.find(warning), err.rfind(warning)) << err;
+  EXPECT_EQ(err.find("stroke 1"), std::string::npos) << err;
   std::printf("opening ahead of / behind the front: blade in %.3e / %.3e, out %.3e / %.3e\n", open_in[0], open_in[1],
               open_out[0], open_out[1]);
   // Face-snapped, the front layer's elements are whole: shut behind the
