@@ -88,6 +88,68 @@ struct PreparedCut {
   double layout_ms = 0.0, model_ms = 0.0;
 };
 
+// A group of a scalpel's strokes that make one surface: its ranges of the
+// tool's triangles, whether all of them are finished, and its name.
+struct StrokeGroup {
+  std::vector<std::pair<size_t, size_t>> ranges;
+  bool finished = true;
+  std::string label;  // "stroke 2", "strokes 1, 3"
+};
+
+// Scalpel `tool`'s strokes (blade_done: (nstroke, 2) (tool, triangles at its
+// end); after the last, the stroke in progress), grouped: two strokes with
+// a corner of one within `reach` of the other are in one group, in the
+// order of their first stroke. Without strokes, one group of all (not
+// finished): the whole incision on faces.
+std::vector<StrokeGroup> stroke_groups(const std::vector<double>& swept, const std::vector<double>& swept_tool,
+                                       const std::vector<double>& blade_done, int tool, const std::string& name,
+                                       double reach) {
+  std::vector<std::pair<size_t, size_t>> ranges;  // the strokes, the last one in progress
+  size_t begin = 0;
+  for (size_t k = 0; k + 1 < blade_done.size(); k += 2)
+    if (blade_done[k] == double(tool)) {
+      ranges.emplace_back(begin, static_cast<size_t>(blade_done[k + 1]));
+      begin = ranges.back().second;
+    }
+  const size_t finished = ranges.size();
+  ranges.emplace_back(begin, SIZE_MAX);
+  if (ranges.size() == 1) return {StrokeGroup{ranges, false, "stroke 1"}};  // (no surface built to group)
+  std::vector<std::unique_ptr<CutSurface>> part(ranges.size());
+  for (size_t r = 0; r < ranges.size(); ++r) part[r] = make_swept_surface(swept, swept_tool, tool, name, {ranges[r]});
+  std::vector<size_t> root(ranges.size());
+  for (size_t r = 0; r < root.size(); ++r) root[r] = r;
+  const auto find = [&](size_t r) {
+    while (root[r] != r) r = root[r] = root[root[r]];
+    return r;
+  };
+  // Whether a corner of b's facets lies within reach of a.
+  const auto near = [&](const CutSurface& a, const CutSurface& b) {
+    for (const Facet& f : b.facets())
+      for (const Vec3& v : f.v)
+        if (a.distance(v.data()) <= reach) return true;
+    return false;
+  };
+  for (size_t b = 1; b < ranges.size(); ++b)
+    for (size_t a = 0; a < b; ++a)
+      if (part[a] && part[b] && find(a) != find(b) && (near(*part[a], *part[b]) || near(*part[b], *part[a])))
+        root[find(b)] = find(a);
+  std::vector<StrokeGroup> groups;
+  std::vector<int> group_of(ranges.size(), -1);
+  for (size_t r = 0; r < ranges.size(); ++r) {
+    int& g = group_of[find(r)];
+    if (g < 0) {
+      g = static_cast<int>(groups.size());
+      groups.emplace_back();
+    }
+    StrokeGroup& G = groups[g];
+    G.ranges.push_back(ranges[r]);
+    if (r >= finished) G.finished = false;
+    G.label += (G.label.empty() ? "" : ", ") + std::to_string(r + 1);
+  }
+  for (StrokeGroup& G : groups) G.label = (G.ranges.size() > 1 ? "strokes " : "stroke ") + G.label;
+  return groups;
+}
+
 // swept, swept_tool, blade_done: the instruments' swept triangles the update
 // includes and which scalpels are out of the tissue (State::swept...; the
 // cut-ahead helper passes its own copies: it must not read the State the
@@ -113,10 +175,12 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   // A scalpel's incision likewise: on faces while the blade is in the
   // tissue, enriched once it is out (State::blade_done: the strokes so far
   // are done, their front lines no longer move). When the blade goes in
-  // again, the new stroke is another surface, on faces, and the finished
-  // ones keep their enriched fronts (each its own surface, unchanged): taking an enriched front back to faces
-  // (project_near_fronts) changed the energy by 0.2-0.4 of the gravity
-  // work, and by 24-55x on a slit 1-2% of an element from a node layer.
+  // again elsewhere, the new stroke is another surface, on faces, and the
+  // finished ones keep their enriched fronts (unchanged): taking an
+  // enriched front back to faces (project_near_fronts) changes the energy
+  // by 0.2-0.35 of the gravity work. Back in (or beside) its own incision,
+  // it joins that stroke's surface, which goes back to faces until the
+  // blade is out again (stroke_groups).
   // Enriched while the blade merely rests (twenty-first session, measured
   // and withdrawn): the incision's bottom front line stays in the same
   // elements while the blade cuts on, so the rested front either froze
@@ -133,24 +197,25 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     branch.push_back(sim.scene.front_enrichment && progress[k] >= 1.0);
     stroke.emplace_back();
   }
+  double h = 0;  // the cube root of the mean element volume: strokes closer are one surface
+  for (int e = 0; e < sim.model.nelem; ++e) h += sim.model.elem_volume[e];
+  h = std::cbrt(h / std::max(1, sim.model.nelem));
   for (size_t i = 0; i < sim.scene.instruments.size(); ++i) {
-    // A scalpel's finished strokes, one surface each (enriched), and the
-    // stroke in progress (faces); without cut_front "enriched" one surface,
-    // on faces.
+    // A scalpel's strokes (State::blade_done; the last one in progress) in
+    // groups, each a surface: strokes within an element of each other are
+    // one (a blade back in its own incision: two coincident surfaces there
+    // made sliver pieces that spun, 3 rad a frame, on organ_10k). A group
+    // whose strokes are all finished has its front enriched; the one the
+    // blade is cutting keeps its front on faces. Without cut_front
+    // "enriched" (no strokes recorded) one surface, on faces.
     const std::string& name = sim.scene.instruments[i].json_path;
-    size_t begin = 0;
-    int finished_strokes = 0;
-    for (size_t k = 0; k + 1 < blade_done.size() + 2; k += 2) {
-      const bool finished = k + 1 < blade_done.size();
-      if (finished && blade_done[k] != double(i)) continue;
-      const size_t end = finished ? static_cast<size_t>(blade_done[k + 1]) : SIZE_MAX;
-      auto s = make_swept_surface(swept, swept_tool, static_cast<int>(i), name, begin, end);
-      begin = end;
+    for (const StrokeGroup& g : stroke_groups(swept, swept_tool, blade_done, static_cast<int>(i), name, h)) {
+      auto s = make_swept_surface(swept, swept_tool, static_cast<int>(i), name, g.ranges);
       if (!s) continue;
       surfaces.push_back(s.get());
       owned.push_back(std::move(s));
-      branch.push_back(sim.scene.front_enrichment && finished);
-      stroke.push_back(finished ? name + " stroke " + std::to_string(++finished_strokes) : std::string());
+      branch.push_back(sim.scene.front_enrichment && g.finished);
+      stroke.push_back(g.finished ? name + " " + g.label : std::string());
     }
   }
   if (surfaces.empty()) return p;

@@ -603,13 +603,15 @@ std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& c, double t) {
 }
 
 std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept, const std::vector<double>& swept_tool,
-                                               int tool, const std::string& name, size_t begin, size_t end) {
+                                               int tool, const std::string& name,
+                                               const std::vector<std::pair<size_t, size_t>>& ranges) {
   std::vector<Facet> facets;
-  size_t own = 0;  // the tool's triangles so far
+  size_t own = 0, r = 0;  // the tool's triangles so far; the range they are in or before
   for (size_t t = 0; t < swept_tool.size(); ++t) {
     if (static_cast<int>(swept_tool[t]) != tool) continue;
-    if (own++ < begin) continue;
-    if (own > end) break;
+    const size_t k = own++;
+    while (r < ranges.size() && k >= ranges[r].second) ++r;
+    if (!ranges.empty() && (r == ranges.size() || k < ranges[r].first)) continue;
     const double* v = &swept[9 * t];
     // A band's triangle of no area (an edge moved by roundoff, or along
     // itself) has no plane: its level set would be noise.

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "engine/scene/scene.h"
@@ -95,11 +96,11 @@ class CutSurface {
 std::unique_ptr<CutSurface> make_cut_surface(const CutSpec& spec, double t);
 
 // The surface instrument `tool` swept (State::swept, swept_tool: (ntri, 9)
-// and (ntri)), from its triangles begin to end (counted over its own);
-// nullptr when that swept nothing.
+// and (ntri)): all of its triangles, or those in `ranges` ([begin, end)
+// counted over its own, in order); nullptr when that swept nothing.
 std::unique_ptr<CutSurface> make_swept_surface(const std::vector<double>& swept, const std::vector<double>& swept_tool,
-                                               int tool, const std::string& name, size_t begin = 0,
-                                               size_t end = SIZE_MAX);
+                                               int tool, const std::string& name,
+                                               const std::vector<std::pair<size_t, size_t>>& ranges = {});
 
 // Whether triangle (a, b, c) (3 coordinates each) has no usable plane: twice
 // its area over its longest edge squared is <= 1e-12 (an angle below about

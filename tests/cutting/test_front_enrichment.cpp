@@ -595,5 +595,71 @@ TEST(FrontEnrichment, AScalpelsIncisionFrontIsEnrichedOnceTheBladeIsOut) {
   EXPECT_LT(biggest / scale, 1e-3);
 }
 
+// The blade back in its own incision (down again at x = 2.05, deeper, to
+// z = 0.25): that stroke is one surface with the first (two coincident
+// surfaces made sliver pieces that spun at 3 rad a frame on organ_10k), so
+// the first front goes back to faces while the blade is in and the two
+// strokes' front is enriched once it is out.
+TEST(FrontEnrichment, AScalpelBackInItsOwnIncisionJoinsItsSurface) {
+  const auto pose = [](int f) -> std::array<double, 2> {
+    const auto lerp = [](double a, double b, double w) { return a + (b - a) * std::clamp(w, 0.0, 1.0); };
+    if (f <= 8) return {2.0, lerp(1.2, 0.45, f / 8.0)};
+    if (f <= 16) return {2.0, lerp(0.45, 1.3, (f - 8) / 4.0)};
+    if (f <= 20) return {lerp(2.0, 2.05, (f - 16) / 4.0), 1.3};
+    if (f <= 30) return {2.05, lerp(1.3, 0.25, (f - 20) / 10.0)};
+    return {2.05, lerp(0.25, 1.3, (f - 30) / 4.0)};
+  };
+  Scene s = test::block_scene(2);
+  s.material.model = MaterialModel::Linear;
+  s.material.young = 1e5;
+  s.front_enrichment = true;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  InstrumentSpec scalpel;
+  scalpel.kind = InstrumentSpec::Kind::Scalpel;
+  scalpel.blade = {0.2, 0.01, 0.1};
+  scalpel.edge = {Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}};
+  scalpel.contact = false;
+  scalpel.json_path = "instruments[0]";
+  s.instruments.push_back(scalpel);
+  auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
+  sim->pipeline.set(kStageToolPoses, [&](Simulation& q) {
+    q.tools.resize(1);
+    const auto a = pose(q.state.frame), b = pose(q.state.frame + 1);
+    q.tools[0].before.p = std::array<double, 3>{a[0], 0.0, a[1]};
+    q.tools[0].after.p = std::array<double, 3>{b[0], 0.0, b[1]};
+  });
+  double to_faces = 0, scale = 0;
+  std::vector<int> switches;
+  sim->pipeline.set(kStageCutting, [&](Simulation& q) {
+    const double e0 = total_energy(q.model, q.state);
+    const bool was = q.model.has_cuts() && q.model.cuts.has_branch();
+    cutting_stage(q);
+    const bool now = q.model.has_cuts() && q.model.cuts.has_branch();
+    if (was != now) switches.push_back(q.state.frame);
+    if (was && !now) to_faces = std::abs(total_energy(q.model, q.state) - e0);
+  });
+  testing::internal::CaptureStderr();
+  int inverted = 0;
+  for (int k = 0; k < 44; ++k) {
+    const FrameTiming t = advance_frame(*sim);
+    inverted = std::max(inverted, t.inverted_points);
+    double work = 0;
+    for (int d = 0; d < sim->model.ndof(); ++d) work += sim->model.f_gravity[d] * sim->state.u[d];
+    scale = std::max(scale, std::abs(work));
+  }
+  const std::string err = testing::internal::GetCapturedStderr();
+  for (double v : sim->state.u) ASSERT_TRUE(std::isfinite(v));
+  std::printf("front enriched / on faces / enriched at frames");
+  for (int f : switches) std::printf(" %d", f);
+  std::printf("; energy change back to faces %.3e of the largest gravity work; most inverted points %d\n",
+              to_faces / scale, inverted);
+  ASSERT_EQ(switches.size(), 3u) << "enriched, back to faces while the blade is in, enriched again";
+  EXPECT_TRUE(sim->model.cuts.has_branch());
+  EXPECT_EQ(sim->state.blade_done.size(), 4u) << "two strokes finished";
+  EXPECT_EQ(err.find("stays on element faces"), std::string::npos) << err;
+  EXPECT_LT(to_faces / scale, 0.5);
+  EXPECT_EQ(inverted, 0);
+}
+
 }  // namespace
 }  // namespace incise
