@@ -93,30 +93,8 @@ bool same_fronts(const Model& from, const Model& to, const std::vector<char>& in
 // stopped (a swept cut's at the end of its sweep, a scalpel's stroke once
 // the blade is out) needs no projection.
 bool fronts_only_added(const Model& from, const Model& to, const std::vector<char>& in_s) {
-  const int npe = to.mesh.npe();
-  const auto pieces = [](const Model& m, int e) {
-    return m.has_cuts() ? m.cuts.elem_piece_ptr[e + 1] - m.cuts.elem_piece_ptr[e] : 1;
-  };
-  for (int e = 0; e < to.nelem; ++e) {
-    if (!in_s[e]) continue;
-    if (element_has_branch(from, e) || pieces(from, e) != pieces(to, e)) return false;
-    const int p0 = to.has_cuts() ? to.cuts.elem_piece_ptr[e] : 0, q0 = from.has_cuts() ? from.cuts.elem_piece_ptr[e] : 0;
-    int xs[64], ys[64], nmap = 0;
-    for (int k = 0; k < pieces(to, e); ++k)
-      for (int a = 0; a < npe; ++a) {
-        const int x = to.has_cuts() ? to.cuts.piece_enr[static_cast<size_t>(p0 + k) * npe + a] : -1;
-        const int y = from.has_cuts() ? from.cuts.piece_enr[static_cast<size_t>(q0 + k) * npe + a] : -1;
-        if ((x < 0) != (y < 0)) return false;
-        if (x < 0) continue;
-        int j = 0;
-        while (j < nmap && xs[j] != x && ys[j] != y) ++j;
-        if (j < nmap && (xs[j] != x || ys[j] != y)) return false;
-        if (j == nmap) {
-          if (nmap == 64) return false;
-          xs[nmap] = x, ys[nmap++] = y;
-        }
-      }
-  }
+  for (int e = 0; e < to.nelem; ++e)
+    if (in_s[e] && (element_has_branch(from, e) || !same_piece_regions(to, from, e))) return false;
   return true;
 }
 

@@ -185,6 +185,11 @@ Model build_model(const Mesh& mesh, const Scene& scene, const CutLayout* cuts = 
 // mesh; no cuts = one whole piece): enrichment up to renumbering, split flag
 // and sub-tetrahedra. build_model copies such elements' integration data.
 bool same_element_pieces(const Model& m, const Model& base, int e);
+// Whether element e has as many pieces in m as in base (none = one whole
+// piece) with the same (piece, node) pairs sharing an enriched DOF node (ids
+// may differ): the same Heaviside space on it, whatever its sub-tetrahedra
+// and branch DOFs.
+bool same_piece_regions(const Model& m, const Model& base, int e);
 
 std::vector<int> element_slot_ptr(const Model& m);  // (nelem + 1) first rotation slot of each element
 

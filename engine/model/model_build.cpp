@@ -51,19 +51,38 @@ const double kRefTet[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
 // so its integration data can be copied from base (a cut rebuild redoes
 // only the elements the new cut touched).
 bool same_pieces(const Model& m, const Model& base, int e) {
+  const CutLayout& L = m.cuts;
+  const CutLayout& B = base.cuts;
+  if (!same_piece_regions(m, base, e) || element_has_branch(m, e) || element_has_branch(base, e)) return false;
+  const bool split = m.has_cuts() && L.elem_split[e], bsplit = base.has_cuts() && B.elem_split[e];
+  if (split != bsplit) return false;
+  if (!split) return true;
+  const int p0 = L.elem_piece_ptr[e], np = L.elem_piece_ptr[e + 1] - p0, b0 = B.elem_piece_ptr[e];
+  for (int k = 0; k < np; ++k) {
+    const int s0 = L.piece_subtet_ptr[p0 + k], ns = L.piece_subtet_ptr[p0 + k + 1] - s0;
+    const int t0 = B.piece_subtet_ptr[b0 + k], nt = B.piece_subtet_ptr[b0 + k + 1] - t0;
+    if (ns != nt || !std::equal(L.subtet_rst.begin() + 12 * static_cast<size_t>(s0),
+                                L.subtet_rst.begin() + 12 * static_cast<size_t>(s0 + ns),
+                                B.subtet_rst.begin() + 12 * static_cast<size_t>(t0)))
+      return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool same_piece_regions(const Model& m, const Model& base, int e) {
   const int npe = m.mesh.npe();
   const CutLayout& L = m.cuts;
   const CutLayout& B = base.cuts;
   const int p0 = m.has_cuts() ? L.elem_piece_ptr[e] : 0, np = m.has_cuts() ? L.elem_piece_ptr[e + 1] - p0 : 1;
   const int b0 = base.has_cuts() ? B.elem_piece_ptr[e] : 0, nb = base.has_cuts() ? B.elem_piece_ptr[e + 1] - b0 : 1;
-  if (np != nb || element_has_branch(m, e) || element_has_branch(base, e)) return false;
-  const bool split = m.has_cuts() && L.elem_split[e], bsplit = base.has_cuts() && B.elem_split[e];
-  if (split != bsplit) return false;
+  if (np != nb) return false;
   // Enriched DOF nodes may be renumbered between layouts: the element's
   // integration data depend only on which (piece, node) pairs share one, so
   // the ids must correspond one to one within the element.
   int xs[64], ys[64], nmap = 0;
-  for (int k = 0; k < np; ++k) {
+  for (int k = 0; k < np; ++k)
     for (int a = 0; a < npe; ++a) {
       const int x = m.has_cuts() ? L.piece_enr[static_cast<size_t>(p0 + k) * npe + a] : -1;
       const int y = base.has_cuts() ? B.piece_enr[static_cast<size_t>(b0 + k) * npe + a] : -1;
@@ -77,18 +96,8 @@ bool same_pieces(const Model& m, const Model& base, int e) {
         xs[nmap] = x, ys[nmap++] = y;
       }
     }
-    if (!split) continue;
-    const int s0 = L.piece_subtet_ptr[p0 + k], ns = L.piece_subtet_ptr[p0 + k + 1] - s0;
-    const int t0 = B.piece_subtet_ptr[b0 + k], nt = B.piece_subtet_ptr[b0 + k + 1] - t0;
-    if (ns != nt || !std::equal(L.subtet_rst.begin() + 12 * static_cast<size_t>(s0),
-                                L.subtet_rst.begin() + 12 * static_cast<size_t>(s0 + ns),
-                                B.subtet_rst.begin() + 12 * static_cast<size_t>(t0)))
-      return false;
-  }
   return true;
 }
-
-}  // namespace
 
 // Slots are numbered element by element: a count per element, summed.
 std::vector<int> element_slot_ptr(const Model& m) {

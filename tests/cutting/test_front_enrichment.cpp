@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <cstdio>
 
 #include "cutting/conforming_slit.h"
@@ -467,6 +468,32 @@ TEST(FrontEnrichment, AGrowingFrontStaysOnFacesAndIsEnrichedOnceItStops) {
   }
 }
 
+// The 7 x 3 x 3 beam (linear, E = 1e5, undamped, cut_front "enriched")
+// with a scalpel whose edge crosses it along y, its centre at (x, 0, z) =
+// pose(frame) at each frame's start.
+std::unique_ptr<Simulation> scalpel_beam(std::function<std::array<double, 2>(int)> pose) {
+  Scene s = test::block_scene(2);
+  s.material.model = MaterialModel::Linear;
+  s.material.young = 1e5;
+  s.front_enrichment = true;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  InstrumentSpec scalpel;
+  scalpel.kind = InstrumentSpec::Kind::Scalpel;
+  scalpel.blade = {0.2, 0.01, 0.1};
+  scalpel.edge = {Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}};
+  scalpel.contact = false;
+  scalpel.json_path = "instruments[0]";
+  s.instruments.push_back(scalpel);
+  auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
+  sim->pipeline.set(kStageToolPoses, [pose](Simulation& q) {
+    q.tools.resize(1);
+    const auto a = pose(q.state.frame), b = pose(q.state.frame + 1);
+    q.tools[0].before.p = std::array<double, 3>{a[0], 0.0, a[1]};
+    q.tools[0].after.p = std::array<double, 3>{b[0], 0.0, b[1]};
+  });
+  return sim;
+}
+
 // A scalpel's stroke is finished once the blade is out of the tissue
 // (State::blade_done). Its front stays on faces while the blade is in (it
 // cuts down, rests at z = 0.45 inside the middle element layer, goes back
@@ -494,25 +521,7 @@ TEST(FrontEnrichment, AScalpelsIncisionFrontIsEnrichedOnceTheBladeIsOut) {
     if (f <= 34) return {3.5, lerp(1.3, 0.45, (f - 26) / 8.0)};
     return {3.5, lerp(0.45, 1.3, (f - 34) / 4.0)};
   };
-  Scene s = test::block_scene(2);
-  s.material.model = MaterialModel::Linear;
-  s.material.young = 1e5;
-  s.front_enrichment = true;
-  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-  InstrumentSpec scalpel;
-  scalpel.kind = InstrumentSpec::Kind::Scalpel;
-  scalpel.blade = {0.2, 0.01, 0.1};
-  scalpel.edge = {Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}};
-  scalpel.contact = false;
-  scalpel.json_path = "instruments[0]";
-  s.instruments.push_back(scalpel);
-  auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
-  sim->pipeline.set(kStageToolPoses, [&](Simulation& q) {
-    q.tools.resize(1);
-    const auto a = pose(q.state.frame), b = pose(q.state.frame + 1);
-    q.tools[0].before.p = std::array<double, 3>{a[0], 0.0, a[1]};
-    q.tools[0].after.p = std::array<double, 3>{b[0], 0.0, b[1]};
-  });
+  auto sim = scalpel_beam(pose);
   double biggest = 0, at_switch = 0, scale = 0;
   int enriched_frames = 0, branch_nodes = -1;
   std::vector<int> switches;  // frames whose rebuild enriched or dropped a front
@@ -609,25 +618,7 @@ TEST(FrontEnrichment, AScalpelBackInItsOwnIncisionJoinsItsSurface) {
     if (f <= 30) return {2.05, lerp(1.3, 0.25, (f - 20) / 10.0)};
     return {2.05, lerp(0.25, 1.3, (f - 30) / 4.0)};
   };
-  Scene s = test::block_scene(2);
-  s.material.model = MaterialModel::Linear;
-  s.material.young = 1e5;
-  s.front_enrichment = true;
-  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-  InstrumentSpec scalpel;
-  scalpel.kind = InstrumentSpec::Kind::Scalpel;
-  scalpel.blade = {0.2, 0.01, 0.1};
-  scalpel.edge = {Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}};
-  scalpel.contact = false;
-  scalpel.json_path = "instruments[0]";
-  s.instruments.push_back(scalpel);
-  auto sim = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
-  sim->pipeline.set(kStageToolPoses, [&](Simulation& q) {
-    q.tools.resize(1);
-    const auto a = pose(q.state.frame), b = pose(q.state.frame + 1);
-    q.tools[0].before.p = std::array<double, 3>{a[0], 0.0, a[1]};
-    q.tools[0].after.p = std::array<double, 3>{b[0], 0.0, b[1]};
-  });
+  auto sim = scalpel_beam(pose);
   double to_faces = 0, scale = 0;
   std::vector<int> switches;
   sim->pipeline.set(kStageCutting, [&](Simulation& q) {
