@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <exception>
 #include <map>
-#include <set>
 #include <memory>
+#include <set>
 #include <thread>
 
 #include "engine/fem/element.h"
@@ -151,7 +151,7 @@ std::vector<StrokeGroup> stroke_groups(const std::vector<double>& swept, const s
 }
 
 // swept, swept_tool, blade_done: the instruments' swept triangles the update
-// includes and which scalpels are out of the tissue (State::swept...; the
+// includes and the scalpels' finished strokes (State::swept...; the
 // cut-ahead helper passes its own copies: it must not read the State the
 // stages change).
 PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progress, double t_sweep,
