@@ -36,5 +36,29 @@ TEST(BundledScenes, BeamCutRunsPastTheTumble) {
   EXPECT_LT(vmax, 20.0) << "no faster than the free fall (16.4 m/s) and the tumble";
 }
 
+// assets/scenes/beam_scalpel_stroke.json: a scalpel down into the beam to
+// z = 0.02, resting until frame 24, then rising (cut_front "enriched",
+// docs/cutting.md): its stroke's front is on faces while the blade is in
+// and enriched once it is out (frame 27 here: the beam sags about a
+// centimetre under it), with no inverted point.
+TEST(BundledScenes, BeamScalpelStrokeIsEnrichedOnceTheBladeIsOut) {
+  auto sim = load_checked_simulation(std::string(INCISE_SOURCE_DIR) + "/assets/scenes/beam_scalpel_stroke.json");
+  int inverted = 0, enriched_from = -1;
+  for (int k = 0; k < 45; ++k) {
+    FrameTiming t;
+    ASSERT_NO_THROW(t = advance_frame(*sim)) << "frame " << k;
+    inverted = std::max(inverted, t.inverted_points);
+    const bool branch = sim->model.has_cuts() && sim->model.cuts.has_branch();
+    if (branch && enriched_from < 0) enriched_from = k;
+    if (enriched_from >= 0) {
+      EXPECT_TRUE(branch) << "frame " << k;
+    }
+  }
+  std::printf("[ beam_scalpel_stroke: enriched from frame %d, most inverted points %d ]\n", enriched_from, inverted);
+  EXPECT_GT(enriched_from, 24) << "not while the blade is in the tissue";
+  EXPECT_LE(enriched_from, 33) << "once the blade is above the beam's top";
+  EXPECT_EQ(inverted, 0);
+}
+
 }  // namespace
 }  // namespace incise
