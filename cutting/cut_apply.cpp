@@ -178,7 +178,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
   // again elsewhere, the new stroke is another surface, on faces, and the
   // finished ones keep their enriched fronts (unchanged): taking an
   // enriched front back to faces (project_near_fronts) changes the energy
-  // by 0.2-0.35 of the gravity work. Back in (or beside) its own incision,
+  // by 0.2-0.5 of the gravity work. Back in (or beside) its own incision,
   // it joins that stroke's surface, which goes back to faces until the
   // blade is out again (stroke_groups).
   // Enriched while the blade merely rests (twenty-first session, measured
