@@ -986,10 +986,14 @@ void add_branch_mass(Model& m, int e, MassWork& w) {
         }
         for (int j = npe; j < n; ++j)
           if (owner[j] >= 0) v[j] = w.N[owner[j]] * (F.F[fk[j]] - F0[j]);
+        if (lumped) {  // the branch DOFs' diagonal only (the same sums as the pair loop's)
+          for (int i = npe; i < n; ++i)
+            if (owner[i] >= 0) M[static_cast<size_t>(i) * n + i] += w.rho * wq * v[i] * v[i];
+          continue;
+        }
         for (int i = 0; i < n; ++i)
           for (int j = i; j < n; ++j)
-            if ((owner[i] >= 0 || owner[j] >= 0) && (!lumped || i == j))  // lumped: the diagonal only
-              M[static_cast<size_t>(i) * n + j] += w.rho * wq * v[i] * v[j];
+            if (owner[i] >= 0 || owner[j] >= 0) M[static_cast<size_t>(i) * n + j] += w.rho * wq * v[i] * v[j];
       }
     }
   for (int i = 0; i < n; ++i)
