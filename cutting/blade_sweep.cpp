@@ -38,13 +38,6 @@ int last_edge(const State& s, int tool, int ns, std::vector<Point>& row) {
   return static_cast<int>(s.swept_frame[last]);
 }
 
-// The cube root of the model's mean element volume.
-double element_size(const Model& m) {
-  double v = 0;
-  for (int e = 0; e < m.nelem; ++e) v += m.elem_volume[e];
-  return std::cbrt(v / std::max(1, m.nelem));
-}
-
 // The pose a fraction w of the way from a to b (position linear,
 // orientation by slerp, as trajectories interpolate).
 ToolPose pose_between(const ToolPose& a, const ToolPose& b, double w) {
@@ -92,7 +85,7 @@ int sweep_blades(Simulation& sim, bool* blade_done_changed) {
   std::vector<char> out(sim.scene.instruments.size(), 0);  // a moving blade outside the tissue at the frame's end
   std::unique_ptr<TissueLocator> locator;  // made once, when a blade moved
   std::unique_ptr<TissueLocator> body;     // the reference configuration, made once, when a band may re-cut
-  const double h = element_size(sim.model);
+  const double h = mean_element_size(sim.model);
   double spacing = -1;
   for (size_t i = 0; i < sim.scene.instruments.size() && i < sim.tools.size(); ++i) {
     const InstrumentSpec& spec = sim.scene.instruments[i];

@@ -93,7 +93,8 @@ struct PreparedCut {
 struct StrokeGroup {
   std::vector<std::pair<size_t, size_t>> ranges;
   bool finished = true;
-  std::string label;  // "stroke 2", "strokes 1, 3"
+  std::string label;                     // "stroke 2", "strokes 1, 3"
+  std::unique_ptr<CutSurface> surface;   // a one-stroke group's, made while grouping (else null)
 };
 
 // Scalpel `tool`'s strokes (blade_done: (nstroke, 2) (tool, triangles at its
@@ -113,7 +114,13 @@ std::vector<StrokeGroup> stroke_groups(const std::vector<double>& swept, const s
     }
   const size_t finished = ranges.size();
   ranges.emplace_back(begin, SIZE_MAX);
-  if (ranges.size() == 1) return {StrokeGroup{ranges, false, "stroke 1"}};  // (no surface built to group)
+  if (ranges.size() == 1) {  // (no surface built to group)
+    std::vector<StrokeGroup> one(1);
+    one[0].ranges = ranges;
+    one[0].finished = false;
+    one[0].label = "stroke 1";
+    return one;
+  }
   std::vector<std::unique_ptr<CutSurface>> part(ranges.size());
   for (size_t r = 0; r < ranges.size(); ++r) part[r] = make_swept_surface(swept, swept_tool, tool, name, {ranges[r]});
   std::vector<size_t> root(ranges.size());
@@ -145,6 +152,10 @@ std::vector<StrokeGroup> stroke_groups(const std::vector<double>& swept, const s
     G.ranges.push_back(ranges[r]);
     if (r >= finished) G.finished = false;
     G.label += (G.label.empty() ? "" : ", ") + std::to_string(r + 1);
+  }
+  for (size_t r = 0; r < ranges.size(); ++r) {
+    StrokeGroup& G = groups[group_of[find(r)]];
+    if (G.ranges.size() == 1) G.surface = std::move(part[r]);
   }
   for (StrokeGroup& G : groups) G.label = (G.ranges.size() > 1 ? "strokes " : "stroke ") + G.label;
   return groups;
@@ -197,9 +208,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     branch.push_back(sim.scene.front_enrichment && progress[k] >= 1.0);
     stroke.emplace_back();
   }
-  double h = 0;  // the cube root of the mean element volume: strokes closer are one surface
-  for (int e = 0; e < sim.model.nelem; ++e) h += sim.model.elem_volume[e];
-  h = std::cbrt(h / std::max(1, sim.model.nelem));
+  const double h = blade_done.empty() ? 0.0 : mean_element_size(sim.model);  // strokes closer are one surface
   for (size_t i = 0; i < sim.scene.instruments.size(); ++i) {
     // A scalpel's strokes (State::blade_done; the last one in progress) in
     // groups, each a surface: strokes within an element of each other are
@@ -209,8 +218,8 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     // blade is cutting keeps its front on faces. Without cut_front
     // "enriched" (no strokes recorded) one surface, on faces.
     const std::string& name = sim.scene.instruments[i].json_path;
-    for (const StrokeGroup& g : stroke_groups(swept, swept_tool, blade_done, static_cast<int>(i), name, h)) {
-      auto s = make_swept_surface(swept, swept_tool, static_cast<int>(i), name, g.ranges);
+    for (StrokeGroup& g : stroke_groups(swept, swept_tool, blade_done, static_cast<int>(i), name, h)) {
+      auto s = g.surface ? std::move(g.surface) : make_swept_surface(swept, swept_tool, static_cast<int>(i), name, g.ranges);
       if (!s) continue;
       surfaces.push_back(s.get());
       owned.push_back(std::move(s));

@@ -192,6 +192,8 @@ bool same_element_pieces(const Model& m, const Model& base, int e);
 bool same_piece_regions(const Model& m, const Model& base, int e);
 
 std::vector<int> element_slot_ptr(const Model& m);  // (nelem + 1) first rotation slot of each element
+// The cube root of the mean element volume (an element size for reaches and tolerances).
+double mean_element_size(const Model& m);
 
 // The gravity load of static solves (ndof): f_gravity, with the consistent
 // load rho g int N_a on the Heaviside-enriched DOF nodes of a lumped-mass

@@ -99,6 +99,12 @@ bool same_piece_regions(const Model& m, const Model& base, int e) {
   return true;
 }
 
+double mean_element_size(const Model& m) {
+  double v = 0;
+  for (int e = 0; e < m.nelem; ++e) v += m.elem_volume[e];
+  return std::cbrt(v / std::max(1, m.nelem));
+}
+
 // Slots are numbered element by element: a count per element, summed.
 std::vector<int> element_slot_ptr(const Model& m) {
   std::vector<int> ptr(m.nelem + 1, 0);

@@ -530,12 +530,15 @@ void patch_dofs(const Model& m, const std::vector<char>& node_in, const std::vec
       }
 }
 
-// A new patch (the front slot or the pattern changed): its DOFs, pattern, rows and analysis.
-void build_patch(const Model& m, const std::vector<int>& map, SolverWork& w) {
+// A new patch (the front slot or the pattern changed): its DOFs, pattern,
+// rows and analysis. False, with none of them, where a cut's patch would
+// hold more than a quarter of the DOFs (see lagged_patch).
+bool build_patch(const Model& m, const std::vector<int>& map, SolverWork& w) {
   std::vector<char> node_in(m.ndofnode, 0), unknown(m.ndofnode, 0);
   patch_nodes(m, map, w.patch_contact_nodes, node_in, unknown);
   std::vector<int> g2l(m.ndof(), -1);
   patch_dofs(m, node_in, unknown, w, g2l);
+  if (!map.empty() && 4 * w.patch_dof.size() > static_cast<size_t>(m.ndof())) return false;
   std::vector<int> Pp(1, 0), Pi;
   w.patch_src.clear();
   submatrix_pattern(m, w.patch_dof, g2l, Pp, Pi, w.patch_src);
@@ -548,11 +551,18 @@ void build_patch(const Model& m, const std::vector<int>& map, SolverWork& w) {
   w.patch.analyze(np, Pp, Pi);
   w.patch_A.assign(Pi.size(), 0.0);
   w.patch_r.assign(np, 0.0);
+  return true;
 }
 
 // The patch of the mapped front factor (see SolverWork::patch): built when
 // the front slot or the pattern changed, refactored with the current A.
-void lagged_patch(const Model& m, Workspace& ws, const double* A) {
+// A cut's patch over more than a quarter of the DOFs costs more than the
+// whole factor, and every solve and contact column would go through it: A
+// is factored now instead (a scalpel stroke's front enriched on organ_10k:
+// a 9,006-DOF patch of 10,557, 94-144 ms of patch factorization and 260 ms
+// of contact in each of three frames), and the patch is then the grasps'
+// alone, if any.
+void lagged_patch(const Model& m, Workspace& ws, const double* A, int frame) {
   auto& w = ws.work;
   const std::vector<int>& map = w.slot_map[w.front];
   std::vector<int>& seeds = w.patch_seeds;
@@ -566,7 +576,13 @@ void lagged_patch(const Model& m, Workspace& ws, const double* A) {
   if (!w.patch_current() || seeds != w.patch_contact_nodes) {
     w.mark_patch_current();
     w.patch_contact_nodes = seeds;
-    build_patch(m, map, w);
+    if (!build_patch(m, map, w)) {
+      factor_synchronously(m, ws, frame);  // (the front slot's map is empty now)
+      if (m.solver.warp) lagged_warp_rotations(m, ws);
+      w.patch_pattern = -1;
+      lagged_patch(m, ws, A, frame);
+      return;
+    }
   }
   if (w.patch_dof.empty()) return;  // the mapped factor knows every node: nothing to solve exactly
   for (size_t t = 0; t < w.patch_src.size(); ++t) w.patch_A[t] = A[w.patch_src[t]];
@@ -859,17 +875,8 @@ void factorize_for_policy(const Model& m, const State& s, Workspace& ws) {
       const bool rescue = ws.rescue_pending;
       if (rescue || ws.newton_iterations_done == 0 || !ws.factor_current) lagged_refresh(m, ws, s.frame);
       if (m.solver.warp) lagged_warp_rotations(m, ws);
-      if (rescue || ws.newton_iterations_done == 0 || ws.work.patch_pattern < 0) lagged_patch(m, ws, ws.A.data());
-      // A patch over more than a quarter of the DOFs costs more than the
-      // whole factor, and every solve and contact column goes through it:
-      // A is factored now instead. (A scalpel stroke's front enriched on
-      // organ_10k: a 9,006-DOF patch of 10,557, 94-144 ms of patch
-      // factorization and 260 ms of contact in each of three frames.)
-      if (4 * ws.work.patch_dof.size() > static_cast<size_t>(m.ndof())) {
-        factor_synchronously(m, ws, s.frame);
-        if (m.solver.warp) lagged_warp_rotations(m, ws);
-        lagged_patch(m, ws, ws.A.data());
-      }
+      if (rescue || ws.newton_iterations_done == 0 || ws.work.patch_pattern < 0)
+        lagged_patch(m, ws, ws.A.data(), s.frame);
       if (!rescue) factor_condensed_dofs(ws.work.condensed, ws.A.data());  // this iteration's A (a rescue keeps it)
       // The coarse level: from this frame's first matrix (measured at 20k DOF
       // here: 5-6 ms to form A_c, 5.7 ms to factor it; later Newton
