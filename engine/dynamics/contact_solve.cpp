@@ -393,21 +393,25 @@ int lcp_round(const Model& m, Workspace& ws, const std::vector<double>& Wsolve, 
   }
   const int sweeps = projected_gauss_seidel(c, Wsolve, b, lambda, c.max_sweeps, 1e-12 * ws.contact_scale);
   polish_active_set(c, Wsolve, b, lambda);
-  if (ws.contact_half) {  // Delta += P^-1 H^T dlambda: one solve
+  if (ws.contact_half) {
+    // Delta += P^-1 H^T dlambda = Q P^T L^-T (Z dlambda): the backward half
+    // alone, from the forward half W was made of (a full solve of H^T
+    // dlambda read the factor twice: 3.5-4 ms of haptics-20k's 6-7 ms contact stage).
+    const size_t nr = ws.contact_zrows.size();
     std::vector<double>& g = ws.contact_g;
     std::vector<double>& y = ws.contact_gy;
-    g.assign(n, 0.0);
+    g.assign(nr, 0.0);
     y.resize(n);
     bool any = false;
     for (int i = 0; i < r; ++i) {
       const double dl = lambda[i] - c.lambda[i];
       if (dl == 0.0) continue;
       any = true;
-      for (int k = c.ptr[i]; k < c.ptr[i + 1]; ++k)
-        if (!m.constrained[c.dof[k]]) g[c.dof[k]] += c.coef[k] * dl;
+      const double* zi = ws.contact_zhalf.data() + static_cast<size_t>(i) * nr;
+      for (size_t t = 0; t < nr; ++t) g[t] += zi[t] * dl;
     }
     if (any) {
-      apply_factor_inverse(m, ws, g.data(), y.data());  // (split over both threads: CG's substitution)
+      factor_compliance_apply(m, ws, ws.contact_zrows, g.data(), y.data());  // (on both threads, as CG's substitution)
       for (int d : m.fixed_dofs) y[d] = 0.0;
       for (const auto& p : m.prescribed) y[p.dof] = 0.0;
       for (int d = 0; d < n; ++d) ws.delta[d] += y[d];

@@ -854,10 +854,29 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   copy_bin_columns(L_, sp, 1, y1, y);
   for (size_t i = 0; i < ntop; ++i) y[sp.top_cols[i]] += y1[sp.top_cols[i]] - y0_top[i];
   for (int sn : sp.top) forward_supernode(F, sn, y, w);
+  split_backward(Lx, inv_scale, y);
+  for (int k = 0; k < n_; ++k) x[Perm[k]] = y[k];
+}
+
+// L^T y' = y in place (permuted numbering): the top first, then the two bins,
+// the worker's on its copy y2 when it is free (as split_substitute's forward
+// half; the same bits whoever does the bin).
+template <class T>
+void CholmodSolver::split_backward(const T* Lx, const double* inv_scale, double* y) {
+  SubstitutionWorker& worker = *worker_;
+  const SubstitutionSplit& sp = split_;
+  const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
+  double *w = work_w_.data(), *y2 = work_y2_.data();
   for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
-  started = 0;
-  if (!worker.busy()) {
+  uint64_t started = 0;
+  if (!worker.busy()) {  // (else a bin given up on still reads job_ and y2)
     std::memcpy(y2, y, sizeof(double) * n_);
+    job_.L = L_;
+    job_.Lx = Lx;
+    job_.inv_scale = inv_scale;
+    job_.sp = &sp;
+    job_.y2 = y2;
+    job_.w2 = work_w2_.data();
     job_.progress.store(0, std::memory_order_relaxed);
     started = worker.try_start(&worker_backward<T>, &job_);
   }
@@ -871,7 +890,35 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
     }
     backward_bin(F, sp, 1, y, w);
   }
+}
+
+template <class T>
+void CholmodSolver::backward_rows(const T* Lx, const double* inv_scale, const std::vector<int>& rows, const double* z,
+                                  double* x) {
+  double* y = work_y_.data();
+  std::fill(y, y + n_, 0.0);
+  for (size_t t = 0; t < rows.size(); ++t) y[rows[t]] = z[t];
+  if (substitutes_on_two_threads()) {
+    ++stats_.split_substitutions;
+    split_backward(Lx, inv_scale, y);
+  } else {
+    const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
+    for (int sn = static_cast<int>(L_->nsuper) - 1; sn >= 0; --sn) backward_supernode(F, sn, y, work_w_.data());
+  }
+  const int* Perm = static_cast<const int*>(L_->Perm);
   for (int k = 0; k < n_; ++k) x[Perm[k]] = y[k];
+}
+
+void CholmodSolver::backward_half(const std::vector<int>& rows, const double* z, double* x) {
+  if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
+  if (!L_->is_super) throw Error("CHOLMOD: backward_half needs the supernodal factor forward_half_multi read");
+  prepare_workspace();
+  if (copy_valid_ && copy_ == FactorCopy::Half)
+    backward_rows(Lx_half_.data(), half_inv_scale_.data(), rows, z, x);
+  else if (copy_valid_ || single_current_)
+    backward_rows(Lx_single_.data(), static_cast<const double*>(nullptr), rows, z, x);
+  else
+    backward_rows(static_cast<const double*>(L_->x), static_cast<const double*>(nullptr), rows, z, x);
 }
 
 template <class T>

@@ -152,6 +152,12 @@ class CholmodSolver {
   // untouched, for a simplicial factor (no supernodal tree): solve in full.
   bool forward_half_multi(int k, const double* B, const std::vector<int>& nz, std::vector<int>& rows,
                           std::vector<double>& Z);
+  // The backward half to it: x = P^T L^-T z for z given on forward_half_multi's
+  // `rows` (zero elsewhere), from the same factor. With z = Z c, x = A^-1 B c
+  // (the copy's A, as solve_copy) for one read of L instead of two: the
+  // contact stage's correction (contact_solve.cpp, lcp_round). On two
+  // threads as solve_copy. Throws for a simplicial factor.
+  void backward_half(const std::vector<int>& rows, const double* z, double* x);
   // Substitutions (solve, solve_copy) on two threads: this thread and the
   // worker (not owned; null = one thread), over the split of the current
   // analysis (engine/solve/split_substitution.h). Results equal the one-thread
@@ -235,6 +241,10 @@ class CholmodSolver {
   void prepare_workspace();
   template <class T>
   void split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
+  template <class T>
+  void split_backward(const T* Lx, const double* inv_scale, double* y);
+  template <class T>
+  void backward_rows(const T* Lx, const double* inv_scale, const std::vector<int>& rows, const double* z, double* x);
   template <class T>
   void substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
   void convert_copy();

@@ -1117,6 +1117,21 @@ bool factor_compliance(const Model& m, Workspace& ws, int k, const double* B, co
   return done;
 }
 
+void factor_compliance_apply(const Model& m, Workspace& ws, const std::vector<int>& rows, const double* z, double* x) {
+  auto& w = ws.work;
+  CholmodSolver& f = ws.slot(w.front);
+  Stopwatch sw;
+  const int takeovers = f.stats().takeovers;
+  f.backward_half(rows, z, x);
+  ws.timing.solve_kernel_ms += sw.ms();
+  ws.timing.takeovers += f.stats().takeovers - takeovers;
+  if (m.solver.warp)  // back out of the factor's frame: x <- Q x
+    for (int n = 0; n < m.ndofnode; ++n) {
+      const Eigen::Vector3d t = Eigen::Map<const Eigen::Vector3d>(x + 3 * n);
+      Eigen::Map<Eigen::Vector3d>(x + 3 * n) = Eigen::Map<const Mat3>(&w.Q[9 * n]) * t;
+    }
+}
+
 bool iterative_policy(const Model& m) {
   return m.solver.policy == SolverPolicy::Lagged || m.solver.policy == SolverPolicy::WarpedCG;
 }

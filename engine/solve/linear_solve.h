@@ -88,6 +88,11 @@ void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const 
 // simplicial factor), Z untouched.
 bool factor_compliance(const Model& model, Workspace& ws, int k, const double* B, const std::vector<int>& nz,
                        std::vector<int>& rows, std::vector<double>& Z);
+// x = P^-1 B c from Z c (z: |rows|, on factor_compliance's rows; its Z, B
+// and factor): the backward half alone, one read of the factor where a
+// solve of B c reads it twice.
+void factor_compliance_apply(const Model& model, Workspace& ws, const std::vector<int>& rows, const double* z,
+                             double* x);
 
 // The projection onto the constraints H_A x = 0 of the contact stage's
 // active rows (engine/dynamics/contact_solve.cpp): primal(z) takes z into

@@ -80,7 +80,7 @@ struct Workspace {
   std::vector<int> contact_nz, contact_zrows;  // every DOF of the rows' nodes; Z's rows
   std::vector<char> contact_node_mark;         // (ndofnode) scratch for contact_nz
   std::vector<double> contact_zhalf;           // (|contact_zrows|, nrow) Z
-  std::vector<double> contact_g, contact_gy;   // (ndof) H^T dlambda and its solve
+  std::vector<double> contact_g, contact_gy;   // (|contact_zrows|) Z dlambda; (ndof) its backward half
   std::vector<double> contact_Z;     // (nrow, ndof) project_contact_kinematics' columns (Y stays in contact_work)
   std::vector<double> contact_h, contact_z;  // (ndof) scratch of the contact kinematics (project_contact_kinematics)
   // (ndof) the contact refinement's Delta before the iteration's solve, residual

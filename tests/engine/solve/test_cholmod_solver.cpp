@@ -278,7 +278,8 @@ TEST(Cholmod, MultiColumnSolveMatchesOneColumnAtATime) {
 // Z_i . Z_j = B_i^T X_j with X = solve_copy_multi(B), for the double factor,
 // the float and half copies and the single-precision factorization, from a
 // part of the factor's rows (the paths from those DOFs up the tree); 20
-// columns are two groups. A simplicial factor has no supernodal tree: false.
+// columns are two groups; and backward_half(Z c) = X c. A simplicial factor
+// has no supernodal tree: false.
 TEST(Cholmod, ForwardHalfGivesTheComplianceOfSparseColumns) {
   const Model m = test::tissue_beam(8, 2);
   const std::vector<double> A = test::system_matrix(m, 3600.0);
@@ -320,6 +321,21 @@ TEST(Cholmod, ForwardHalfGivesTheComplianceOfSparseColumns) {
       }
     EXPECT_LT(diff, 1e-12 * norm) << c.name;
     if (std::string(c.name) == "double") std::printf("[ forward half: %zu of %d rows ]\n", rows.size(), n);
+    // The backward half from Z c is the solve of B c: X c, to roundoff (the
+    // forward half of B c summed as Z's columns are).
+    const std::vector<double> coef = test::random_vector(k, 13);
+    std::vector<double> zc(rows.size(), 0.0), x(n), xc(n, 0.0);
+    for (int i = 0; i < k; ++i)
+      for (size_t t = 0; t < rows.size(); ++t) zc[t] += Z[i * rows.size() + t] * coef[i];
+    for (int i = 0; i < k; ++i)
+      for (int d = 0; d < n; ++d) xc[d] += X[static_cast<size_t>(i) * n + d] * coef[i];
+    f.backward_half(rows, zc.data(), x.data());
+    double xdiff = 0.0, xnorm = 0.0;
+    for (int d = 0; d < n; ++d) {
+      xdiff = std::max(xdiff, std::abs(x[d] - xc[d]));
+      xnorm = std::max(xnorm, std::abs(xc[d]));
+    }
+    EXPECT_LT(xdiff, 1e-12 * xnorm) << c.name << ": backward half";
   }
   CholmodSolver simplicial;
   simplicial.configure(FactorMethod::Simplicial, OrderingMethod::Amd);

@@ -339,6 +339,12 @@ TEST(SplitSubstitution, MultiColumnSolveGivesAGroupToTheWorkerWithTheSameBits) {
     ASSERT_TRUE(two.forward_half_multi(kk, Bs.data(), nz, r2, Z2));
     EXPECT_EQ(r2, r1);
     ASSERT_EQ(Z2, Z1) << kk << " columns, forward half";
+    std::vector<double> x1(n), x2(n);  // and the backward half: the top, then the bins (the same supernodes' arithmetic)
+    one.backward_half(r1, Z1.data(), x1.data());
+    for (int rep = 0; rep < 5; ++rep) {
+      two.backward_half(r1, Z1.data(), x2.data());
+      ASSERT_EQ(x2, x1) << kk << " columns, backward half, repeat " << rep;
+    }
   }
   two.solve_copy_multi(k, inplace.data(), inplace.data());
   EXPECT_EQ(inplace, X1) << "in place";
