@@ -499,10 +499,11 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
     ws.contact_Y_coef = c.coef;
     ws.contact_Y_rowkey = c.key;
   };
-  // W without Y where the preconditioner is one factor whole (lagged before
-  // a cut; factor_compliance): W = Z^T Z from the forward half of the
+  // W without Y under lagged (factor_compliance; after a cut where the rows'
+  // nodes are the front factor's and off the patch and the condensed set,
+  // whose steps then leave W alone): W = Z^T Z from the forward half of the
   // substitution over the factor's tree paths from the rows' DOFs, and each
-  // LCP round's correction one solve of H^T dlambda (lcp_round). The
+  // LCP round's correction the backward half from Z dlambda (lcp_round). The
   // columns' backward halves read all of L once per 16 rows and were most of
   // a probe frame's contact stage (haptics-20k: 14-16 ms for 16 rows). For
   // contact rows (a probe's or a jaw's, at the faces' weighted points: they

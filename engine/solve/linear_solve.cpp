@@ -1089,30 +1089,47 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
   }
 }
 
+// After cuts the lagged preconditioner is condensed_project(patch steps
+// around the mapped factor) (lagged_apply, condensed_inverse). For columns
+// zero on the DOFs the factor does not map, on the patch and on the condensed
+// set, the patch steps and the projection change only those DOFs and leave
+// the columns as they are (C B = 0, Q_S B = 0): H P^-1 H^T = H F H^T with F
+// the mapped, warped factor alone, whose forward half gives Z. The
+// correction (factor_compliance_apply) adds the steps back.
 bool factor_compliance(const Model& m, Workspace& ws, int k, const double* B, const std::vector<int>& nz,
                        std::vector<int>& rows, std::vector<double>& Z) {
   auto& w = ws.work;
-  if (m.solver.policy != SolverPolicy::Lagged || w.condensed.factored || !w.slot_map[w.front].empty() ||
-      !w.patch_dof.empty())
-    return false;
+  if (m.solver.policy != SolverPolicy::Lagged) return false;
+  const std::vector<int>& map = w.slot_map[w.front];
+  const auto in = [](const std::vector<int>& sorted, int d) { return std::binary_search(sorted.begin(), sorted.end(), d); };
+  for (int d : nz)
+    if ((!map.empty() && map[d] < 0) || in(w.patch_dof, d) || (w.condensed.factored && in(w.condensed.dof, d)))
+      return false;
   CholmodSolver& f = ws.slot(w.front);
-  const size_t n = static_cast<size_t>(m.ndof());
+  const size_t n = static_cast<size_t>(m.ndof()), nf = static_cast<size_t>(f.size());
   const double* Bq = B;
-  if (m.solver.warp) {  // Q^T B on nz's nodes (the rest is zero)
+  const std::vector<int>* nzf = &nz;
+  if (m.solver.warp || !map.empty()) {  // Q^T B on nz's nodes, in the factor's numbering (the rest is zero)
     std::vector<double>& t = w.multi_t;
-    resize_with_headroom(t, n * k);
-    std::fill(t.begin(), t.begin() + n * k, 0.0);  // the paths read rows outside nz too
+    resize_with_headroom(t, nf * k);
+    std::fill(t.begin(), t.begin() + nf * k, 0.0);  // the paths read rows outside nz too
+    const auto to_f = [&](int d) { return static_cast<size_t>(map.empty() ? d : map[d]); };
     for (int c = 0; c < k; ++c)
       for (size_t i = 0; i + 2 < nz.size(); i += 3) {
         const int node = nz[i] / 3;
-        const Eigen::Map<const Mat3> R(&w.Q[9 * static_cast<size_t>(node)]);
-        Eigen::Map<Eigen::Vector3d>(t.data() + c * n + 3 * node) =
-            R.transpose() * Eigen::Map<const Eigen::Vector3d>(B + c * n + 3 * node);
+        Eigen::Vector3d b = Eigen::Map<const Eigen::Vector3d>(B + c * n + 3 * node);
+        if (m.solver.warp) b = Eigen::Map<const Mat3>(&w.Q[9 * static_cast<size_t>(node)]).transpose() * b;
+        for (int j = 0; j < 3; ++j) t[c * nf + to_f(3 * node + j)] = b[j];
       }
     Bq = t.data();
+    if (!map.empty()) {
+      w.nz_slot.clear();
+      for (int d : nz) w.nz_slot.push_back(map[d]);
+      nzf = &w.nz_slot;
+    }
   }
   Stopwatch sw;
-  const bool done = f.forward_half_multi(k, Bq, nz, rows, Z);
+  const bool done = f.forward_half_multi(k, Bq, *nzf, rows, Z);
   ws.timing.solve_kernel_ms += sw.ms();
   return done;
 }
@@ -1120,16 +1137,41 @@ bool factor_compliance(const Model& m, Workspace& ws, int k, const double* B, co
 void factor_compliance_apply(const Model& m, Workspace& ws, const std::vector<int>& rows, const double* z, double* x) {
   auto& w = ws.work;
   CholmodSolver& f = ws.slot(w.front);
+  const std::vector<int>& map = w.slot_map[w.front];
+  const int n = m.ndof();
   Stopwatch sw;
   const int takeovers = f.stats().takeovers;
-  f.backward_half(rows, z, x);
+  if (map.empty()) {
+    f.backward_half(rows, z, x);
+  } else {  // in the factor's numbering, then back (an unmapped DOF: the columns are zero there, so is Jacobi's step)
+    w.t_slot.resize(f.size());
+    f.backward_half(rows, z, w.t_slot.data());
+    for (int d = 0; d < n; ++d) x[d] = map[d] >= 0 ? w.t_slot[map[d]] : 0.0;
+  }
   ws.timing.solve_kernel_ms += sw.ms();
   ws.timing.takeovers += f.stats().takeovers - takeovers;
   if (m.solver.warp)  // back out of the factor's frame: x <- Q x
-    for (int n = 0; n < m.ndofnode; ++n) {
-      const Eigen::Vector3d t = Eigen::Map<const Eigen::Vector3d>(x + 3 * n);
-      Eigen::Map<Eigen::Vector3d>(x + 3 * n) = Eigen::Map<const Mat3>(&w.Q[9 * n]) * t;
+    for (int node = 0; node < m.ndofnode; ++node) {
+      const Eigen::Vector3d t = Eigen::Map<const Eigen::Vector3d>(x + 3 * node);
+      Eigen::Map<Eigen::Vector3d>(x + 3 * node) = Eigen::Map<const Mat3>(&w.Q[9 * node]) * t;
     }
+  // The steps the factor's half leaves out, for a right-hand side r zero on
+  // the patch and on S (lagged_apply, condensed_inverse): the multiplicative
+  // patch's last, x += E A_p^-1 E^T (0 - A x) on the patch rows (its first,
+  // E A_p^-1 E^T r, is zero, as is the additive patch's term), then the
+  // condensed projection.
+  if (!w.patch_dof.empty() && m.solver.multiplicative_patch) {
+    std::vector<double>& r1 = w.ms_r;
+    resize_with_headroom(r1, static_cast<size_t>(n));
+    const double* A = ws.A.data();
+    for (size_t i = 0; i < w.patch_dof.size(); ++i) {
+      double acc = 0.0;
+      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) acc -= A[w.patch_rows.k[t]] * x[w.patch_rows.col[t]];
+      r1[w.patch_dof[i]] = acc;
+    }
+    patch_apply(ws, r1.data(), x, /*add=*/true);
+  }
+  if (w.condensed.factored) condensed_project(w.condensed, ws.A.data(), x);
 }
 
 bool iterative_policy(const Model& m) {

@@ -83,14 +83,16 @@ void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const 
 // hold every DOF of their nodes, node by node: 3a, 3a+1, 3a+2) without their solves: Z (|rows| x k) with
 // B_i^T P^-1 B_j = Z_i . Z_j, from the forward half of the preconditioner's
 // substitution over the factor's tree paths from nz (CholmodSolver::
-// forward_half_multi). Only where P^-1 is a factor's Q F^-1 Q^T whole:
-// lagged with no cut map, patch or condensation; false otherwise (and for a
-// simplicial factor), Z untouched.
+// forward_half_multi). Under lagged, where nz lies on DOFs the front factor
+// maps, off a cut's patch and the condensed set (there P^-1's patch steps
+// and projection leave such columns alone: B^T P^-1 B = B^T Q F^-1 Q^T B);
+// false otherwise (other policies, a simplicial factor), Z untouched.
 bool factor_compliance(const Model& model, Workspace& ws, int k, const double* B, const std::vector<int>& nz,
                        std::vector<int>& rows, std::vector<double>& Z);
 // x = P^-1 B c from Z c (z: |rows|, on factor_compliance's rows; its Z, B
 // and factor): the backward half alone, one read of the factor where a
-// solve of B c reads it twice.
+// solve of B c reads it twice, then the patch's last step and the condensed
+// projection, which do move the patch's and S's DOFs.
 void factor_compliance_apply(const Model& model, Workspace& ws, const std::vector<int>& rows, const double* z,
                              double* x);
 

@@ -65,6 +65,7 @@ struct SolverWork {
   int job_frame = -1;
   std::exception_ptr job_error;
   std::vector<double> t_slot;          // gather buffer of a mapped slot
+  std::vector<int> nz_slot;            // factor_compliance: the rows' DOFs in the front slot's numbering
   std::vector<double> slot_Rn[kSlots];  // (slot's DOF nodes, 9) node rotations when its matrix was taken (warp)
   std::vector<double> Q;               // (ndofnode, 9) warp: Rn * slot_Rn^T of the front slot, this solve
   // lagged after a cut, until a factor of the new pattern is taken: the DOFs

@@ -122,6 +122,84 @@ TEST(CutPolicies, MultiColumnFactorInverseAfterACutMatchesOneColumnAtATime) {
   }
 }
 
+// The contact compliance from the factor's halves after a cut
+// (factor_compliance): for columns on nodes away from the cut (mapped by the
+// front factor, off the patch and the condensed set) the patch steps and
+// the condensed projection leave them alone, so Z^T Z is B^T P^-1 B through
+// the whole preconditioner (the front factor's DOF map, warped,
+// multiplicative or additive patch), and the backward half from Z c plus
+// the patch's last step is P^-1 B c. Columns on a patch DOF take the full
+// path (false). With the default condense_below the cut's slivers make a
+// condensed set (the projection after the patch's step); also without one.
+TEST(CutPolicies, TheContactComplianceAfterACutComesFromTheFactorsHalves) {
+  for (int variant : {0, 1, 2}) {
+    const bool multiplicative = variant != 1, condensed = variant != 2;
+    const char* name = !condensed ? "multiplicative, no condensed set" : multiplicative ? "multiplicative" : "additive";
+    Scene s = test::block_scene(2);
+    s.material.rayleigh_mass = 0.5;
+    s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+    s.cuts = {test::swept_blade({Vec3{2.3, -0.1, 1.2}, Vec3{2.45, 1.1, 1.2}}, {Vec3{2.3, -0.1, 0.3}, Vec3{2.45, 1.1, 0.3}}, 0.5)};
+    s.cuts[0].at_time = 0.05;
+    s.solver = lagged_settings(50, 1e-8, 200);  // no refresh during the cut: the map and the patch stay
+    s.solver.warp = true;
+    s.solver.multiplicative_patch = multiplicative;
+    if (!condensed) s.solver.condense_below = 0.0;
+    auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
+    for (int k = 0; k < 10; ++k) advance_frame(*sim);
+    const Model& m = sim->model;
+    Workspace& ws = sim->ws;
+    const auto& w = ws.work;
+    ASSERT_EQ(w.condensed.factored, condensed) << name;
+    ASSERT_FALSE(w.slot_map[w.front].empty()) << "the front factor predates the cut";
+    ASSERT_FALSE(w.patch_dof.empty());
+    const int n = m.ndof(), k = 4;
+    const auto columns_on = [&](const std::vector<int>& nodes, std::vector<int>& nz) {
+      nz.clear();
+      for (int node : nodes)
+        for (int c = 0; c < 3; ++c) nz.push_back(3 * node + c);
+      const std::vector<double> v = test::random_vector(static_cast<int>(nz.size()) * k, 17);
+      std::vector<double> B(static_cast<size_t>(n) * k, 0.0);
+      for (int c = 0; c < k; ++c)
+        for (size_t t = 0; t < nz.size(); ++t) B[static_cast<size_t>(c) * n + nz[t]] = v[c * nz.size() + t];
+      return B;
+    };
+    std::vector<int> away;  // two free mesh nodes near x = 1, three element columns from the cut
+    for (int i = 0; i < m.nnode && away.size() < 2; ++i)
+      if (std::abs(m.X[3 * i] - 1.0) < 1e-9 && !m.constrained[3 * i]) away.push_back(i);
+    ASSERT_EQ(away.size(), 2u);
+    std::vector<int> nz, rows;
+    std::vector<double> Z;
+    const std::vector<double> B = columns_on(away, nz);
+    ASSERT_TRUE(factor_compliance(m, ws, k, B.data(), nz, rows, Z)) << name;
+    std::vector<double> Y(B.size());
+    apply_factor_inverse_multi(m, ws, k, B.data(), Y.data());
+    double diff = 0.0, norm = 0.0;
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; j < k; ++j) {
+        double zz = 0.0, by = 0.0;
+        for (size_t t = 0; t < rows.size(); ++t) zz += Z[i * rows.size() + t] * Z[j * rows.size() + t];
+        for (int d : nz) by += B[static_cast<size_t>(i) * n + d] * Y[static_cast<size_t>(j) * n + d];
+        diff = std::max(diff, std::abs(zz - by));
+        norm = std::max(norm, std::abs(by));
+      }
+    EXPECT_LT(diff, 1e-10 * norm) << name << ": W";
+    const std::vector<double> coef = test::random_vector(k, 19);
+    std::vector<double> zc(rows.size(), 0.0), bc(n, 0.0), x(n), ref(n);
+    for (int i = 0; i < k; ++i) {
+      for (size_t t = 0; t < rows.size(); ++t) zc[t] += Z[i * rows.size() + t] * coef[i];
+      for (int d = 0; d < n; ++d) bc[d] += B[static_cast<size_t>(i) * n + d] * coef[i];
+    }
+    factor_compliance_apply(m, ws, rows, zc.data(), x.data());
+    apply_factor_inverse(m, ws, bc.data(), ref.data());
+    EXPECT_LT(test::rel_diff(x, ref), 1e-10) << name << ": the correction";
+    double on_patch = 0.0;
+    for (int d : w.patch_dof) on_patch = std::max(on_patch, std::abs(ref[d]));
+    EXPECT_GT(on_patch, 0.0) << name << ": the patch DOFs move too (the patch's step)";
+    const std::vector<double> B2 = columns_on({w.patch_dof.front() / 3}, nz);
+    EXPECT_FALSE(factor_compliance(m, ws, k, B2.data(), nz, rows, Z)) << name << ": a column on the patch";
+  }
+}
+
 // The lagged policy's patch is rebuilt for each (pattern, front slot, front
 // frame). It was keyed by (pattern * 2 + front) * 1000003 + front_frame,
 // which collides for the third slot (a rescue's, beside a running job):
