@@ -824,18 +824,7 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   for (int k = 0; k < n_; ++k) y[k] = b[Perm[k]];
   const size_t ntop = sp.top_cols.size();
   for (size_t i = 0; i < ntop; ++i) y0_top[i] = y[sp.top_cols[i]];
-  uint64_t started = 0;  // the worker's task's ticket
-  if (worker_free) {
-    std::memcpy(y2, y, sizeof(double) * n_);
-    job_.L = L_;
-    job_.Lx = Lx;
-    job_.inv_scale = inv_scale;
-    job_.sp = &sp;
-    job_.y2 = y2;
-    job_.w2 = work_w2_.data();
-    job_.progress.store(0, std::memory_order_relaxed);
-    started = worker.try_start(&worker_forward<T>, &job_);
-  }
+  const uint64_t started = worker_free ? start_bin(Lx, inv_scale, y, &worker_forward<T>) : 0;  // the worker's ticket
   forward_bin(F, sp, 0, y, w);
   const double* y1 = y2;  // where bin 1's forward result is
   if (!(started && worker.await(job_.progress, kWorkerStallMs))) {
@@ -858,6 +847,21 @@ void CholmodSolver::split_substitute(const T* Lx, const double* inv_scale, const
   for (int k = 0; k < n_; ++k) x[Perm[k]] = y[k];
 }
 
+// The worker's bin of a split pass on its copy y2 of y: job_ set, the task
+// started; its ticket (0 if the worker did not take it).
+template <class T>
+uint64_t CholmodSolver::start_bin(const T* Lx, const double* inv_scale, const double* y, void (*task)(void*)) {
+  std::memcpy(work_y2_.data(), y, sizeof(double) * n_);
+  job_.L = L_;
+  job_.Lx = Lx;
+  job_.inv_scale = inv_scale;
+  job_.sp = &split_;
+  job_.y2 = work_y2_.data();
+  job_.w2 = work_w2_.data();
+  job_.progress.store(0, std::memory_order_relaxed);
+  return worker_->try_start(task, &job_);
+}
+
 // L^T y' = y in place (permuted numbering): the top first, then the two bins,
 // the worker's on its copy y2 when it is free (as split_substitute's forward
 // half; the same bits whoever does the bin).
@@ -868,18 +872,8 @@ void CholmodSolver::split_backward(const T* Lx, const double* inv_scale, double*
   const SnFactor<T> F = sn_factor(L_, Lx, inv_scale);
   double *w = work_w_.data(), *y2 = work_y2_.data();
   for (auto it = sp.top.rbegin(); it != sp.top.rend(); ++it) backward_supernode(F, *it, y, w);
-  uint64_t started = 0;
-  if (!worker.busy()) {  // (else a bin given up on still reads job_ and y2)
-    std::memcpy(y2, y, sizeof(double) * n_);
-    job_.L = L_;
-    job_.Lx = Lx;
-    job_.inv_scale = inv_scale;
-    job_.sp = &sp;
-    job_.y2 = y2;
-    job_.w2 = work_w2_.data();
-    job_.progress.store(0, std::memory_order_relaxed);
-    started = worker.try_start(&worker_backward<T>, &job_);
-  }
+  // (a busy worker: a bin given up on still reads job_ and y2)
+  const uint64_t started = worker.busy() ? 0 : start_bin(Lx, inv_scale, y, &worker_backward<T>);
   backward_bin(F, sp, 0, y, w);
   if (started && worker.await(job_.progress, kWorkerStallMs)) {
     copy_bin_columns(L_, sp, 1, y2, y);

@@ -244,6 +244,8 @@ class CholmodSolver {
   template <class T>
   void split_backward(const T* Lx, const double* inv_scale, double* y);
   template <class T>
+  uint64_t start_bin(const T* Lx, const double* inv_scale, const double* y, void (*task)(void*));
+  template <class T>
   void backward_rows(const T* Lx, const double* inv_scale, const std::vector<int>& rows, const double* z, double* x);
   template <class T>
   void substitute(const T* Lx, const double* inv_scale, const double* b, double* x);

@@ -86,6 +86,24 @@ SolverSettings lagged_settings(int refresh_every, double tolerance, int max_iter
   return s;
 }
 
+// A 4 x 1 x 1 beam swept by a blade near x = 2.4 at t = 0.05, 10 frames
+// under warped lagged with no refresh: the front factor predates the cut,
+// so its DOF map and the patch stay (condense_below: the slivers' set).
+std::unique_ptr<Simulation> swept_cut_under_lagged(bool multiplicative, double condense_below) {
+  Scene s = test::block_scene(2);
+  s.material.rayleigh_mass = 0.5;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  s.cuts = {test::swept_blade({Vec3{2.3, -0.1, 1.2}, Vec3{2.45, 1.1, 1.2}}, {Vec3{2.3, -0.1, 0.3}, Vec3{2.45, 1.1, 0.3}}, 0.5)};
+  s.cuts[0].at_time = 0.05;
+  s.solver = lagged_settings(50, 1e-8, 200);
+  s.solver.warp = true;
+  s.solver.multiplicative_patch = multiplicative;
+  s.solver.condense_below = condense_below;
+  auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
+  for (int k = 0; k < 10; ++k) advance_frame(*sim);
+  return sim;
+}
+
 // The contact stage's k columns through the lagged preconditioner after a
 // cut (the front factor's DOF map and the patch of the DOFs it does not
 // know; warped; multiplicative and additive patch; in place too): one
@@ -93,16 +111,7 @@ SolverSettings lagged_settings(int refresh_every, double tolerance, int max_iter
 // gives it (the substitution on two threads: the same to roundoff).
 TEST(CutPolicies, MultiColumnFactorInverseAfterACutMatchesOneColumnAtATime) {
   for (bool multiplicative : {true, false}) {
-    Scene s = test::block_scene(2);
-    s.material.rayleigh_mass = 0.5;
-    s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-    s.cuts = {test::swept_blade({Vec3{2.3, -0.1, 1.2}, Vec3{2.45, 1.1, 1.2}}, {Vec3{2.3, -0.1, 0.3}, Vec3{2.45, 1.1, 0.3}}, 0.5)};
-    s.cuts[0].at_time = 0.05;
-    s.solver = lagged_settings(50, 1e-8, 200);  // no refresh during the cut: the map and the patch stay
-    s.solver.warp = true;
-    s.solver.multiplicative_patch = multiplicative;
-    auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
-    for (int k = 0; k < 10; ++k) advance_frame(*sim);
+    auto sim = swept_cut_under_lagged(multiplicative, 0.05);
     const Model& m = sim->model;
     Workspace& ws = sim->ws;
     ASSERT_TRUE(m.has_cuts());
@@ -135,17 +144,7 @@ TEST(CutPolicies, TheContactComplianceAfterACutComesFromTheFactorsHalves) {
   for (int variant : {0, 1, 2}) {
     const bool multiplicative = variant != 1, condensed = variant != 2;
     const char* name = !condensed ? "multiplicative, no condensed set" : multiplicative ? "multiplicative" : "additive";
-    Scene s = test::block_scene(2);
-    s.material.rayleigh_mass = 0.5;
-    s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-    s.cuts = {test::swept_blade({Vec3{2.3, -0.1, 1.2}, Vec3{2.45, 1.1, 1.2}}, {Vec3{2.3, -0.1, 0.3}, Vec3{2.45, 1.1, 0.3}}, 0.5)};
-    s.cuts[0].at_time = 0.05;
-    s.solver = lagged_settings(50, 1e-8, 200);  // no refresh during the cut: the map and the patch stay
-    s.solver.warp = true;
-    s.solver.multiplicative_patch = multiplicative;
-    if (!condensed) s.solver.condense_below = 0.0;
-    auto sim = test::make_sim(make_beam(4, 1, 1, 8, 2, 2, 1), s);
-    for (int k = 0; k < 10; ++k) advance_frame(*sim);
+    auto sim = swept_cut_under_lagged(multiplicative, condensed ? 0.05 : 0.0);
     const Model& m = sim->model;
     Workspace& ws = sim->ws;
     const auto& w = ws.work;
