@@ -54,42 +54,73 @@ void check_finite(const std::vector<double>& x, const char* what, const State& s
 // enrichment has no coupling: a = r / m). On the DOF nodes with mark
 // (every one when mark is null; a marked enriched node's mesh node must be
 // marked too); a is left alone elsewhere, 0 on constrained DOFs.
-void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, const std::vector<char>* mark,
-                              std::vector<double>& a) {
+struct XfemLumped {
+  std::vector<int> home;     // (ndof - 3 nnode) enriched DOF -> its mesh node's DOF (the coupling's row), -1 without
+  std::vector<double> msum;  // (3 nnode) the home piece's mass m_u - sum_q m_q
+};
+
+// The couplings on the DOF nodes with mark (every one when null): constant
+// for a model, so found once for any number of right-hand sides.
+XfemLumped xfem_lumped(const Model& m, const std::vector<char>* mark) {
   const int nstd = 3 * m.nnode, n = m.ndof();
   const auto marked = [&](int dof) { return !mark || (*mark)[dof / 3]; };
-  std::vector<double> rsum(nstd, 0.0), msum(nstd, 0.0);
-  std::vector<int> home(n - nstd, -1);  // enriched DOF -> its mesh node's DOF (the coupling's row)
+  XfemLumped L{std::vector<int>(n - nstd, -1), std::vector<double>(nstd, 0.0)};
   for (int c = 0; c < nstd; ++c)
-    if (marked(c)) rsum[c] = r[c], msum[c] = m.mass_csc[m.diag[c]];
+    if (marked(c)) L.msum[c] = m.mass_csc[m.diag[c]];
   for (int c = nstd; c < n; ++c) {
     if (!marked(c)) continue;
     for (int k = m.Ap[c]; k < m.Ap[c + 1]; ++k)
       if (m.Ai[k] < nstd && m.mass_csc[k] != 0.0) {
-        home[c - nstd] = m.Ai[k];
-        rsum[m.Ai[k]] -= r[c];
-        msum[m.Ai[k]] -= m.mass_csc[k];
+        L.home[c - nstd] = m.Ai[k];
+        L.msum[m.Ai[k]] -= m.mass_csc[k];
       }
   }
+  return L;
+}
+
+// a = M^-1 r on the marked DOF nodes (rsum: (3 nnode) scratch).
+void xfem_lumped_apply(const Model& m, const XfemLumped& L, const std::vector<char>* mark, const double* r,
+                       std::vector<double>& rsum, double* a) {
+  const int nstd = 3 * m.nnode, n = m.ndof();
+  const auto marked = [&](int dof) { return !mark || (*mark)[dof / 3]; };
+  rsum.assign(nstd, 0.0);
   for (int c = 0; c < nstd; ++c)
-    if (marked(c)) a[c] = m.constrained[c] ? 0.0 : rsum[c] / msum[c];
+    if (marked(c)) rsum[c] = r[c];
+  for (int c = nstd; c < n; ++c)
+    if (marked(c) && L.home[c - nstd] >= 0) rsum[L.home[c - nstd]] -= r[c];
+  for (int c = 0; c < nstd; ++c)
+    if (marked(c)) a[c] = m.constrained[c] ? 0.0 : rsum[c] / L.msum[c];
   for (int c = nstd; c < n; ++c) {
     if (!marked(c)) continue;
-    const int h = home[c - nstd];
+    const int h = L.home[c - nstd];
     a[c] = m.constrained[c] ? 0.0 : r[c] / m.mass_csc[m.diag[c]] - (h >= 0 ? a[h] : 0.0);
   }
+}
+
+void lumped_xfem_acceleration(const Model& m, const std::vector<double>& r, const std::vector<char>* mark,
+                              std::vector<double>& a) {
+  std::vector<double> rsum;
+  xfem_lumped_apply(m, xfem_lumped(m, mark), mark, r.data(), rsum, a.data());
 }
 
 }  // namespace
 
 bool lumped_mass_solve(const Model& m, const std::vector<double>& r, std::vector<double>& x) {
-  if (m.mass_kind != MassKind::Lumped) return false;
   x.resize(m.ndof());
+  return lumped_mass_solve_multi(m, 1, r.data(), x.data());
+}
+
+bool lumped_mass_solve_multi(const Model& m, int k, const double* B, double* X) {
+  if (m.mass_kind != MassKind::Lumped) return false;
+  const size_t n = static_cast<size_t>(m.ndof());
   if (m.mass_csc.empty()) {
-    for (int d = 0; d < m.ndof(); ++d) x[d] = m.constrained[d] ? 0.0 : r[d] / m.mass_lumped[d];
-  } else {
-    lumped_xfem_acceleration(m, r, nullptr, x);
+    for (int c = 0; c < k; ++c)
+      for (size_t d = 0; d < n; ++d) X[c * n + d] = m.constrained[d] ? 0.0 : B[c * n + d] / m.mass_lumped[d];
+    return true;
   }
+  const XfemLumped L = xfem_lumped(m, nullptr);
+  std::vector<double> rsum;
+  for (int c = 0; c < k; ++c) xfem_lumped_apply(m, L, nullptr, B + c * n, rsum, X + c * n);
   return true;
 }
 

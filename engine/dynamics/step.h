@@ -98,6 +98,10 @@ double total_energy(const Model& model, const State& state);
 // x = M^-1 r for a lumped mass (X-FEM couplings included, a direct solve per
 // mesh node), 0 on constrained DOFs; returns false for a consistent mass.
 bool lumped_mass_solve(const Model& model, const std::vector<double>& r, std::vector<double>& x);
+// X = M^-1 B for k columns (ndof apart; X may not alias B), the same solve
+// with the couplings found once for all of them (the contact kinematics'
+// active rows); false for a consistent mass.
+bool lumped_mass_solve_multi(const Model& model, int k, const double* B, double* X);
 
 // y = M x with the model's mass (lumped or consistent).
 void mass_matvec(const Model& model, const double* x, double* y);

@@ -82,7 +82,7 @@ struct Workspace {
   std::vector<double> contact_zhalf;           // (|contact_zrows|, nrow) Z
   std::vector<double> contact_g, contact_gy;   // (|contact_zrows|) Z dlambda; (ndof) its backward half
   std::vector<double> contact_Z;     // (nrow, ndof) project_contact_kinematics' columns (Y stays in contact_work)
-  std::vector<double> contact_h, contact_z;  // (ndof) scratch of the contact kinematics (project_contact_kinematics)
+  std::vector<double> contact_h;     // (ndof, active rows) the contact kinematics' H^T columns (project_contact_kinematics)
   // (ndof) the contact refinement's Delta before the iteration's solve, residual
   // without the contact force, right-hand side and increment.
   std::vector<double> contact_base, contact_rhs, contact_b, contact_x;

@@ -496,7 +496,8 @@ namespace {
 
 // The lumped X-FEM mass is solved directly in consistent_acceleration (an
 // arrowhead per node); the result must satisfy M a = f - f_int - D v on the
-// free DOFs, with M the full stored matrix, for an arbitrary state.
+// free DOFs, with M the full stored matrix, for an arbitrary state; and for
+// several right-hand sides at once (lumped_mass_solve_multi).
 TEST(Xfem, LumpedAccelerationAfterACutSolvesTheMassSystem) {
   for (int order : {1, 2}) {
     Scene s = test::block_scene(order);
@@ -527,6 +528,25 @@ TEST(Xfem, LumpedAccelerationAfterACutSolvesTheMassSystem) {
       ref = std::max(ref, std::abs(rhs));
     }
     EXPECT_LT(err, 1e-12 * ref) << "order " << order;
+    // The contact kinematics' k columns at once (lumped_mass_solve_multi):
+    // M X = B on the free DOFs, 0 on the constrained ones.
+    const int n = m.ndof(), k = 3;
+    const std::vector<double> B = test::random_vector(n * k, 23);
+    std::vector<double> X(B.size()), MX(n);
+    ASSERT_TRUE(lumped_mass_solve_multi(m, k, B.data(), X.data()));
+    for (int c = 0; c < k; ++c) {
+      mass_matvec(m, X.data() + static_cast<size_t>(c) * n, MX.data());
+      double e = 0, b = 0;
+      for (int d = 0; d < n; ++d) {
+        if (m.constrained[d]) {
+          EXPECT_EQ(X[static_cast<size_t>(c) * n + d], 0.0);
+          continue;
+        }
+        e = std::max(e, std::abs(MX[d] - B[static_cast<size_t>(c) * n + d]));
+        b = std::max(b, std::abs(B[static_cast<size_t>(c) * n + d]));
+      }
+      EXPECT_LT(e, 1e-12 * b) << "order " << order << ", column " << c;
+    }
   }
 }
 
