@@ -388,8 +388,8 @@ void patch_apply(Workspace& ws, const double* r, double* z, bool add) {
 // The multiplicative combination's patch steps around the substitution
 // (lagged_apply, lagged_apply_multi): before, z1 = E A_p^-1 E^T r and
 // r1 = r - A z1 (z1 lives on the patch, so A z1 sums over the patch rows: A
-// symmetric); after (z = F^-1 r1), z += z1 and z += E A_p^-1 E^T (r - A z)
-// on the patch rows (r1 their scratch).
+// symmetric); after (z = F^-1 r1), z += z1 and the last step
+// (patch_last_step; r1 its scratch).
 void patch_before(const Model& m, Workspace& ws, const double* A, const double* r, double* z1, double* r1) {
   auto& w = ws.work;
   patch_apply(ws, r, z1, /*add=*/false);
@@ -400,16 +400,22 @@ void patch_before(const Model& m, Workspace& ws, const double* A, const double* 
   }
 }
 
-void patch_after(Workspace& ws, const double* A, const double* r, const double* z1, double* r1, double* z) {
+// The multiplicative combination's last step, z += E A_p^-1 E^T (r - A z)
+// on the patch rows (r null: zero there; r1 their scratch).
+void patch_last_step(Workspace& ws, const double* A, const double* r, double* r1, double* z) {
   auto& w = ws.work;
-  const size_t np = w.patch_dof.size();
-  for (size_t j = 0; j < np; ++j) z[w.patch_dof[j]] += z1[w.patch_dof[j]];
-  for (size_t i = 0; i < np; ++i) {
-    double acc = r[w.patch_dof[i]];
+  for (size_t i = 0; i < w.patch_dof.size(); ++i) {
+    double acc = r ? r[w.patch_dof[i]] : 0.0;
     for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) acc -= A[w.patch_rows.k[t]] * z[w.patch_rows.col[t]];
     r1[w.patch_dof[i]] = acc;
   }
   patch_apply(ws, r1, z, /*add=*/true);
+}
+
+void patch_after(Workspace& ws, const double* A, const double* r, const double* z1, double* r1, double* z) {
+  auto& w = ws.work;
+  for (int d : w.patch_dof) z[d] += z1[d];
+  patch_last_step(ws, A, r, r1, z);
 }
 
 // z = P r: the front factor (factor_apply); after cuts, with the patch of the
@@ -1161,15 +1167,8 @@ void factor_compliance_apply(const Model& m, Workspace& ws, const std::vector<in
   // E A_p^-1 E^T r, is zero, as is the additive patch's term), then the
   // condensed projection.
   if (!w.patch_dof.empty() && m.solver.multiplicative_patch) {
-    std::vector<double>& r1 = w.ms_r;
-    resize_with_headroom(r1, static_cast<size_t>(n));
-    const double* A = ws.A.data();
-    for (size_t i = 0; i < w.patch_dof.size(); ++i) {
-      double acc = 0.0;
-      for (int t = w.patch_rows.ptr[i]; t < w.patch_rows.ptr[i + 1]; ++t) acc -= A[w.patch_rows.k[t]] * x[w.patch_rows.col[t]];
-      r1[w.patch_dof[i]] = acc;
-    }
-    patch_apply(ws, r1.data(), x, /*add=*/true);
+    resize_with_headroom(w.ms_r, static_cast<size_t>(n));
+    patch_last_step(ws, ws.A.data(), nullptr, w.ms_r.data(), x);
   }
   if (w.condensed.factored) condensed_project(w.condensed, ws.A.data(), x);
 }
