@@ -209,24 +209,82 @@ double rows_change(const ContactRows& c, const Workspace& ws) {
   return worst;
 }
 
+// Y dl = P^-1 H^T dl (dl: one entry per row) into y from the forward half
+// Z of the rows' columns (ws.contact_zhalf on ws.contact_zrows): the
+// backward half alone, on both threads as CG's substitution
+// (factor_compliance_apply), zero on the fixed and prescribed DOFs. False,
+// y untouched, for dl = 0.
+bool half_compliance_times(const Model& m, Workspace& ws, const double* dl, double* y) {
+  const int r = ws.contacts.nrow();
+  const size_t nr = ws.contact_zrows.size();
+  std::vector<double>& g = ws.contact_g;
+  g.assign(nr, 0.0);
+  bool any = false;
+  for (int i = 0; i < r; ++i) {
+    if (dl[i] == 0.0) continue;
+    any = true;
+    const double* zi = ws.contact_zhalf.data() + static_cast<size_t>(i) * nr;
+    for (size_t t = 0; t < nr; ++t) g[t] += zi[t] * dl[i];
+  }
+  if (!any) return false;
+  factor_compliance_apply(m, ws, ws.contact_zrows, g.data(), y);
+  for (int d : m.fixed_dofs) y[d] = 0.0;
+  for (const auto& p : m.prescribed) y[p.dof] = 0.0;
+  return true;
+}
+
 // constrained_refine's projection for the active rows act, in the space of
 // the DOFs and the spring-coupled tools' displacements w_t (3 each, after
 // the ndof DOFs; blk[i]: row i's tool block, -1 for a tool that is where its
 // pose says). Row i constrains H_i du + d_i . w_t (the tool yields by w_t =
 // c_t sum_j d_j lambda_j, so W_c = W + c_t d_i . d_j is its compliance); its
-// preconditioned column is (Y_i, c_t d_i). W_AA^-1: a complete orthogonal
+// preconditioned column is (Y_i, c_t d_i): a column of Y (Y not null), or
+// from the factor's halves (ws.contact_half) the backward half of Z_i.
+// W_AA^-1: a complete orthogonal
 // decomposition (rows redundant to roundoff, several contacts on one face,
 // leave W_AA singular, and the least-norm multipliers keep the projection
 // defined).
 class ActiveRowProjection final : public ConstraintProjection {
  public:
-  ActiveRowProjection(const Model& m, const ContactRows& c, const double* Y, const std::vector<int>& act,
+  ActiveRowProjection(const Model& m, Workspace& ws, const double* Y, const std::vector<int>& act,
                       const std::vector<int>& blk, const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>& Winv)
-      : m_(m), c_(c), Y_(Y), act_(act), blk_(blk), Winv_(Winv),
+      : m_(m), ws_(ws), c_(ws.contacts), Y_(Y), act_(act), blk_(blk), Winv_(Winv),
         mu(Eigen::VectorXd::Zero(static_cast<int>(act.size()))), t_(static_cast<int>(act.size())) {}
 
-  void primal(double* z) override {  // z -= Y~ W^-1 H~ z
-    if (act_.empty()) return;
+  void project(double* r, double* z, const std::function<void(const double*, double*)>& precondition) override {
+    if (act_.empty()) {
+      precondition(r, z);
+      return;
+    }
+    const int n = m_.ndof();
+    if (Y_) {  // Y kept from the frame's first iteration: dm = W^-1 Y~^T r, then z = Pi P^-1 r
+      for (size_t a = 0; a < act_.size(); ++a) {
+        const int i = act_[a];
+        const double* y = Y_ + static_cast<size_t>(i) * n;
+        double yr = 0.0;
+        for (int d = 0; d < n; ++d) yr += y[d] * r[d];
+        if (blk_[i] >= 0)
+          for (int d = 0; d < 3; ++d) yr += c_.tool_compliance(i) * c_.dir[3 * i + d] * r[n + 3 * blk_[i] + d];
+        t_[static_cast<int>(a)] = yr;
+      }
+      const Eigen::VectorXd dm = Winv_.solve(t_);
+      subtract(dm, r, nullptr);
+      mu += dm;
+      precondition(r, z);
+      subtract(Winv_.solve(rows_of(z)), nullptr, z);
+      return;
+    }
+    // The halves, with P as it is: Y~^T r = H~ P~^-1 r, and P~^-1 of the
+    // projected r is P~^-1 r - Y~ dm, whose H~ is zero.
+    precondition(r, z);
+    const Eigen::VectorXd dm = Winv_.solve(rows_of(z));
+    subtract(dm, r, z);
+    mu += dm;
+  }
+
+ private:
+  // H~_A z: the active rows' values of z.
+  const Eigen::VectorXd& rows_of(const double* z) {
     const int n = m_.ndof();
     for (size_t a = 0; a < act_.size(); ++a) {
       const int i = act_[a];
@@ -237,42 +295,40 @@ class ActiveRowProjection final : public ConstraintProjection {
         for (int d = 0; d < 3; ++d) hz += c_.dir[3 * i + d] * z[n + 3 * blk_[i] + d];
       t_[static_cast<int>(a)] = hz;
     }
-    const Eigen::VectorXd nu = Winv_.solve(t_);
-    for (size_t a = 0; a < act_.size(); ++a) {
-      const int i = act_[a];
-      const double* y = Y_ + static_cast<size_t>(i) * n;
-      const double va = nu[static_cast<int>(a)];
-      for (int d = 0; d < n; ++d) z[d] -= va * y[d];
-      if (blk_[i] >= 0)
-        for (int d = 0; d < 3; ++d) z[n + 3 * blk_[i] + d] -= va * c_.tool_compliance(i) * c_.dir[3 * i + d];
-    }
+    return t_;
   }
-  void dual(double* r) override {  // r -= H~^T W^-1 Y~^T r, the removed multipliers summed in mu
-    if (act_.empty()) return;
+  // r -= H~_A^T dm and z -= Y~_A dm, each where not null.
+  void subtract(const Eigen::VectorXd& dm, double* r, double* z) {
     const int n = m_.ndof();
-    for (size_t a = 0; a < act_.size(); ++a) {
-      const int i = act_[a];
-      const double* y = Y_ + static_cast<size_t>(i) * n;
-      double yr = 0.0;
-      for (int d = 0; d < n; ++d) yr += y[d] * r[d];
-      if (blk_[i] >= 0)
-        for (int d = 0; d < 3; ++d) yr += c_.tool_compliance(i) * c_.dir[3 * i + d] * r[n + 3 * blk_[i] + d];
-      t_[static_cast<int>(a)] = yr;
+    if (z && !Y_) {
+      std::vector<double>& dl = ws_.contact_dl;
+      dl.assign(c_.nrow(), 0.0);
+      for (size_t a = 0; a < act_.size(); ++a) dl[act_[a]] = dm[static_cast<int>(a)];
+      std::vector<double>& y = ws_.contact_gy;
+      y.resize(n);
+      if (half_compliance_times(m_, ws_, dl.data(), y.data()))
+        for (int d = 0; d < n; ++d) z[d] -= y[d];
     }
-    const Eigen::VectorXd dm = Winv_.solve(t_);
     for (size_t a = 0; a < act_.size(); ++a) {
       const int i = act_[a];
       const double ma = dm[static_cast<int>(a)];
-      for (int k = c_.ptr[i]; k < c_.ptr[i + 1]; ++k)
-        if (!m_.constrained[c_.dof[k]]) r[c_.dof[k]] -= ma * c_.coef[k];
+      if (r)
+        for (int k = c_.ptr[i]; k < c_.ptr[i + 1]; ++k)
+          if (!m_.constrained[c_.dof[k]]) r[c_.dof[k]] -= ma * c_.coef[k];
+      if (z && Y_) {
+        const double* y = Y_ + static_cast<size_t>(i) * n;
+        for (int d = 0; d < n; ++d) z[d] -= ma * y[d];
+      }
       if (blk_[i] >= 0)
-        for (int d = 0; d < 3; ++d) r[n + 3 * blk_[i] + d] -= ma * c_.dir[3 * i + d];
+        for (int d = 0; d < 3; ++d) {
+          if (r) r[n + 3 * blk_[i] + d] -= ma * c_.dir[3 * i + d];
+          if (z) z[n + 3 * blk_[i] + d] -= ma * c_.tool_compliance(i) * c_.dir[3 * i + d];
+        }
     }
-    mu += dm;
   }
 
- private:
   const Model& m_;
+  Workspace& ws_;
   const ContactRows& c_;
   const double* Y_;
   const std::vector<int>& act_;
@@ -340,7 +396,7 @@ bool refine_on_active_rows(const Model& m, Workspace& ws, const std::vector<doub
       }
   }
   for (int d = 0; d < n; ++d) x[d] = ws.delta[d] - base[d];
-  ActiveRowProjection proj(m, c, ws.contact_work.data(), act, blk, Winv);
+  ActiveRowProjection proj(m, ws, ws.contact_half ? nullptr : ws.contact_work.data(), act, blk, Winv);
   if (!constrained_refine(m, ws, b.data(), x.data(), proj, k_extra) || !proj.mu.allFinite() ||
       !std::all_of(x.begin(), x.begin() + nt, [](double v) { return std::isfinite(v); }))
     return false;  // a breakdown: the LCP's Y dlambda stands
@@ -397,25 +453,13 @@ int lcp_round(const Model& m, Workspace& ws, const std::vector<double>& Wsolve, 
     // Delta += P^-1 H^T dlambda = Q P^T L^-T (Z dlambda): the backward half
     // alone, from the forward half W was made of (a full solve of H^T
     // dlambda read the factor twice: 3.5-4 ms of haptics-20k's 6-7 ms contact stage).
-    const size_t nr = ws.contact_zrows.size();
-    std::vector<double>& g = ws.contact_g;
+    std::vector<double>& dl = ws.contact_dl;
     std::vector<double>& y = ws.contact_gy;
-    g.assign(nr, 0.0);
+    dl.resize(r);
     y.resize(n);
-    bool any = false;
-    for (int i = 0; i < r; ++i) {
-      const double dl = lambda[i] - c.lambda[i];
-      if (dl == 0.0) continue;
-      any = true;
-      const double* zi = ws.contact_zhalf.data() + static_cast<size_t>(i) * nr;
-      for (size_t t = 0; t < nr; ++t) g[t] += zi[t] * dl;
-    }
-    if (any) {
-      factor_compliance_apply(m, ws, ws.contact_zrows, g.data(), y.data());  // (on both threads, as CG's substitution)
-      for (int d : m.fixed_dofs) y[d] = 0.0;
-      for (const auto& p : m.prescribed) y[p.dof] = 0.0;
+    for (int i = 0; i < r; ++i) dl[i] = lambda[i] - c.lambda[i];
+    if (half_compliance_times(m, ws, dl.data(), y.data()))
       for (int d = 0; d < n; ++d) ws.delta[d] += y[d];
-    }
   } else {
     for (int i = 0; i < r; ++i) {
       const double dl = lambda[i] - c.lambda[i];
@@ -511,12 +555,13 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   // correction goes through the preconditioner as it is then (the warp
   // turns with every iteration) and must be the one W was made with for the
   // rows to be met exactly. Grasp rows alone (held bit for bit) take Y as
-  // before, which later frames keep. Not with the refinement (it needs Y) or
-  // a consistent mass (the contact kinematics read Y).
+  // before, which later frames keep. The refinement's projection takes its
+  // Y mu from the halves too (ActiveRowProjection). Not with a consistent
+  // mass (the contact kinematics read Y).
   bool contact_rows = false;
   for (RowKind kind : c.kind) contact_rows = contact_rows || kind != RowKind::Grasp;
   bool half = false;
-  if (!reuse && contact_rows && !refinable(m, c) && m.mass_kind == MassKind::Lumped) {
+  if (!reuse && contact_rows && m.mass_kind == MassKind::Lumped) {
     fill_columns();
     std::vector<char>& mark = ws.contact_node_mark;
     mark.assign(m.ndofnode, 0);

@@ -1199,20 +1199,21 @@ bool constrained_refine(const Model& m, Workspace& ws, const double* b, double* 
     sym_matvec_parallel(m, w.plan, *w.pool, ws.A.data(), y, out);
     for (int e = 0; e < ne; ++e) out[n + e] = k_extra[e] * y[n + e];
   };
-  const auto precondition = [&](const double* y, double* out) {
+  const std::function<void(const double*, double*)> precondition = [&](const double* y, double* out) {
     apply_factor_inverse(m, ws, y, out);
     for (int e = 0; e < ne; ++e) out[n + e] = y[n + e] / k_extra[e];
-    proj.primal(out);
   };
+  // r projected (its H_A^T mu removed: A p leaves the range of the projected
+  // residuals by roundoff and by P's asymmetry), z the preconditioned residual.
+  const auto project = [&] { proj.project(r, z, precondition); };
   const double bnorm = std::sqrt(dot_t(b, b)), tol = m.solver.tolerance;
   if (bnorm == 0.0) return true;
   matvec(x, q);
   for (int i = 0; i < nt; ++i) r[i] = b[i] - q[i];
-  proj.dual(r);
+  project();
   double rel = std::sqrt(dot_t(r, r)) / bnorm;
   int it = 0;
   if (rel > tol) {
-    precondition(r, z);
     std::copy(z, z + nt, p);
     double rz = dot_t(r, z);
     while (it < left && rz > 0.0) {
@@ -1225,10 +1226,9 @@ bool constrained_refine(const Model& m, Workspace& ws, const double* b, double* 
         x[i] += alpha * p[i];
         r[i] -= alpha * q[i];
       }
-      proj.dual(r);  // A p leaves the range of the projected residuals by roundoff and by P's asymmetry
+      project();  // also on the last iteration: its mu is part of the multipliers
       rel = std::sqrt(dot_t(r, r)) / bnorm;
       if (rel <= tol || it == left) break;
-      precondition(r, z);
       const double rz_new = dot_t(r, z);
       const double beta = rz_new / rz;
       rz = rz_new;

@@ -18,6 +18,7 @@
 //
 // Iterations, substitutions, the final CG residual and convergence go into
 // Workspace::timing, so no policy is silent about what it did.
+#include <functional>
 #include <vector>
 
 #include "engine/dynamics/state.h"
@@ -97,13 +98,19 @@ void factor_compliance_apply(const Model& model, Workspace& ws, const std::vecto
                              double* x);
 
 // The projection onto the constraints H_A x = 0 of the contact stage's
-// active rows (engine/dynamics/contact_solve.cpp): primal(z) takes z into
-// their null space along the preconditioner's Y = P^-1 H_A^T (z -= Y W^-1 H_A z),
-// dual(r) removes H_A^T mu from a residual (mu = W^-1 Y^T r) and adds mu to
-// what it has removed so far.
+// active rows (engine/dynamics/contact_solve.cpp). project(r, z,
+// precondition) removes H_A^T mu from the residual r (mu = W^-1 Y^T r: the
+// multipliers that make r - H_A^T mu smallest in P^-1's norm, W = H_A Y,
+// Y = P^-1 H_A^T), adds mu to what it has removed so far, and sets z to
+// Pi P^-1 of the projected r (Pi = I - Y W^-1 H_A: z in the null space),
+// with precondition(y, out) applying P^-1. Y's columns kept from an earlier
+// preconditioner (a frame's later Newton iterations) are used as they are:
+// Y^T r from them, then P^-1, then z's projection along them. Y from the
+// factor's halves, formed with the preconditioner as it is, takes P^-1 r
+// first: Y^T r = H_A P^-1 r and P^-1 of the projected r is P^-1 r - Y mu,
+// already in the null space (one P^-1 and one Y mu an iteration).
 struct ConstraintProjection {
-  virtual void primal(double* z) = 0;
-  virtual void dual(double* r) = 0;
+  virtual void project(double* r, double* z, const std::function<void(const double*, double*)>& precondition) = 0;
 
  protected:
   ~ConstraintProjection() = default;
@@ -116,7 +123,7 @@ struct ConstraintProjection {
 // update strategy does) with the constraint preconditioner
 // z = Pi P^-1 Pi^T r, Pi = I - Y W^-1 H_A:
 // every iterate meets the rows exactly, and at convergence b - A x =
-// H_A^T mu (the multipliers dual() removed). Stops when |Pi^T r| <= tol |b|,
+// H_A^T mu (the multipliers project() removed). Stops when |Pi^T r| <= tol |b|,
 // or after solver.max_iterations (and what is left of
 // solver.frame_iterations); iterations count in ws.timing.iterations, the
 // Newton solve's residual and convergence in ws.timing are kept. False

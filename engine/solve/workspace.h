@@ -75,12 +75,14 @@ struct Workspace {
   bool contact_W_of_Y = false;       // contact_W is H Y for Y's own rows (symmetrised), not a later frame's H
   long long contact_Y_key = -1;
   // contact_W from the forward half of the preconditioner (factor_compliance):
-  // no Y; each LCP round's correction is one solve of H^T dlambda.
+  // no Y; each LCP round's correction (and the refinement's Y mu) is the
+  // backward half of Z dlambda.
   bool contact_half = false;
   std::vector<int> contact_nz, contact_zrows;  // every DOF of the rows' nodes; Z's rows
   std::vector<char> contact_node_mark;         // (ndofnode) scratch for contact_nz
   std::vector<double> contact_zhalf;           // (|contact_zrows|, nrow) Z
   std::vector<double> contact_g, contact_gy;   // (|contact_zrows|) Z dlambda; (ndof) its backward half
+  std::vector<double> contact_dl;              // (nrow) dlambda of that product
   std::vector<double> contact_Z;     // (nrow, ndof) project_contact_kinematics' columns (Y stays in contact_work)
   std::vector<double> contact_h;     // (ndof, active rows) the contact kinematics' H^T columns (project_contact_kinematics)
   // (ndof) the contact refinement's Delta before the iteration's solve, residual

@@ -180,11 +180,13 @@ TEST(ContactSolve, RefinedCorrectionFindsExactsContactsOnAFloor) {
     const double y = m.X[3 * i + 1], z = m.X[3 * i + 2];
     return -0.02 + 0.1 * y + (z - 0.25) * (z - 0.25) - z;
   };
+  int halves = 0;  // lagged frames whose W came from the factor's halves (the refinement's Y mu too)
   const auto run = [&](const Model& m, int refine_rounds, std::vector<int>* pushing) {
     const auto floor = [&](int, const State& s, ContactRows& rows) {
       for (int i : tip) add_dof_row(rows, RowKind::Contact, 3 * i + 2, floor_z(m, i) - s.u[3 * i + 2]);
     };
     return run_with_rows(m, 10, refine_rounds, floor, [&](int frame, const State& s, const Workspace& ws) {
+      halves += ws.contact_half && refine_rounds > 0;
       int active = 0;
       for (size_t k = 0; k < tip.size(); ++k) {
         EXPECT_GE(s.u[3 * tip[k] + 2], floor_z(m, tip[k]) - 1e-12) << "frame " << frame;
@@ -201,12 +203,14 @@ TEST(ContactSolve, RefinedCorrectionFindsExactsContactsOnAFloor) {
   const double plain = test::rel_diff(run(lagged, 0, nullptr), ref), one = test::rel_diff(run(lagged, 1, nullptr), ref);
   const double five = test::rel_diff(run(lagged, 5, nullptr), ref);
   std::printf(" ]\n[ lagged against exact after 10 frames: %.2e with Y dlambda; refined 1, 5 rounds %.2e, %.2e ]\n", plain, one, five);
-  // Measured: 2.7e-2; 6.0e-4 (a contact the first round took pulls, and
-  // with one round the LCP's answer on the preconditioner's W stands), 3.2e-13.
+  // Measured: 3.6e-2; 6.0e-4 (a contact the first round took pulls, and
+  // with one round the LCP's answer on the preconditioner's W stands), 3.4e-13
+  // (the refinement's Y mu from the factor's halves).
   EXPECT_GT(plain, 1e-3);
   EXPECT_LT(one, 0.1 * plain);
   EXPECT_LT(five, 1e-10);
   EXPECT_GT(one, 1e3 * five) << "the case should need a second round";
+  EXPECT_EQ(halves, 20) << "contact rows under lagged: the refinement on the factor's halves in every frame";
 }
 
 // Redundant rows (two tools on one node, or two faces' contacts on one DOF)
@@ -260,9 +264,12 @@ TEST(ContactSolve, RefinementFollowsExactWithASpringCoupledTool) {
     const double f = std::min(1.0, (frame + 1) / 4.0);
     for (int i : tip) add_dof_row(rows, RowKind::Contact, 3 * i + 2, 0.3 * f + s.u[3 * i + 2], -1.0);
   };
+  int halves = 0;
   const auto run = [&](const Model& m, int refine_rounds, double* force) {
-    return run_with_rows(m, 8, refine_rounds, press,
-                         [&](int, const State&, const Workspace& ws) { *force = ws.timing.contact_force; });
+    return run_with_rows(m, 8, refine_rounds, press, [&](int, const State&, const Workspace& ws) {
+      *force = ws.timing.contact_force;
+      halves += ws.contact_half && refine_rounds > 0;
+    });
   };
   double f_exact = 0.0, f_plain = 0.0, f_refined = 0.0;
   const std::vector<double> ref = run(exact, 0, &f_exact);
@@ -276,6 +283,7 @@ TEST(ContactSolve, RefinementFollowsExactWithASpringCoupledTool) {
   EXPECT_GT(plain, 1e-4);
   EXPECT_LT(refined, 1e-10);
   EXPECT_NEAR(f_refined, f_exact, 1e-8 * f_exact);
+  EXPECT_EQ(halves, 8) << "the refinement's Y mu (the spring's column included) from the factor's halves";
 }
 
 // The corotated cantilever as `exact` and as `lagged` with a warped factor
