@@ -227,7 +227,7 @@ bool half_compliance_times(const Model& m, Workspace& ws, const double* dl, doub
     for (size_t t = 0; t < nr; ++t) g[t] += zi[t] * dl[i];
   }
   if (!any) return false;
-  factor_compliance_apply(m, ws, ws.contact_zrows, g.data(), y);
+  factor_compliance_apply(m, ws, ws.contact_zrows, g.data(), dl, y);
   for (int d : m.fixed_dofs) y[d] = 0.0;
   for (const auto& p : m.prescribed) y[p.dof] = 0.0;
   return true;
@@ -544,8 +544,9 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
     ws.contact_Y_rowkey = c.key;
   };
   // W without Y under lagged (factor_compliance; after a cut where the rows'
-  // nodes are the front factor's and off the patch and the condensed set,
-  // whose steps then leave W alone): W = Z^T Z from the forward half of the
+  // nodes are the front factor's and off the patch, whose steps then leave
+  // W alone, and for rows on the condensed set where its neighbours are so:
+  // W gains B^T Q B there): W = Z^T Z from the forward half of the
   // substitution over the factor's tree paths from the rows' DOFs, and each
   // LCP round's correction the backward half from Z dlambda (lcp_round). The
   // columns' backward halves read all of L once per 16 rows and were most of
@@ -572,19 +573,17 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
       mark[node] = 1;
       for (int i = 0; i < 3; ++i) ws.contact_nz.push_back(3 * node + i);
     }
-    half = factor_compliance(m, ws, r, ws.contact_work.data(), ws.contact_nz, ws.contact_zrows, ws.contact_zhalf);
+    half = factor_compliance(m, ws, r, ws.contact_work.data(), ws.contact_nz, ws.contact_zrows, ws.contact_zhalf,
+                             ws.contact_W);
   }
   const bool similar = !reuse && !half && change <= c.compliance_reuse;
   if (!reuse) {
     ws.contact_half = half;
     ws.contact_W_of_Y = !similar;
   }
-  if (half) {
+  if (half) {  // (W formed with Z)
     keep_rows();
     ws.timing.compliance_columns += r;
-    const Eigen::Map<const Eigen::MatrixXd> Z(ws.contact_zhalf.data(), static_cast<Eigen::Index>(ws.contact_zrows.size()), r);
-    ws.contact_W.resize(static_cast<size_t>(r) * r);
-    Eigen::Map<Eigen::MatrixXd>(ws.contact_W.data(), r, r).noalias() = Z.transpose() * Z;  // symmetric: either order
   }
   if (!reuse && !similar && !half) {
     keep_rows();

@@ -1095,52 +1095,129 @@ void apply_factor_inverse_multi(const Model& m, Workspace& ws, int k, const doub
   }
 }
 
-// After cuts the lagged preconditioner is condensed_project(patch steps
-// around the mapped factor) (lagged_apply, condensed_inverse). For columns
-// zero on the DOFs the factor does not map, on the patch and on the condensed
-// set, the patch steps and the projection change only those DOFs and leave
-// the columns as they are (C B = 0, Q_S B = 0): H P^-1 H^T = H F H^T with F
-// the mapped, warped factor alone, whose forward half gives Z. The
-// correction (factor_compliance_apply) adds the steps back.
-bool factor_compliance(const Model& m, Workspace& ws, int k, const double* B, const std::vector<int>& nz,
-                       std::vector<int>& rows, std::vector<double>& Z) {
+// After cuts the lagged preconditioner is P^-1 = Q + P_S^T M^-1 P_S
+// (condensed_inverse: Q = A_SS^-1 on the condensed set S, P_S = I - A Q)
+// around M^-1 = the patch steps around the mapped factor (lagged_apply).
+// For columns zero on the DOFs the factor does not map and on the patch,
+// the patch steps change only the patch's DOFs and leave the columns as
+// they are (C B = 0): B^T M^-1 B = B^T F B with F the mapped, warped factor
+// alone, whose forward half gives Z. Columns on S enter M^-1 as
+// B - A Q B (zero on S, nonzero on S's neighbours: those must be mapped and
+// off the patch too), so W = B^T Q B + Z^T Z with Z the forward half of
+// B - A Q B. The correction (factor_compliance_apply) adds the steps back.
+namespace {
+// The condensed part of factor_compliance for columns with DOFs on S: Q B
+// into w.compliance_q, the DOFs of B - A Q B off S into w.compliance_nz
+// (every DOF of their nodes, node by node) and its values there into
+// w.compliance_yc.
+void condensed_columns(const Model& m, Workspace& ws, int k, const double* B, const std::vector<int>& nz) {
   auto& w = ws.work;
+  CondensedDofs& S = w.condensed;
+  const size_t n = static_cast<size_t>(m.ndof()), ns = S.dof.size();
+  const auto on_S = [&](int d) { return std::binary_search(S.dof.begin(), S.dof.end(), d); };
+  std::vector<char>& mark = w.compliance_mark;
+  mark.assign(m.ndofnode, 0);
+  for (int d : nz)
+    if (!on_S(d)) mark[d / 3] = 1;
+  for (size_t i = 0; i < ns; ++i)
+    for (int t = S.rows.ptr[i]; t < S.rows.ptr[i + 1]; ++t)
+      if (!on_S(S.rows.col[t])) mark[S.rows.col[t] / 3] = 1;
+  std::vector<int>& cols = w.compliance_nz;
+  cols.clear();
+  for (int node = 0; node < m.ndofnode; ++node)
+    if (mark[node])
+      for (int c = 0; c < 3; ++c) cols.push_back(3 * node + c);
+  std::vector<double>& y = w.compliance_y;
+  if (y.size() != n) y.assign(n, 0.0);
+  resize_with_headroom(w.compliance_q, ns * k);
+  resize_with_headroom(w.compliance_yc, cols.size() * k);
+  const double* A = ws.A.data();
+  for (int c = 0; c < k; ++c) {
+    const double* b = B + c * n;
+    double* q = w.compliance_q.data() + c * ns;
+    for (size_t i = 0; i < ns; ++i) q[i] = b[S.dof[i]];
+    S.factor.solve(q, q);
+    for (int d : cols) y[d] = b[d];
+    for (size_t i = 0; i < ns; ++i)  // A symmetric: S's rows are its columns
+      for (int t = S.rows.ptr[i]; t < S.rows.ptr[i + 1]; ++t) y[S.rows.col[t]] -= A[S.rows.k[t]] * q[i];
+    double* yc = w.compliance_yc.data() + c * cols.size();
+    for (size_t j = 0; j < cols.size(); ++j) {
+      yc[j] = y[cols[j]];
+      y[cols[j]] = 0.0;
+    }
+    for (int d : S.dof) y[d] = 0.0;  // (b_S - A_SS q: roundoff)
+  }
+}
+}  // namespace
+
+bool factor_compliance(const Model& m, Workspace& ws, int k, const double* B, const std::vector<int>& nz,
+                       std::vector<int>& rows, std::vector<double>& Z, std::vector<double>& W) {
+  auto& w = ws.work;
+  w.compliance_q.clear();
   if (m.solver.policy != SolverPolicy::Lagged) return false;
   const std::vector<int>& map = w.slot_map[w.front];
   const auto in = [](const std::vector<int>& sorted, int d) { return std::binary_search(sorted.begin(), sorted.end(), d); };
-  for (int d : nz)
-    if ((!map.empty() && map[d] < 0) || in(w.patch_dof, d) || (w.condensed.factored && in(w.condensed.dof, d)))
-      return false;
+  const CondensedDofs& S = w.condensed;
+  const bool on_S = S.factored && std::any_of(nz.begin(), nz.end(), [&](int d) { return in(S.dof, d); });
+  // The DOFs the columns M^-1 sees live on: nz, or B - A Q B's.
+  const std::vector<int>* cols = &nz;
+  if (on_S) {
+    condensed_columns(m, ws, k, B, nz);
+    cols = &w.compliance_nz;
+  }
+  const auto fail = [&] {
+    w.compliance_q.clear();
+    return false;
+  };
+  for (int d : *cols)
+    if ((!map.empty() && map[d] < 0) || in(w.patch_dof, d) || (S.factored && in(S.dof, d))) return fail();
   CholmodSolver& f = ws.slot(w.front);
   const size_t n = static_cast<size_t>(m.ndof()), nf = static_cast<size_t>(f.size());
   const double* Bq = B;
-  const std::vector<int>* nzf = &nz;
-  if (m.solver.warp || !map.empty()) {  // Q^T B on nz's nodes, in the factor's numbering (the rest is zero)
+  const std::vector<int>* nzf = cols;
+  if (m.solver.warp || !map.empty() || on_S) {  // Q^T B on the columns' nodes, in the factor's numbering (the rest is zero)
     std::vector<double>& t = w.multi_t;
     resize_with_headroom(t, nf * k);
     std::fill(t.begin(), t.begin() + nf * k, 0.0);  // the paths read rows outside nz too
     const auto to_f = [&](int d) { return static_cast<size_t>(map.empty() ? d : map[d]); };
     for (int c = 0; c < k; ++c)
-      for (size_t i = 0; i + 2 < nz.size(); i += 3) {
-        const int node = nz[i] / 3;
-        Eigen::Vector3d b = Eigen::Map<const Eigen::Vector3d>(B + c * n + 3 * node);
+      for (size_t i = 0; i + 2 < cols->size(); i += 3) {
+        const int node = (*cols)[i] / 3;
+        Eigen::Vector3d b = on_S ? Eigen::Vector3d(Eigen::Map<const Eigen::Vector3d>(w.compliance_yc.data() + c * cols->size() + i))
+                                 : Eigen::Vector3d(Eigen::Map<const Eigen::Vector3d>(B + c * n + 3 * node));
         if (m.solver.warp) b = Eigen::Map<const Mat3>(&w.Q[9 * static_cast<size_t>(node)]).transpose() * b;
         for (int j = 0; j < 3; ++j) t[c * nf + to_f(3 * node + j)] = b[j];
       }
     Bq = t.data();
     if (!map.empty()) {
       w.nz_slot.clear();
-      for (int d : nz) w.nz_slot.push_back(map[d]);
+      for (int d : *cols) w.nz_slot.push_back(map[d]);
       nzf = &w.nz_slot;
     }
   }
   Stopwatch sw;
-  const bool done = f.forward_half_multi(k, Bq, *nzf, rows, Z);
+  if (!f.forward_half_multi(k, Bq, *nzf, rows, Z)) return fail();
   ws.timing.solve_kernel_ms += sw.ms();
-  return done;
+  const Eigen::Map<const Eigen::MatrixXd> Zm(Z.data(), static_cast<Eigen::Index>(rows.size()), k);
+  W.resize(static_cast<size_t>(k) * k);
+  Eigen::Map<Eigen::MatrixXd> Wm(W.data(), k, k);
+  Wm.noalias() = Zm.transpose() * Zm;
+  if (on_S) {  // + B_S^T Q B (symmetric: B_S^T A_SS^-1 B_S), symmetrised
+    const size_t ns = S.dof.size();
+    Eigen::MatrixXd BtQB(k, k);
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; j < k; ++j) {
+        double acc = 0.0;
+        for (size_t s = 0; s < ns; ++s) acc += B[i * n + S.dof[s]] * w.compliance_q[j * ns + s];
+        BtQB(i, j) = acc;
+      }
+    Wm += 0.5 * (BtQB + BtQB.transpose());
+  }
+  return true;
 }
 
-void factor_compliance_apply(const Model& m, Workspace& ws, const std::vector<int>& rows, const double* z, double* x) {
+void factor_compliance_apply(const Model& m, Workspace& ws, const std::vector<int>& rows, const double* z,
+                             const double* c, double* x) {
   auto& w = ws.work;
   CholmodSolver& f = ws.slot(w.front);
   const std::vector<int>& map = w.slot_map[w.front];
@@ -1171,6 +1248,14 @@ void factor_compliance_apply(const Model& m, Workspace& ws, const std::vector<in
     patch_last_step(ws, ws.A.data(), nullptr, w.ms_r.data(), x);
   }
   if (w.condensed.factored) condensed_project(w.condensed, ws.A.data(), x);
+  if (!w.compliance_q.empty()) {  // + Q B c (columns on S)
+    const size_t ns = w.condensed.dof.size(), k = w.compliance_q.size() / ns;
+    for (size_t i = 0; i < ns; ++i) {
+      double acc = 0.0;
+      for (size_t j = 0; j < k; ++j) acc += w.compliance_q[j * ns + i] * c[j];
+      x[w.condensed.dof[i]] += acc;
+    }
+  }
 }
 
 bool iterative_policy(const Model& m) {

@@ -81,21 +81,25 @@ void apply_factor_inverse(const Model& model, Workspace& ws, const double* b, do
 // warped, lagged before a cut maps it), column by column otherwise.
 void apply_factor_inverse_multi(const Model& model, Workspace& ws, int k, const double* B, double* X);
 // The compliance of k columns B (ndof x k, zero outside the DOFs nz, which
-// hold every DOF of their nodes, node by node: 3a, 3a+1, 3a+2) without their solves: Z (|rows| x k) with
-// B_i^T P^-1 B_j = Z_i . Z_j, from the forward half of the preconditioner's
-// substitution over the factor's tree paths from nz (CholmodSolver::
-// forward_half_multi). Under lagged, where nz lies on DOFs the front factor
-// maps, off a cut's patch and the condensed set (there P^-1's patch steps
-// and projection leave such columns alone: B^T P^-1 B = B^T Q F^-1 Q^T B);
-// false otherwise (other policies, a simplicial factor), Z untouched.
+// hold every DOF of their nodes, node by node: 3a, 3a+1, 3a+2) without their
+// solves: W = B^T P^-1 B (k x k) and Z (|rows| x k), from the forward half of
+// the preconditioner's substitution over the factor's tree paths from the
+// columns' DOFs (CholmodSolver::forward_half_multi). Under lagged, where
+// the columns lie on DOFs the front factor maps and off a cut's patch
+// (there P^-1's patch steps leave them alone): W = Z^T Z with Z the forward
+// half of Q^T B. Columns on the condensed set S (condensed_dofs.h) enter
+// the factor as B - A Q B, nonzero on S's neighbours, which must then be
+// mapped and off the patch as well: W = B^T Q B + Z^T Z. False otherwise
+// (other policies, a simplicial factor), Z and W untouched.
 bool factor_compliance(const Model& model, Workspace& ws, int k, const double* B, const std::vector<int>& nz,
-                       std::vector<int>& rows, std::vector<double>& Z);
-// x = P^-1 B c from Z c (z: |rows|, on factor_compliance's rows; its Z, B
-// and factor): the backward half alone, one read of the factor where a
-// solve of B c reads it twice, then the patch's last step and the condensed
-// projection, which do move the patch's and S's DOFs.
+                       std::vector<int>& rows, std::vector<double>& Z, std::vector<double>& W);
+// x = P^-1 B c from Z c (z: |rows|, on factor_compliance's rows) and c (k):
+// its Z, B and factor. The backward half alone, one read of the factor
+// where a solve of B c reads it twice; then the patch's last step and the
+// condensed projection, which do move the patch's and S's DOFs, and Q B c
+// for columns on S.
 void factor_compliance_apply(const Model& model, Workspace& ws, const std::vector<int>& rows, const double* z,
-                             double* x);
+                             const double* c, double* x);
 
 // The projection onto the constraints H_A x = 0 of the contact stage's
 // active rows (engine/dynamics/contact_solve.cpp). project(r, z,

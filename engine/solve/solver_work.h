@@ -66,6 +66,13 @@ struct SolverWork {
   std::exception_ptr job_error;
   std::vector<double> t_slot;          // gather buffer of a mapped slot
   std::vector<int> nz_slot;            // factor_compliance: the rows' DOFs in the front slot's numbering
+  // factor_compliance with columns on the condensed set S: Q B = A_SS^-1 B_S
+  // ((|S|, k); empty when the columns are off S), the DOFs off S where
+  // B - A Q B can be nonzero, its values there ((|compliance_nz|, k)), an
+  // (ndof) scratch kept zero between uses and a node mark.
+  std::vector<double> compliance_q, compliance_yc, compliance_y;
+  std::vector<int> compliance_nz;
+  std::vector<char> compliance_mark;
   std::vector<double> slot_Rn[kSlots];  // (slot's DOF nodes, 9) node rotations when its matrix was taken (warp)
   std::vector<double> Q;               // (ndofnode, 9) warp: Rn * slot_Rn^T of the front slot, this solve
   // lagged after a cut, until a factor of the new pattern is taken: the DOFs

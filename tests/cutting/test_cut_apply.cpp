@@ -89,13 +89,13 @@ SolverSettings lagged_settings(int refresh_every, double tolerance, int max_iter
 // A 4 x 1 x 1 beam swept by a blade near x = 2.4 at t = 0.05, 10 frames
 // under warped lagged with no refresh: the front factor predates the cut,
 // so its DOF map and the patch stay (condense_below: the slivers' set).
-std::unique_ptr<Simulation> swept_cut_under_lagged(bool multiplicative, double condense_below) {
+std::unique_ptr<Simulation> swept_cut_under_lagged(bool multiplicative, double condense_below, int refresh_every = 50) {
   Scene s = test::block_scene(2);
   s.material.rayleigh_mass = 0.5;
   s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
   s.cuts = {test::swept_blade({Vec3{2.3, -0.1, 1.2}, Vec3{2.45, 1.1, 1.2}}, {Vec3{2.3, -0.1, 0.3}, Vec3{2.45, 1.1, 0.3}}, 0.5)};
   s.cuts[0].at_time = 0.05;
-  s.solver = lagged_settings(50, 1e-8, 200);
+  s.solver = lagged_settings(refresh_every, 1e-8, 200);
   s.solver.warp = true;
   s.solver.multiplicative_patch = multiplicative;
   s.solver.condense_below = condense_below;
@@ -129,6 +129,35 @@ TEST(CutPolicies, MultiColumnFactorInverseAfterACutMatchesOneColumnAtATime) {
       EXPECT_LT(test::rel_diff(col, one), 1e-12) << (multiplicative ? "multiplicative" : "additive") << " column " << c;
     }
   }
+}
+
+// W against B^T Y and the correction from Z c against P^-1 B c, Y and the
+// reference through the whole preconditioner (apply_factor_inverse_multi,
+// apply_factor_inverse): 1e-10.
+void expect_halves_match_full_path(const Model& m, Workspace& ws, int k, const std::vector<double>& B,
+                                   const std::vector<int>& nz, const std::vector<int>& rows,
+                                   const std::vector<double>& Z, const std::vector<double>& W, const char* name) {
+  const int n = m.ndof();
+  std::vector<double> Y(B.size());
+  apply_factor_inverse_multi(m, ws, k, B.data(), Y.data());
+  double diff = 0.0, norm = 0.0;
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j) {
+      double by = 0.0;
+      for (int d : nz) by += B[static_cast<size_t>(i) * n + d] * Y[static_cast<size_t>(j) * n + d];
+      diff = std::max(diff, std::abs(W[static_cast<size_t>(j) * k + i] - by));
+      norm = std::max(norm, std::abs(by));
+    }
+  EXPECT_LT(diff, 1e-10 * norm) << name << ": W";
+  const std::vector<double> coef = test::random_vector(k, 19);
+  std::vector<double> zc(rows.size(), 0.0), bc(n, 0.0), x(n), ref(n);
+  for (int i = 0; i < k; ++i) {
+    for (size_t t = 0; t < rows.size(); ++t) zc[t] += Z[i * rows.size() + t] * coef[i];
+    for (int d = 0; d < n; ++d) bc[d] += B[static_cast<size_t>(i) * n + d] * coef[i];
+  }
+  factor_compliance_apply(m, ws, rows, zc.data(), coef.data(), x.data());
+  apply_factor_inverse(m, ws, bc.data(), ref.data());
+  EXPECT_LT(test::rel_diff(x, ref), 1e-10) << name << ": the correction";
 }
 
 // The contact compliance from the factor's halves after a cut
@@ -167,36 +196,59 @@ TEST(CutPolicies, TheContactComplianceAfterACutComesFromTheFactorsHalves) {
       if (std::abs(m.X[3 * i] - 1.0) < 1e-9 && !m.constrained[3 * i]) away.push_back(i);
     ASSERT_EQ(away.size(), 2u);
     std::vector<int> nz, rows;
-    std::vector<double> Z;
+    std::vector<double> Z, W;
     const std::vector<double> B = columns_on(away, nz);
-    ASSERT_TRUE(factor_compliance(m, ws, k, B.data(), nz, rows, Z)) << name;
-    std::vector<double> Y(B.size());
-    apply_factor_inverse_multi(m, ws, k, B.data(), Y.data());
-    double diff = 0.0, norm = 0.0;
-    for (int i = 0; i < k; ++i)
-      for (int j = 0; j < k; ++j) {
-        double zz = 0.0, by = 0.0;
-        for (size_t t = 0; t < rows.size(); ++t) zz += Z[i * rows.size() + t] * Z[j * rows.size() + t];
-        for (int d : nz) by += B[static_cast<size_t>(i) * n + d] * Y[static_cast<size_t>(j) * n + d];
-        diff = std::max(diff, std::abs(zz - by));
-        norm = std::max(norm, std::abs(by));
-      }
-    EXPECT_LT(diff, 1e-10 * norm) << name << ": W";
-    const std::vector<double> coef = test::random_vector(k, 19);
-    std::vector<double> zc(rows.size(), 0.0), bc(n, 0.0), x(n), ref(n);
-    for (int i = 0; i < k; ++i) {
-      for (size_t t = 0; t < rows.size(); ++t) zc[t] += Z[i * rows.size() + t] * coef[i];
-      for (int d = 0; d < n; ++d) bc[d] += B[static_cast<size_t>(i) * n + d] * coef[i];
-    }
-    factor_compliance_apply(m, ws, rows, zc.data(), x.data());
-    apply_factor_inverse(m, ws, bc.data(), ref.data());
-    EXPECT_LT(test::rel_diff(x, ref), 1e-10) << name << ": the correction";
+    ASSERT_TRUE(factor_compliance(m, ws, k, B.data(), nz, rows, Z, W)) << name;
+    expect_halves_match_full_path(m, ws, k, B, nz, rows, Z, W, name);
     double on_patch = 0.0;
-    for (int d : w.patch_dof) on_patch = std::max(on_patch, std::abs(ref[d]));
+    {
+      std::vector<double> bc(n, 0.0), ref(n);
+      for (int d : nz) bc[d] = B[d];
+      apply_factor_inverse(m, ws, bc.data(), ref.data());
+      for (int d : w.patch_dof) on_patch = std::max(on_patch, std::abs(ref[d]));
+    }
     EXPECT_GT(on_patch, 0.0) << name << ": the patch DOFs move too (the patch's step)";
     const std::vector<double> B2 = columns_on({w.patch_dof.front() / 3}, nz);
-    EXPECT_FALSE(factor_compliance(m, ws, k, B2.data(), nz, rows, Z)) << name << ": a column on the patch";
+    EXPECT_FALSE(factor_compliance(m, ws, k, B2.data(), nz, rows, Z, W)) << name << ": a column on the patch";
   }
+}
+
+// Columns on the condensed set (a grasper holding the nodes beside a cut's
+// sliver) enter the preconditioner as B - A Q B: with a factor of the cut's
+// pattern (no map, no patch) the halves give W = B^T Q B + Z^T Z and the
+// correction, Q B c added, as the full path does; W and the correction
+// agree to 1e-10, and without the condensed terms they do not.
+TEST(CutPolicies, TheContactComplianceOnTheCondensedSetComesFromTheFactorsHalves) {
+  auto sim = swept_cut_under_lagged(true, 0.05, 2);
+  const Model& m = sim->model;
+  Workspace& ws = sim->ws;
+  const auto& w = ws.work;
+  ASSERT_TRUE(m.has_cuts());
+  ASSERT_TRUE(w.condensed.factored);
+  ASSERT_TRUE(w.slot_map[w.front].empty()) << "a factor of the cut's pattern";
+  ASSERT_TRUE(w.patch_dof.empty());
+  const int n = m.ndof(), k = 3;
+  std::vector<int> nz;  // two nodes of S and a free mesh node beside them
+  for (int d : {w.condensed.dof.front(), w.condensed.dof.back()})
+    for (int c = 0; c < 3; ++c) nz.push_back(3 * (d / 3) + c);
+  for (int i = 0; i < m.nnode && nz.size() < 9; ++i)
+    if (std::abs(m.X[3 * i] - 2.0) < 1e-9 && !m.constrained[3 * i] &&
+        !std::binary_search(w.condensed.dof.begin(), w.condensed.dof.end(), 3 * i))
+      for (int c = 0; c < 3; ++c) nz.push_back(3 * i + c);
+  ASSERT_EQ(nz.size(), 9u);
+  const std::vector<double> v = test::random_vector(static_cast<int>(nz.size()) * k, 23);
+  std::vector<double> B(static_cast<size_t>(n) * k, 0.0);
+  for (int c = 0; c < k; ++c)
+    for (size_t t = 0; t < nz.size(); ++t) B[static_cast<size_t>(c) * n + nz[t]] = v[c * nz.size() + t];
+  std::vector<int> rows;
+  std::vector<double> Z, W;
+  ASSERT_TRUE(factor_compliance(m, ws, k, B.data(), nz, rows, Z, W));
+  ASSERT_FALSE(w.compliance_q.empty()) << "the columns' Q B";
+  expect_halves_match_full_path(m, ws, k, B, nz, rows, Z, W, "on the condensed set");
+  // Z^T Z alone (the columns as if off S) misses B^T Q B.
+  double zz = 0.0;
+  for (size_t t = 0; t < rows.size(); ++t) zz += Z[t] * Z[t];
+  EXPECT_GT(std::abs(W[0] - zz), 1e-3 * std::abs(W[0]));
 }
 
 // The lagged policy's patch is rebuilt for each (pattern, front slot, front

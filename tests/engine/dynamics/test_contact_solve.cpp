@@ -470,8 +470,8 @@ TEST(ContactSolve, LaggedContactRowsTakeTheirComplianceFromTheForwardHalf) {
       for (int d = 0; d < 3; ++d) nz.push_back(3 * tip[k] + d);
     }
     std::vector<int> rows;
-    std::vector<double> Z;
-    ASSERT_TRUE(factor_compliance(m, ws, r, B.data(), nz, rows, Z));
+    std::vector<double> Z, W;
+    ASSERT_TRUE(factor_compliance(m, ws, r, B.data(), nz, rows, Z, W));
     Y = B;
     apply_factor_inverse_multi(m, ws, r, B.data(), Y.data());
     double diff = 0.0, norm = 0.0;
@@ -479,6 +479,7 @@ TEST(ContactSolve, LaggedContactRowsTakeTheirComplianceFromTheForwardHalf) {
       for (int j = 0; j < r; ++j) {
         double zz = 0.0, hy = 0.0;
         for (size_t t = 0; t < rows.size(); ++t) zz += Z[i * rows.size() + t] * Z[j * rows.size() + t];
+        EXPECT_NEAR(W[static_cast<size_t>(j) * r + i], zz, 1e-12 * std::abs(zz)) << "W = Z^T Z off the condensed set";
         for (int e = c.ptr[i]; e < c.ptr[i + 1]; ++e) hy += c.coef[e] * Y[static_cast<size_t>(j) * n + c.dof[e]];
         diff = std::max(diff, std::abs(zz - hy));
         norm = std::max(norm, std::abs(hy));
