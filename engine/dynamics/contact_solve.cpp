@@ -550,19 +550,18 @@ void solve_contacts(const Model& m, State& s, Workspace& ws) {
   // substitution over the factor's tree paths from the rows' DOFs, and each
   // LCP round's correction the backward half from Z dlambda (lcp_round). The
   // columns' backward halves read all of L once per 16 rows and were most of
-  // a probe frame's contact stage (haptics-20k: 14-16 ms for 16 rows). For
-  // contact rows (a probe's or a jaw's, at the faces' weighted points: they
-  // move every frame) W is formed again in every iteration, since the
-  // correction goes through the preconditioner as it is then (the warp
-  // turns with every iteration) and must be the one W was made with for the
-  // rows to be met exactly. Grasp rows alone (held bit for bit) take Y as
-  // before, which later frames keep. The refinement's projection takes its
-  // Y mu from the halves too (ActiveRowProjection). Not with a consistent
-  // mass (the contact kinematics read Y).
-  bool contact_rows = false;
-  for (RowKind kind : c.kind) contact_rows = contact_rows || kind != RowKind::Grasp;
+  // a probe frame's contact stage (haptics-20k: 14-16 ms for 16 rows). W is
+  // formed again in every iteration, since the correction goes through the
+  // preconditioner as it is then (the warp turns with every iteration) and
+  // must be the one W was made with for the rows to be met exactly. Grasp
+  // rows alone too (thirty-eighth session): a held grasp kept Y while the
+  // factor stayed, but Y's columns cost the halves' 3-5 times (18 rows on the
+  // liver demo's cut flap: 40-44 ms every third frame against 8-10 ms every
+  // frame; drag15mm-20k's 9 rows: the same either way). The refinement's
+  // projection takes its Y mu from the halves too (ActiveRowProjection).
+  // Not with a consistent mass (the contact kinematics read Y).
   bool half = false;
-  if (!reuse && contact_rows && m.mass_kind == MassKind::Lumped) {
+  if (!reuse && m.mass_kind == MassKind::Lumped) {
     fill_columns();
     std::vector<char>& mark = ws.contact_node_mark;
     mark.assign(m.ndofnode, 0);
