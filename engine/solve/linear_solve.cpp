@@ -1127,8 +1127,8 @@ void condensed_columns(const Model& m, Workspace& ws, int k, const double* B, co
   for (int node = 0; node < m.ndofnode; ++node)
     if (mark[node])
       for (int c = 0; c < 3; ++c) cols.push_back(3 * node + c);
-  std::vector<double>& y = w.compliance_y;
-  if (y.size() != n) y.assign(n, 0.0);
+  std::vector<double>& y = w.compliance_y;  // zero outside cols and S between the columns
+  y.assign(n, 0.0);
   resize_with_headroom(w.compliance_q, ns * k);
   resize_with_headroom(w.compliance_yc, cols.size() * k);
   const double* A = ws.A.data();
@@ -1169,8 +1169,8 @@ bool factor_compliance(const Model& m, Workspace& ws, int k, const double* B, co
     w.compliance_q.clear();
     return false;
   };
-  for (int d : *cols)
-    if ((!map.empty() && map[d] < 0) || in(w.patch_dof, d) || (S.factored && in(S.dof, d))) return fail();
+  for (int d : *cols)  // (off S: nz was, or B - A Q B's DOFs are)
+    if ((!map.empty() && map[d] < 0) || in(w.patch_dof, d)) return fail();
   CholmodSolver& f = ws.slot(w.front);
   const size_t n = static_cast<size_t>(m.ndof()), nf = static_cast<size_t>(f.size());
   const double* Bq = B;

@@ -69,7 +69,7 @@ struct SolverWork {
   // factor_compliance with columns on the condensed set S: Q B = A_SS^-1 B_S
   // ((|S|, k); empty when the columns are off S), the DOFs off S where
   // B - A Q B can be nonzero, its values there ((|compliance_nz|, k)), an
-  // (ndof) scratch kept zero between uses and a node mark.
+  // (ndof) scratch and a node mark.
   std::vector<double> compliance_q, compliance_yc, compliance_y;
   std::vector<int> compliance_nz;
   std::vector<char> compliance_mark;
