@@ -88,7 +88,8 @@ SolverSettings lagged_settings(int refresh_every, double tolerance, int max_iter
 
 // A 4 x 1 x 1 beam swept by a blade near x = 2.4 at t = 0.05, 10 frames
 // under warped lagged with no refresh: the front factor predates the cut,
-// so its DOF map and the patch stay (condense_below: the slivers' set).
+// so its DOF map and the patch stay (condense_below: the slivers' set). A
+// small refresh_every brings a factor of the cut's pattern instead.
 std::unique_ptr<Simulation> swept_cut_under_lagged(bool multiplicative, double condense_below, int refresh_every = 50) {
   Scene s = test::block_scene(2);
   s.material.rayleigh_mass = 0.5;
