@@ -907,12 +907,7 @@ void CholmodSolver::backward_half(const std::vector<int>& rows, const double* z,
   if (!factorized_) throw Error("CHOLMOD: solve called without a valid factorization");
   if (!L_->is_super) throw Error("CHOLMOD: backward_half needs the supernodal factor forward_half_multi read");
   prepare_workspace();
-  if (copy_valid_ && copy_ == FactorCopy::Half)
-    backward_rows(Lx_half_.data(), half_inv_scale_.data(), rows, z, x);
-  else if (copy_valid_ || single_current_)
-    backward_rows(Lx_single_.data(), static_cast<const double*>(nullptr), rows, z, x);
-  else
-    backward_rows(static_cast<const double*>(L_->x), static_cast<const double*>(nullptr), rows, z, x);
+  with_substitution_factor([&](const auto* Lx, const double* inv_scale) { backward_rows(Lx, inv_scale, rows, z, x); });
 }
 
 template <class T>
@@ -968,12 +963,7 @@ void CholmodSolver::solve_copy_multi(int k, const double* B, double* X) {
   prepare_workspace();
   resize_with_headroom(multi_y_, static_cast<size_t>(n_) * kMultiGroup);
   resize_with_headroom(multi_w_, work_w_.size() * kMultiGroup);
-  if (copy_valid_ && copy_ == FactorCopy::Half)
-    substitute_multi(Lx_half_.data(), half_inv_scale_.data(), k, B, X);
-  else if (copy_valid_ || single_current_)
-    substitute_multi(Lx_single_.data(), static_cast<const double*>(nullptr), k, B, X);
-  else
-    substitute_multi(static_cast<const double*>(L_->x), static_cast<const double*>(nullptr), k, B, X);
+  with_substitution_factor([&](const auto* Lx, const double* inv_scale) { substitute_multi(Lx, inv_scale, k, B, X); });
 }
 
 // The groups of up to 16 columns one after the other; with the substitution
@@ -1071,12 +1061,7 @@ bool CholmodSolver::forward_half_multi(int k, const double* B, const std::vector
   }
   resize_with_headroom(multi_y_, static_cast<size_t>(n_) * kMultiGroup);
   resize_with_headroom(multi_w_, work_w_.size() * kMultiGroup);
-  if (copy_valid_ && copy_ == FactorCopy::Half)
-    forward_half(Lx_half_.data(), half_inv_scale_.data(), k, B, rows, Z);
-  else if (copy_valid_ || single_current_)
-    forward_half(Lx_single_.data(), static_cast<const double*>(nullptr), k, B, rows, Z);
-  else
-    forward_half(static_cast<const double*>(L_->x), static_cast<const double*>(nullptr), k, B, rows, Z);
+  with_substitution_factor([&](const auto* Lx, const double* inv_scale) { forward_half(Lx, inv_scale, k, B, rows, Z); });
   return true;
 }
 

@@ -241,6 +241,17 @@ class CholmodSolver {
   void prepare_workspace();
   template <class T>
   void split_substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
+  // f(Lx, inv_scale) with the values the substitutions read: the binary16
+  // copy with its scales, the float copy, or CHOLMOD's double factor.
+  template <class F>
+  void with_substitution_factor(const F& f) {
+    if (copy_valid_ && copy_ == FactorCopy::Half)
+      f(Lx_half_.data(), half_inv_scale_.data());
+    else if (copy_valid_ || single_current_)
+      f(Lx_single_.data(), static_cast<const double*>(nullptr));
+    else
+      f(static_cast<const double*>(L_->x), static_cast<const double*>(nullptr));
+  }
   template <class T>
   void split_backward(const T* Lx, const double* inv_scale, double* y);
   template <class T>
