@@ -82,17 +82,20 @@ void factor_condensed_dofs(CondensedDofs& s, const double* A) {
   s.factored = true;
 }
 
-void condensed_split_rhs(CondensedDofs& s, int n, const double* A, const double* b, double* y, double* x) {
+void condensed_q_subtract(CondensedDofs& s, const double* A, const double* b, double* q, double* y) {
   const int ns = static_cast<int>(s.dof.size());
-  for (int i = 0; i < ns; ++i) s.v[i] = b[s.dof[i]];
-  s.factor.solve(s.v.data(), s.v.data());
-  // x = Q b (S-supported); y = b - A x through S's rows (A symmetric).
-  std::fill(x, x + n, 0.0);
+  for (int i = 0; i < ns; ++i) q[i] = b[s.dof[i]];
+  s.factor.solve(q, q);
+  for (int i = 0; i < ns; ++i)  // A symmetric: S's rows are its columns
+    for (int t = s.rows.ptr[i]; t < s.rows.ptr[i + 1]; ++t) y[s.rows.col[t]] -= A[s.rows.k[t]] * q[i];
+}
+
+void condensed_split_rhs(CondensedDofs& s, int n, const double* A, const double* b, double* y, double* x) {
+  // x = Q b (S-supported); y = b - A x.
   std::copy(b, b + n, y);
-  for (int i = 0; i < ns; ++i) {
-    x[s.dof[i]] = s.v[i];
-    for (int t = s.rows.ptr[i]; t < s.rows.ptr[i + 1]; ++t) y[s.rows.col[t]] -= A[s.rows.k[t]] * s.v[i];
-  }
+  condensed_q_subtract(s, A, b, s.v.data(), y);
+  std::fill(x, x + n, 0.0);
+  for (size_t i = 0; i < s.dof.size(); ++i) x[s.dof[i]] = s.v[i];
 }
 
 void condensed_project(CondensedDofs& s, const double* A, double* z) {

@@ -48,6 +48,10 @@ void build_condensed_dofs(const Model& m, double fraction, CondensedDofs& s);
 // NumericalError names the global DOF.
 void factor_condensed_dofs(CondensedDofs& s, const double* A);
 
+// q = A_SS^-1 b_S (ns entries) and y -= A Q b, through S's rows only (y
+// changes on S and its neighbours): the sparse part of the split below.
+void condensed_q_subtract(CondensedDofs& s, const double* A, const double* b, double* q, double* y);
+
 // x = Q b and y = b - A Q b (n entries each, overwritten; zero on S).
 void condensed_split_rhs(CondensedDofs& s, int n, const double* A, const double* b, double* y, double* x);
 

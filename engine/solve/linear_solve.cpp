@@ -1134,12 +1134,8 @@ void condensed_columns(const Model& m, Workspace& ws, int k, const double* B, co
   const double* A = ws.A.data();
   for (int c = 0; c < k; ++c) {
     const double* b = B + c * n;
-    double* q = w.compliance_q.data() + c * ns;
-    for (size_t i = 0; i < ns; ++i) q[i] = b[S.dof[i]];
-    S.factor.solve(q, q);
     for (int d : cols) y[d] = b[d];
-    for (size_t i = 0; i < ns; ++i)  // A symmetric: S's rows are its columns
-      for (int t = S.rows.ptr[i]; t < S.rows.ptr[i + 1]; ++t) y[S.rows.col[t]] -= A[S.rows.k[t]] * q[i];
+    condensed_q_subtract(S, A, b, w.compliance_q.data() + c * ns, y.data());
     double* yc = w.compliance_yc.data() + c * cols.size();
     for (size_t j = 0; j < cols.size(); ++j) {
       yc[j] = y[cols[j]];
