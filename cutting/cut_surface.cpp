@@ -14,6 +14,7 @@
 #include <utility>
 
 #include <Eigen/Dense>
+#include <unsupported/Eigen/BVH>
 
 #include "cutting/exact_sign.h"
 #include "engine/util/error.h"
@@ -175,6 +176,11 @@ void polygon_plane(const std::vector<V>& pts, V& cen_out, V& n_out, Fail fail, P
 constexpr size_t kMaxObjFaceVertices = 16;
 }  // namespace
 
+struct CutSurface::FacetTree {
+  using Bvh = Eigen::KdBVH<double, 3, int>;
+  Bvh bvh;
+};
+
 CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(std::move(facets)), name_(std::move(name)) {
   // Facets of zero area (a degenerate polygon or sweep) carry no surface.
   facets_.erase(std::remove_if(facets_.begin(), facets_.end(),
@@ -247,6 +253,16 @@ CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(st
     }
     i = j;
   }
+  const bool plane = std::any_of(facets_.begin(), facets_.end(), [](const Facet& f) { return f.unbounded; });
+  if (!plane && facets_.size() >= kTreeFacets) {
+    std::vector<int> ids(facets_.size());
+    std::vector<Eigen::AlignedBox3d> boxes(facets_.size());
+    for (size_t k = 0; k < facets_.size(); ++k) {
+      ids[k] = static_cast<int>(k);
+      for (const Vec3& v : facets_[k].v) boxes[k].extend(vec(v));  // exact: min and max of the corners
+    }
+    tree_ = std::make_shared<const FacetTree>(FacetTree{FacetTree::Bvh(ids.begin(), ids.end(), boxes.begin(), boxes.end())});
+  }
 }
 
 double CutSurface::front_distance(const double x[3]) const {
@@ -264,6 +280,21 @@ double CutSurface::front_distance(const double x[3]) const {
   return psi;
 }
 
+namespace {
+// Far above the roundoff of a box's or a triangle's distance to x (a few
+// ulps of the coordinates involved), as in lower_bound: a box the queries
+// skip holds no facet they would have taken.
+double box_margin(const Eigen::AlignedBox3d& b, const V& x) {
+  return 1e-12 * (x.cwiseAbs().maxCoeff() + b.min().cwiseAbs().maxCoeff() + b.max().cwiseAbs().maxCoeff());
+}
+}  // namespace
+
+double CutSurface::facet_distance(size_t k, const double x[3]) const {
+  const Facet& f = facets_[k];
+  const V xv(x[0], x[1], x[2]);
+  return f.unbounded ? std::abs((xv - vec(f.p)).dot(vec(f.n))) : triangle_distance(xv, vec(f.v[0]), vec(f.v[1]), vec(f.v[2]));
+}
+
 // A lower bound of the distance from x to facet k's triangle, less a margin
 // far above the roundoff of triangle_distance, so that a facet it skips is
 // farther than the one compared with, to the last bit.
@@ -277,25 +308,41 @@ double CutSurface::lower_bound(const double x[3], size_t k) const {
 int CutSurface::nearest_facet(const double x[3]) const {
   int best = 0;
   double bd = 1e300;
-  const V xv(x[0], x[1], x[2]);
-  for (size_t k = 0; k < facets_.size(); ++k) {
-    if (lower_bound(x, k) > bd) continue;  // farther than the best so far: the scan would not take it
-    const Facet& f = facets_[k];
-    const double d = f.unbounded ? std::abs((xv - vec(f.p)).dot(vec(f.n)))
-                                 : triangle_distance(xv, vec(f.v[0]), vec(f.v[1]), vec(f.v[2]));
-    if (d < bd) {
+  // Facet k is taken when nearer than the best so far, or as near with a
+  // lower index: the first facet of least distance, in whatever order the
+  // facets are visited. A facet whose lower bound is above bd is farther.
+  const auto visit = [&](size_t k) {
+    if (lower_bound(x, k) > bd) return;
+    const double d = facet_distance(k, x);
+    if (d < bd || (d == bd && static_cast<int>(k) < best)) {
       bd = d;
       best = static_cast<int>(k);
     }
+  };
+  if (!tree_) {
+    for (size_t k = 0; k < facets_.size(); ++k) visit(k);
+    return best;
   }
+  // Best first (Eigen::BVMinimize): a box is opened while its distance,
+  // less the margin, is below the least facet distance found.
+  struct Minimizer {
+    using Scalar = double;
+    const decltype(visit)& take;
+    const double& bd;
+    V xv;
+    double minimumOnVolume(const Eigen::AlignedBox3d& b) const { return b.exteriorDistance(xv) - box_margin(b, xv); }
+    double minimumOnObject(int k) const {
+      take(static_cast<size_t>(k));
+      return bd;
+    }
+  } mz{visit, bd, V(x[0], x[1], x[2])};
+  Eigen::BVMinimize(tree_->bvh, mz);
   return best;
 }
 
 double CutSurface::distance(const double x[3]) const {
   if (facets_.empty()) return 1e300;
-  const Facet& f = facets_[nearest_facet(x)];
-  const V xv(x[0], x[1], x[2]);
-  return f.unbounded ? std::abs((xv - vec(f.p)).dot(vec(f.n))) : triangle_distance(xv, vec(f.v[0]), vec(f.v[1]), vec(f.v[2]));
+  return facet_distance(static_cast<size_t>(nearest_facet(x)), x);
 }
 
 // [preprint] eq. (72), against the nearest facet's plane, where the nearest
@@ -338,37 +385,77 @@ double roundoff(const V& x, const Facet& f) {
 }
 }  // namespace
 
-bool CutSurface::crosses_segment(const double a[3], const double b[3], double tol) const {
+bool CutSurface::facet_crosses(size_t k, const double a[3], const double b[3], double tol) const {
   const V xa(a[0], a[1], a[2]), xb(b[0], b[1], b[2]), ab = xb - xa;
-  for (size_t k = 0; k < facets_.size(); ++k) {
-    const Facet& f = facets_[k];
-    if (f.unbounded) return true;
-    // The crossing point y lies on a-b: skip a facet whose sphere is
-    // farther than tol from the whole segment.
-    const double t = ab.squaredNorm() > 0 ? std::clamp((vec(centre_[k]) - xa).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
-    const V y0 = xa + t * ab;
-    if (lower_bound(y0.data(), k) > tol) continue;
-    const V n = vec(f.n), p = vec(f.p);
-    const double da = (xa - p).dot(n), db = (xb - p).dot(n);
-    if ((da > 0 && db > 0) || (da < 0 && db < 0) || da == db) continue;
-    const V y = xa + da / (da - db) * (xb - xa);
-    if (triangle_distance(y, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(y, f)) return true;
+  const Facet& f = facets_[k];
+  if (f.unbounded) return true;
+  // The crossing point y lies on a-b: skip a facet whose sphere is
+  // farther than tol from the whole segment.
+  const double t = ab.squaredNorm() > 0 ? std::clamp((vec(centre_[k]) - xa).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+  const V y0 = xa + t * ab;
+  if (lower_bound(y0.data(), k) > tol) return false;
+  const V n = vec(f.n), p = vec(f.p);
+  const double da = (xa - p).dot(n), db = (xb - p).dot(n);
+  if ((da > 0 && db > 0) || (da < 0 && db < 0) || da == db) return false;
+  const V y = xa + da / (da - db) * (xb - xa);
+  return triangle_distance(y, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(y, f);
+}
+
+bool CutSurface::crosses_segment(const double a[3], const double b[3], double tol) const {
+  if (!tree_) {
+    for (size_t k = 0; k < facets_.size(); ++k)
+      if (facet_crosses(k, a, b, tol)) return true;
+    return false;
   }
-  return false;
+  // The crossing point lies in the segment's box and within tol (plus
+  // roundoff) of its facet: only boxes that meet the segment's box grown
+  // by that can hold it.
+  Eigen::AlignedBox3d seg(V(a[0], a[1], a[2]));
+  seg.extend(V(b[0], b[1], b[2]));
+  const double grow = tol + 1e-12 * (seg.min().cwiseAbs().maxCoeff() + seg.max().cwiseAbs().maxCoeff());
+  seg.min().array() -= grow;
+  seg.max().array() += grow;
+  struct Intersector {
+    const CutSurface& s;
+    const Eigen::AlignedBox3d& seg;
+    const double *a, *b;
+    double tol;
+    bool found = false;
+    bool intersectVolume(const Eigen::AlignedBox3d& box) const { return box.intersects(seg); }
+    bool intersectObject(int k) { return found = s.facet_crosses(static_cast<size_t>(k), a, b, tol); }
+  } in{*this, seg, a, b, tol};
+  Eigen::BVIntersect(tree_->bvh, in);
+  return in.found;
+}
+
+bool CutSurface::facet_covers(size_t k, const double y[3], double tol) const {
+  const Facet& f = facets_[k];
+  if (f.unbounded) return true;
+  // Beyond what the test below takes (its roundoff() is at most this
+  // bound's 1e-12 margin; both are far below the tolerances used).
+  if (lower_bound(y, k) > tol) return false;
+  const V x(y[0], y[1], y[2]);
+  return triangle_distance(x, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(x, f);
 }
 
 bool CutSurface::covers(const double y[3], double tol) const {
-  const V x(y[0], y[1], y[2]);
   tol *= 1.0 + slack_;
-  for (size_t k = 0; k < facets_.size(); ++k) {
-    const Facet& f = facets_[k];
-    if (f.unbounded) return true;
-    // Beyond what the test below takes (its roundoff() is at most this
-    // bound's 1e-12 margin; both are far below the tolerances used).
-    if (lower_bound(y, k) > tol) continue;
-    if (triangle_distance(x, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(x, f)) return true;
+  if (!tree_) {
+    for (size_t k = 0; k < facets_.size(); ++k)
+      if (facet_covers(k, y, tol)) return true;
+    return false;
   }
-  return false;
+  struct Intersector {
+    const CutSurface& s;
+    V x;
+    const double* y;
+    double tol;
+    bool found = false;
+    bool intersectVolume(const Eigen::AlignedBox3d& box) const { return box.exteriorDistance(x) <= tol + box_margin(box, x); }
+    bool intersectObject(int k) { return found = s.facet_covers(static_cast<size_t>(k), y, tol); }
+  } in{*this, V(y[0], y[1], y[2]), y, tol};
+  Eigen::BVIntersect(tree_->bvh, in);
+  return in.found;
 }
 
 namespace {

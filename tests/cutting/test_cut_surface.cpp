@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -168,6 +169,89 @@ TEST(CutSurface, ACutThatCutsNothingIsReported) {
   EXPECT_EQ(w[0], "scene.json: cuts[1] does not cross the body: it cuts nothing");
   EXPECT_EQ(w[1], "scene.json: cuts[2] does not cross the body: it cuts nothing");
   EXPECT_EQ(w[2], "scene.json: cuts[3] does not cross the body: it cuts nothing");
+}
+
+
+// A triangle with its plane (unit normal by the winding).
+Facet facet_of(const Vec3& a, const Vec3& b, const Vec3& c) {
+  Facet f;
+  f.v = {a, b, c};
+  const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  f.n = {n[0] / l, n[1] / l, n[2] / l};
+  f.p = a;
+  return f;
+}
+
+// A surface of many facets (a long incision's has a thousand) is searched
+// through an AABB tree. Its queries must return what the scan over every
+// facet returns, to the bit: the nearest facet of least distance and, among
+// equally near ones, the lowest index (a vertex is at distance 0 from the
+// six facets around it); covers and crosses_segment true where any facet
+// takes the point or segment. The reference is each facet alone (a surface
+// of one facet is scanned, and measures with the same code).
+TEST(CutSurfaceTree, QueriesReturnWhatTheScanOverEveryFacetReturns) {
+  // A bumpy 14 x 10 height field, with a flat part (exact ties above it).
+  const int nx = 14, ny = 10;
+  const double h = 0.01;
+  auto z = [&](int i, int j) { return i < 5 ? 0.0 : 0.004 * std::sin(1.3 * i) * std::cos(0.9 * j); };
+  std::vector<Vec3> vert;
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) vert.push_back({i * h, j * h, z(i, j)});
+  std::vector<Facet> facets;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const int a = j * (nx + 1) + i, b = a + 1, c = a + nx + 1, d = c + 1;
+      facets.push_back(facet_of(vert[a], vert[b], vert[d]));
+      facets.push_back(facet_of(vert[a], vert[d], vert[c]));
+    }
+  const CutSurface s(facets, "field");
+  ASSERT_EQ(s.facets().size(), facets.size());
+  std::vector<CutSurface> single;
+  for (const Facet& f : facets) single.emplace_back(std::vector<Facet>{f}, "one");
+
+  std::vector<Vec3> points = vert;  // on the surface: ties between the facets around a vertex
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const Vec3& a = vert[j * (nx + 1) + i];
+      points.push_back({a[0] + 0.5 * h, a[1], a[2]});           // an edge's midpoint (flat part: on it)
+      points.push_back({a[0], a[1], a[2] + 0.3 * h});          // above a vertex
+      points.push_back({a[0] + 0.25 * h, a[1] + 0.7 * h, -0.02});  // below
+    }
+  std::uint64_t seed = 12345;
+  auto uniform = [&](double lo, double hi) {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return lo + (hi - lo) * static_cast<double>(seed >> 11) / 9007199254740992.0;
+  };
+  for (int k = 0; k < 400; ++k) points.push_back({uniform(-0.05, 0.19), uniform(-0.05, 0.15), uniform(-0.05, 0.05)});
+
+  int ties = 0;
+  for (const Vec3& x : points) {
+    int first = -1;
+    double best = 1e300;
+    int at_best = 0;
+    for (size_t k = 0; k < facets.size(); ++k) {
+      const double d = single[k].distance(x.data());
+      if (d < best) best = d, first = static_cast<int>(k), at_best = 1;
+      else if (d == best) ++at_best;
+    }
+    ties += at_best > 1;
+    EXPECT_EQ(&s.nearest(x.data()) - s.facets().data(), first) << x[0] << " " << x[1] << " " << x[2];
+    EXPECT_EQ(s.distance(x.data()), best);
+    for (double tol : {1e-9, 0.2 * h}) {
+      bool covered = false;
+      for (const CutSurface& o : single) covered = covered || o.covers(x.data(), tol);
+      EXPECT_EQ(s.covers(x.data(), tol), covered) << tol;
+    }
+    // Segments from x to a point across the surface and to a point beside it.
+    for (const Vec3& y : {Vec3{x[0] + 0.3 * h, x[1] - 0.2 * h, -x[2] + 0.001}, Vec3{x[0] + 2 * h, x[1], x[2]}}) {
+      bool crossed = false;
+      for (const CutSurface& o : single) crossed = crossed || o.crosses_segment(x.data(), y.data(), 1e-9);
+      EXPECT_EQ(s.crosses_segment(x.data(), y.data(), 1e-9), crossed);
+    }
+  }
+  EXPECT_GT(ties, 100);  // the vertices and the points above the flat part
 }
 
 }  // namespace
