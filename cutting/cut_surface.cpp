@@ -51,12 +51,6 @@ V closest_on_triangle(const V& x, const V& a, const V& b, const V& c, int* featu
   return *feature = 0, V(a + ab * (vb * denom) + ac * (vc * denom));
 }
 
-// Distance from x to triangle (a, b, c).
-double triangle_distance(const V& x, const V& a, const V& b, const V& c) {
-  int feature = 0;
-  return (x - closest_on_triangle(x, a, b, c, &feature)).norm();
-}
-
 // Exact power-of-two scaling: 2^-e with e the exponent of m (m > 0, finite),
 // so values of any magnitude land near 1 without rounding. e is kept above
 // -1000: 2^1074 (a subnormal m) would overflow; such values land near 2^-74.
@@ -284,15 +278,41 @@ namespace {
 // Far above the roundoff of a box's or a triangle's distance to x (a few
 // ulps of the coordinates involved), as in lower_bound: a box the queries
 // skip holds no facet they would have taken.
+// (4e-12: it covers the slack that triangle_distance leaves a closest point
+// outside the facet's box, below.)
 double box_margin(const Eigen::AlignedBox3d& b, const V& x) {
-  return 1e-12 * (x.cwiseAbs().maxCoeff() + b.min().cwiseAbs().maxCoeff() + b.max().cwiseAbs().maxCoeff());
+  return 4e-12 * (x.cwiseAbs().maxCoeff() + b.min().cwiseAbs().maxCoeff() + b.max().cwiseAbs().maxCoeff());
 }
 }  // namespace
 
+// The distance from x to facet k's triangle, with its closest point kept in
+// the facet's box (to 1e-12 of its coordinates) and bounding sphere (to 1e-9
+// of its radius). A true closest point lies in both; roundoff leaves ulps,
+// which this does not touch. But on a sliver spanning 1e40 (fuzzed
+// polygons) the barycentric formula put it anywhere, nearer to x than any
+// point of the triangle, and a facet the bounds skip (lower_bound, the
+// tree's boxes) would then have been taken by a scan. Kept in both, the
+// distance is never below either bound: every query takes what the scan
+// over all facets takes.
+double CutSurface::triangle_distance(size_t k, const double x[3]) const {
+  const Facet& f = facets_[k];
+  const V xv(x[0], x[1], x[2]), a = vec(f.v[0]), b = vec(f.v[1]), c = vec(f.v[2]);
+  int feature = 0;
+  V p = closest_on_triangle(xv, a, b, c, &feature);
+  const V lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
+  const double slack = 1e-12 * (lo.cwiseAbs().maxCoeff() + hi.cwiseAbs().maxCoeff());
+  if ((p.array() < lo.array() - slack).any() || (p.array() > hi.array() + slack).any()) p = p.cwiseMax(lo).cwiseMin(hi);
+  const V o = vec(centre_[k]);
+  const double r = radius_[k], po = (p - o).norm();
+  if (po > r * (1.0 + 1e-9)) p = o + (p - o) * (r / po);  // toward the centre: stays in the box
+  return (xv - p).norm();
+}
+
 double CutSurface::facet_distance(size_t k, const double x[3]) const {
   const Facet& f = facets_[k];
+  if (!f.unbounded) return triangle_distance(k, x);
   const V xv(x[0], x[1], x[2]);
-  return f.unbounded ? std::abs((xv - vec(f.p)).dot(vec(f.n))) : triangle_distance(xv, vec(f.v[0]), vec(f.v[1]), vec(f.v[2]));
+  return std::abs((xv - vec(f.p)).dot(vec(f.n)));
 }
 
 // A lower bound of the distance from x to facet k's triangle, less a margin
@@ -301,8 +321,9 @@ double CutSurface::facet_distance(size_t k, const double x[3]) const {
 double CutSurface::lower_bound(const double x[3], size_t k) const {
   const V xv(x[0], x[1], x[2]), c = vec(centre_[k]);
   const double d = (xv - c).norm();
-  // 1e-12 of the coordinates is far above 16 epsilon of them (roundoff()).
-  return d - radius_[k] - 1e-12 * (d + radius_[k] + xv.cwiseAbs().maxCoeff() + c.cwiseAbs().maxCoeff());
+  // 1e-12 of the coordinates is far above 16 epsilon of them (roundoff());
+  // 2e-9 r covers the closest point's slack off the sphere (triangle_distance).
+  return d - radius_[k] * (1.0 + 2e-9) - 1e-12 * (d + radius_[k] + xv.cwiseAbs().maxCoeff() + c.cwiseAbs().maxCoeff());
 }
 
 int CutSurface::nearest_facet(const double x[3]) const {
@@ -398,7 +419,7 @@ bool CutSurface::facet_crosses(size_t k, const double a[3], const double b[3], d
   const double da = (xa - p).dot(n), db = (xb - p).dot(n);
   if ((da > 0 && db > 0) || (da < 0 && db < 0) || da == db) return false;
   const V y = xa + da / (da - db) * (xb - xa);
-  return triangle_distance(y, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(y, f);
+  return triangle_distance(k, y.data()) <= tol + roundoff(y, f);
 }
 
 bool CutSurface::crosses_segment(const double a[3], const double b[3], double tol) const {
@@ -412,18 +433,23 @@ bool CutSurface::crosses_segment(const double a[3], const double b[3], double to
   // by that can hold it.
   Eigen::AlignedBox3d seg(V(a[0], a[1], a[2]));
   seg.extend(V(b[0], b[1], b[2]));
-  const double grow = tol + 1e-12 * (seg.min().cwiseAbs().maxCoeff() + seg.max().cwiseAbs().maxCoeff());
-  seg.min().array() -= grow;
-  seg.max().array() += grow;
+  const double seg_size = seg.min().cwiseAbs().maxCoeff() + seg.max().cwiseAbs().maxCoeff();
   struct Intersector {
     const CutSurface& s;
     const Eigen::AlignedBox3d& seg;
+    double seg_size;
     const double *a, *b;
     double tol;
     bool found = false;
-    bool intersectVolume(const Eigen::AlignedBox3d& box) const { return box.intersects(seg); }
+    bool intersectVolume(const Eigen::AlignedBox3d& box) const {
+      // (the margin as box_margin's, over the segment's and the box's coordinates)
+      const double grow =
+          tol + 4e-12 * (seg_size + box.min().cwiseAbs().maxCoeff() + box.max().cwiseAbs().maxCoeff());
+      return ((seg.min().array() - grow) <= box.max().array()).all() &&
+             ((seg.max().array() + grow) >= box.min().array()).all();
+    }
     bool intersectObject(int k) { return found = s.facet_crosses(static_cast<size_t>(k), a, b, tol); }
-  } in{*this, seg, a, b, tol};
+  } in{*this, seg, seg_size, a, b, tol};
   Eigen::BVIntersect(tree_->bvh, in);
   return in.found;
 }
@@ -435,7 +461,7 @@ bool CutSurface::facet_covers(size_t k, const double y[3], double tol) const {
   // bound's 1e-12 margin; both are far below the tolerances used).
   if (lower_bound(y, k) > tol) return false;
   const V x(y[0], y[1], y[2]);
-  return triangle_distance(x, vec(f.v[0]), vec(f.v[1]), vec(f.v[2])) <= tol + roundoff(x, f);
+  return triangle_distance(k, y) <= tol + roundoff(x, f);
 }
 
 bool CutSurface::covers(const double y[3], double tol) const {

@@ -100,6 +100,7 @@ class CutSurface {
   int nearest_facet(const double x[3]) const;
   double lower_bound(const double x[3], size_t k) const;
   double facet_distance(size_t k, const double x[3]) const;  // to facet k's triangle (plane if unbounded)
+  double triangle_distance(size_t k, const double x[3]) const;  // to facet k's triangle, bounded (the .cpp)
   bool facet_crosses(size_t k, const double a[3], const double b[3], double tol) const;  // crosses_segment's test
   bool facet_covers(size_t k, const double y[3], double tol) const;                      // covers' test
 };

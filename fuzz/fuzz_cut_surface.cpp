@@ -7,7 +7,8 @@
 // cut whose points are the payload read as doubles (3 a point, up to 64
 // points); any other byte picks by its value mod 3.
 // Only incise::Error may escape; a surface that is returned must have finite
-// corners and unit normals.
+// corners and unit normals, and its facet tree (16 facets or more) must
+// answer what a scan over its facets does.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -15,6 +16,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include "cutting/cut_surface.h"
 #include "engine/util/error.h"
@@ -26,6 +28,8 @@ namespace {
   std::fprintf(stderr, "fuzz_cut_surface: an accepted cut surface is inconsistent: %s\n", what);
   std::abort();
 }
+
+void same_as_scan(const incise::CutSurface& s, const double x0[3]);
 
 void check(const incise::CutSurface& s) {
   for (const incise::Facet& f : s.facets()) {
@@ -39,6 +43,41 @@ void check(const incise::CutSurface& s) {
   const incise::CutSurface::Value v = s.value(x);
   if (std::isnan(v.phi) || v.sign < -1 || v.sign > 1) bad("value() at a point");
   if (std::isnan(s.front_distance(x))) bad("front_distance() at a point");
+  same_as_scan(s, x);
+}
+
+// A surface of many facets answers through its facet tree: it must answer
+// what the scan over every facet does (each facet alone is a surface that
+// is scanned), at the fixed point, the first facets' corners and a centroid.
+void same_as_scan(const incise::CutSurface& s, const double x0[3]) {
+  const auto& facets = s.facets();
+  if (facets.size() < 16 || facets.size() > 256) return;
+  std::vector<incise::CutSurface> single;
+  for (const incise::Facet& f : facets) single.emplace_back(std::vector<incise::Facet>{f}, "one");
+  if (single.size() != facets.size()) return;  // (a facet that is degenerate alone: not compared)
+  std::vector<incise::Vec3> pts = {{x0[0], x0[1], x0[2]}};
+  for (size_t k = 0; k < 3; ++k)
+    for (const auto& c : facets[k].v) pts.push_back(c);
+  incise::Vec3 g{};
+  for (const auto& c : facets[3].v)
+    for (int d = 0; d < 3; ++d) g[d] += c[d] / 3.0;
+  pts.push_back(g);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const double* p = pts[i].data();
+    long first = 0;  // as the scan: facet 0 where no distance is below 1e300 (NaN where coordinates overflow)
+    double best = 1e300;
+    bool covered = false, crossed = false;
+    const double* q = pts[(i + 1) % pts.size()].data();
+    for (size_t k = 0; k < single.size(); ++k) {
+      const double d = single[k].distance(p);
+      if (d < best) best = d, first = static_cast<long>(k);
+      covered = covered || single[k].covers(p, 1e-9);
+      crossed = crossed || single[k].crosses_segment(p, q, 1e-9);
+    }
+    if (&s.nearest(p) - facets.data() != first) bad("the nearest facet differs from the scan's");
+    if (s.covers(p, 1e-9) != covered) bad("covers() differs from the scan's");
+    if (s.crosses_segment(p, q, 1e-9) != crossed) bad("crosses_segment() differs from the scan's");
+  }
 }
 
 }  // namespace
