@@ -16,7 +16,7 @@ TissueSurface::TissueSurface(const Model& m, const State& s, int segs) {
   if (static_cast<int>(s.u.size()) != m.ndof())
     throw Error("TissueSurface: the state has " + std::to_string(s.u.size()) + " DOFs, the model " +
                 std::to_string(m.ndof()));
-  const DisplayMesh d = display_mesh(m, s);
+  const DisplayMesh d = display_mesh(m, s, DisplayCells::Surface);  // the flagged faces' cells
   const Surface surf = extract_surface(d);
   const FaceGrid g = face_grid(face_segments(d.order, segs));
   const int vpf = g.verts_per_face;

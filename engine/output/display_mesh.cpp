@@ -17,14 +17,15 @@ void append_reference_rst(int npe, std::vector<double>& out) {
 
 }  // namespace
 
-DisplayMesh display_mesh(const Model& m, const State& s) {
+DisplayMesh display_mesh(const Model& m, const State& s, DisplayCells which) {
   DisplayMesh d;
   d.order = m.mesh.order;
   const int nn = m.nnode, npe = m.mesh.npe(), nt = m.mesh.ntet();
+  const bool surface = which == DisplayCells::Surface;
   d.X.assign(m.X.begin(), m.X.begin() + 3 * nn);
   d.u.assign(s.u.begin(), s.u.begin() + 3 * nn);
   d.v.assign(s.v.begin(), s.v.begin() + 3 * nn);
-  if (!m.has_cuts()) {
+  if (!m.has_cuts() && !surface) {
     d.cells = m.mesh.tet;
     d.cell_elem.resize(nt);
     for (int e = 0; e < nt; ++e) d.cell_elem[e] = e;
@@ -34,6 +35,19 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
     d.face_flags.assign(m.tet_face_boundary.begin(), m.tet_face_boundary.end());  // kFaceBoundary == 1
     return d;
   }
+  if (!m.has_cuts()) {  // the surface's cells
+    for (int e = 0; e < nt; ++e) {
+      const unsigned char* fb = &m.tet_face_boundary[4 * static_cast<size_t>(e)];
+      if (surface && !(fb[0] || fb[1] || fb[2] || fb[3])) continue;
+      d.cells.insert(d.cells.end(), m.mesh.tet.begin() + static_cast<size_t>(e) * npe,
+                     m.mesh.tet.begin() + static_cast<size_t>(e + 1) * npe);
+      d.cell_elem.push_back(e);
+      d.cell_piece.push_back(-1);
+      append_reference_rst(npe, d.cell_rst);
+      d.face_flags.insert(d.face_flags.end(), fb, fb + 4);  // kFaceBoundary == 1
+    }
+    return d;
+  }
   const CutLayout& L = m.cuts;
   double N[10];
   for (int e = 0; e < nt; ++e) {
@@ -41,6 +55,10 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
     if (!L.elem_split[e] && L.elem_piece_ptr[e + 1] - L.elem_piece_ptr[e] == 1) {
       // Whole element: its own nodes, moved with its piece's field (an
       // enriched node shows the value of this element's region).
+      unsigned char flags[4];
+      for (int k = 0; k < 4; ++k)
+        flags[k] = (m.tet_face_boundary[4 * e + k] ? kFaceBoundary : 0) | (L.elem_face_cut[4 * e + k] ? kFaceCut : 0);
+      if (surface && !(flags[0] || flags[1] || flags[2] || flags[3])) continue;
       const int P = L.elem_piece_ptr[e];
       const int* enr = &L.piece_enr[static_cast<size_t>(P) * npe];
       bool plain = true;
@@ -60,9 +78,7 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
       d.cell_elem.push_back(e);
       d.cell_piece.push_back(P);
       append_reference_rst(npe, d.cell_rst);
-      for (int k = 0; k < 4; ++k)
-        d.face_flags.push_back((m.tet_face_boundary[4 * e + k] ? kFaceBoundary : 0) |
-                               (L.elem_face_cut[4 * e + k] ? kFaceCut : 0));
+      d.face_flags.insert(d.face_flags.end(), flags, flags + 4);
       continue;
     }
     // Split element: each piece's sub-tetrahedra, their points mapped by the
@@ -70,6 +86,18 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
     for (int P = L.elem_piece_ptr[e]; P < L.elem_piece_ptr[e + 1]; ++P) {
       const int* enr = &L.piece_enr[static_cast<size_t>(P) * npe];
       for (int t = L.piece_subtet_ptr[P]; t < L.piece_subtet_ptr[P + 1]; ++t) {
+        unsigned char flags[4];
+        for (int k = 0; k < 4; ++k) {
+          const signed char tag = L.subtet_face[4 * static_cast<size_t>(t) + k];
+          flags[k] = 0;
+          if (tag >= 0 && tag < 4) {
+            if (m.tet_face_boundary[4 * e + tag]) flags[k] |= kFaceBoundary;
+            if (L.elem_face_cut[4 * e + tag]) flags[k] |= kFaceCut;
+          } else if (tag == 4) {
+            flags[k] |= kFaceCut;
+          }
+        }
+        if (surface && !(flags[0] || flags[1] || flags[2] || flags[3])) continue;
         const double* v = &L.subtet_rst[12 * static_cast<size_t>(t)];
         const int side = m.cuts.has_branch() ? subtet_front_side(npe, nodes, m.cuts.node_branch.data(),
                                                                  m.cuts.front_phi.data(), v)
@@ -100,17 +128,7 @@ DisplayMesh display_mesh(const Model& m, const State& s) {
         }
         d.cell_elem.push_back(e);
         d.cell_piece.push_back(P);
-        for (int k = 0; k < 4; ++k) {
-          const signed char tag = L.subtet_face[4 * static_cast<size_t>(t) + k];
-          unsigned char flag = 0;
-          if (tag >= 0 && tag < 4) {
-            if (m.tet_face_boundary[4 * e + tag]) flag |= kFaceBoundary;
-            if (L.elem_face_cut[4 * e + tag]) flag |= kFaceCut;
-          } else if (tag == 4) {
-            flag |= kFaceCut;
-          }
-          d.face_flags.push_back(flag);
-        }
+        d.face_flags.insert(d.face_flags.end(), flags, flags + 4);
       }
     }
   }

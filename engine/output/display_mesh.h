@@ -38,7 +38,13 @@ struct DisplayMesh {
 
 inline constexpr unsigned char kFaceBoundary = 1, kFaceCut = 2;
 
-DisplayMesh display_mesh(const Model& model, const State& state);
+// Which cells display_mesh writes: all, or (Surface) only those with a
+// flagged face, which is all that the flagged faces need: the instruments'
+// collision surface (collision/tissue_surface.h) is rebuilt after every cut
+// from them, and most cells of an organ are inside it.
+enum class DisplayCells { All, Surface };
+
+DisplayMesh display_mesh(const Model& model, const State& state, DisplayCells cells = DisplayCells::All);
 
 
 }  // namespace incise

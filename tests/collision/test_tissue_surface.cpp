@@ -9,6 +9,7 @@
 #include <string>
 
 #include "engine/mesh/mesh_io.h"
+#include "engine/mesh/mesh_tools.h"
 #include "engine/model/front_enrichment.h"
 #include "engine/output/display_mesh.h"
 #include "engine/util/error.h"
@@ -126,6 +127,61 @@ TEST(TissueSurface, CutFaceNormalsPointAcrossTheGapAwayFromTheirSide) {
 // the cut's plane: the surface is still the renderer's (whose display mesh
 // evaluates the same field; with 2 segments the grid points are the cells'
 // own face points), and zeroing the branch DOFs moves it.
+// The collision surface is rebuilt after every cut from the display cells
+// with a flagged face only (DisplayCells::Surface: an organ's inner cells
+// are most of them). Its faces, in order, must be the full display mesh's:
+// the same cell, piece, local face, local coordinates and positions; and
+// its vertices the renderer's. On a block with inner cells, uncut and cut by
+// a plane and a slit that ends inside it (split elements, sub-tetrahedra
+// inside and on the cut, whole elements with enriched nodes).
+TEST(TissueSurface, TheSurfaceCellsGiveTheFullDisplayMeshsFaces) {
+  const Mesh mesh = make_beam(2, 1, 1, 8, 4, 4, 2);
+  const Scene s = block_scene(2);
+  const Model uncut = build_model(mesh, s);
+  const auto plane = make_cut_surface(plane_cut({1.05, 0, 0}, {1, 0.1, 0.05}), 0.0);
+  CutSpec slit;
+  slit.type = CutSpec::Type::Polygon;
+  slit.points = {{0.43, -1, 0.35}, {0.43, 2, 0.35}, {0.43, 2, 2}, {0.43, -1, 2}};
+  slit.json_path = "cuts[1]";
+  const auto slit_surf = make_cut_surface(slit, 0.0);
+  const CutLayout layout = compute_cut_layout(uncut, {plane.get(), slit_surf.get()}, nullptr);
+  const Model cut = build_model(mesh, s, &layout);
+  ASSERT_TRUE(cut.has_cuts());
+  for (const Model* m : {&uncut, &cut}) {
+    State st;
+    st.u.resize(m->ndof());
+    for (int d = 0; d < m->ndof(); ++d) st.u[d] = 0.01 * std::sin(0.37 * d + 0.1);
+    st.v.assign(m->ndof(), 0.0);
+    st.a.assign(m->ndof(), 0.0);
+    const DisplayMesh full = display_mesh(*m, st), part = display_mesh(*m, st, DisplayCells::Surface);
+    EXPECT_LT(part.ncell(), full.ncell() * 3 / 4) << "the block's inner cells are left out";
+    const Surface sf = extract_surface(full), sp = extract_surface(part);
+    ASSERT_EQ(sp.nface(), sf.nface());
+    ASSERT_EQ(sp.nboundary, sf.nboundary);
+    const int npe = full.npe(), npf = sf.npf();
+    for (int f = 0; f < sf.nface(); ++f) {
+      const int cf = sf.face_cell[f], cp = sp.face_cell[f];
+      ASSERT_EQ(full.cell_elem[cf], part.cell_elem[cp]) << f;
+      ASSERT_EQ(full.cell_piece[cf], part.cell_piece[cp]) << f;
+      ASSERT_EQ(sf.face_local[f], sp.face_local[f]) << f;
+      for (int k = 0; k < 3 * npe; ++k)
+        ASSERT_EQ(full.cell_rst[3 * npe * static_cast<size_t>(cf) + k], part.cell_rst[3 * npe * static_cast<size_t>(cp) + k]);
+      for (int j = 0; j < npf; ++j)
+        for (int c = 0; c < 3; ++c)
+          ASSERT_EQ(full.x(sf.face_nodes[npf * f + j], c), part.x(sp.face_nodes[npf * f + j], c)) << f;
+    }
+    const TissueSurface ts(*m, st, 2);
+    const Tessellation t = build_tessellation(sf, full, 2);
+    std::vector<float> pos, nrm;
+    std::vector<double> work;
+    tessellate(sf, t, full, pos, nrm, work);
+    ASSERT_EQ(ts.nvert(), t.nvert());
+    double worst = 0;
+    for (int k = 0; k < 3 * ts.nvert(); ++k) worst = std::max(worst, std::abs(ts.x[k] - pos[k]));
+    EXPECT_LT(worst, 1e-6) << "float positions of the renderer (block 2 x 1 x 1)";
+  }
+}
+
 TEST(TissueSurface, VerticesFollowTheFrontEnrichmentsBranchDofs) {
   const Mesh mesh = collision_block();  // 2 x 1 x 1, cells 0.5 wide
   const Scene s = block_scene(2);
