@@ -173,6 +173,62 @@ constexpr size_t kMaxObjFaceVertices = 16;
 struct CutSurface::FacetTree {
   using Bvh = Eigen::KdBVH<double, 3, int>;
   Bvh bvh;
+
+  // Depth first over the tree, on a fixed stack (Eigen's BVMinimize and
+  // BVIntersect allocate a queue per query: the layout asks one per corner
+  // node, and on the liver demo's few-facet strokes they cost more than the
+  // scan saved). The tree is balanced (median splits): its depth is about
+  // log2(facets), two entries a level on the stack.
+  static constexpr int kStack = 128;
+
+  // The least `bound(box)` first; a box is opened while its bound is below
+  // best() (which the objects taken lower).
+  template <class Bound, class Best, class Take>
+  void nearest(const Bound& bound, const Best& best, const Take& take) const {
+    int node[kStack];
+    double low[kStack];
+    int top = 0;
+    node[top] = bvh.getRootIndex();
+    low[top++] = -std::numeric_limits<double>::infinity();
+    while (top > 0) {
+      --top;
+      if (!(low[top] < best())) continue;
+      Bvh::VolumeIterator vb = nullptr, ve = nullptr;
+      Bvh::ObjectIterator ob = nullptr, oe = nullptr;
+      bvh.getChildren(node[top], vb, ve, ob, oe);
+      for (; ob != oe; ++ob) take(*ob);
+      const int nv = static_cast<int>(ve - vb);
+      double b[2];
+      for (int i = 0; i < nv; ++i) b[i] = bound(bvh.getVolume(vb[i]));
+      // farther first, so that the nearer is opened next
+      const int first = nv == 2 && b[1] > b[0] ? 1 : 0;
+      for (int j = 0; j < nv; ++j) {
+        const int i = nv == 2 ? (j == 0 ? first : 1 - first) : j;
+        if (b[i] < best() && top < kStack) {
+          node[top] = vb[i];
+          low[top++] = b[i];
+        }
+      }
+    }
+  }
+
+  // Whether take(facet) holds for a facet in a box that `open` admits.
+  template <class Open, class Take>
+  bool any(const Open& open, const Take& take) const {
+    int node[kStack];
+    int top = 0;
+    node[top++] = bvh.getRootIndex();
+    while (top > 0) {
+      Bvh::VolumeIterator vb = nullptr, ve = nullptr;
+      Bvh::ObjectIterator ob = nullptr, oe = nullptr;
+      bvh.getChildren(node[--top], vb, ve, ob, oe);
+      for (; ob != oe; ++ob)
+        if (take(*ob)) return true;
+      for (; vb != ve; ++vb)
+        if (open(bvh.getVolume(*vb)) && top < kStack) node[top++] = *vb;
+    }
+    return false;
+  }
 };
 
 CutSurface::CutSurface(std::vector<Facet> facets, std::string name) : facets_(std::move(facets)), name_(std::move(name)) {
@@ -344,20 +400,9 @@ int CutSurface::nearest_facet(const double x[3]) const {
     for (size_t k = 0; k < facets_.size(); ++k) visit(k);
     return best;
   }
-  // Best first (Eigen::BVMinimize): a box is opened while its distance,
-  // less the margin, is below the least facet distance found.
-  struct Minimizer {
-    using Scalar = double;
-    const decltype(visit)& take;
-    const double& bd;
-    V xv;
-    double minimumOnVolume(const Eigen::AlignedBox3d& b) const { return b.exteriorDistance(xv) - box_margin(b, xv); }
-    double minimumOnObject(int k) const {
-      take(static_cast<size_t>(k));
-      return bd;
-    }
-  } mz{visit, bd, V(x[0], x[1], x[2])};
-  Eigen::BVMinimize(tree_->bvh, mz);
+  const V xv(x[0], x[1], x[2]);
+  tree_->nearest([&](const Eigen::AlignedBox3d& b) { return b.exteriorDistance(xv) - box_margin(b, xv); },
+                 [&] { return bd; }, [&](int k) { visit(static_cast<size_t>(k)); });
   return best;
 }
 
@@ -434,24 +479,13 @@ bool CutSurface::crosses_segment(const double a[3], const double b[3], double to
   Eigen::AlignedBox3d seg(V(a[0], a[1], a[2]));
   seg.extend(V(b[0], b[1], b[2]));
   const double seg_size = seg.min().cwiseAbs().maxCoeff() + seg.max().cwiseAbs().maxCoeff();
-  struct Intersector {
-    const CutSurface& s;
-    const Eigen::AlignedBox3d& seg;
-    double seg_size;
-    const double *a, *b;
-    double tol;
-    bool found = false;
-    bool intersectVolume(const Eigen::AlignedBox3d& box) const {
-      // (the margin as box_margin's, over the segment's and the box's coordinates)
-      const double grow =
-          tol + 4e-12 * (seg_size + box.min().cwiseAbs().maxCoeff() + box.max().cwiseAbs().maxCoeff());
-      return ((seg.min().array() - grow) <= box.max().array()).all() &&
-             ((seg.max().array() + grow) >= box.min().array()).all();
-    }
-    bool intersectObject(int k) { return found = s.facet_crosses(static_cast<size_t>(k), a, b, tol); }
-  } in{*this, seg, seg_size, a, b, tol};
-  Eigen::BVIntersect(tree_->bvh, in);
-  return in.found;
+  const auto open = [&](const Eigen::AlignedBox3d& box) {
+    // (the margin as box_margin's, over the segment's and the box's coordinates)
+    const double grow = tol + 4e-12 * (seg_size + box.min().cwiseAbs().maxCoeff() + box.max().cwiseAbs().maxCoeff());
+    return ((seg.min().array() - grow) <= box.max().array()).all() &&
+           ((seg.max().array() + grow) >= box.min().array()).all();
+  };
+  return tree_->any(open, [&](int k) { return facet_crosses(static_cast<size_t>(k), a, b, tol); });
 }
 
 bool CutSurface::facet_covers(size_t k, const double y[3], double tol) const {
@@ -471,17 +505,9 @@ bool CutSurface::covers(const double y[3], double tol) const {
       if (facet_covers(k, y, tol)) return true;
     return false;
   }
-  struct Intersector {
-    const CutSurface& s;
-    V x;
-    const double* y;
-    double tol;
-    bool found = false;
-    bool intersectVolume(const Eigen::AlignedBox3d& box) const { return box.exteriorDistance(x) <= tol + box_margin(box, x); }
-    bool intersectObject(int k) { return found = s.facet_covers(static_cast<size_t>(k), y, tol); }
-  } in{*this, V(y[0], y[1], y[2]), y, tol};
-  Eigen::BVIntersect(tree_->bvh, in);
-  return in.found;
+  const V x(y[0], y[1], y[2]);
+  return tree_->any([&](const Eigen::AlignedBox3d& box) { return box.exteriorDistance(x) <= tol + box_margin(box, x); },
+                    [&](int k) { return facet_covers(static_cast<size_t>(k), y, tol); });
 }
 
 namespace {
