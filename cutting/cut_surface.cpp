@@ -178,7 +178,8 @@ struct CutSurface::FacetTree {
   // BVIntersect allocate a queue per query: the layout asks one per corner
   // node, and on the liver demo's few-facet strokes they cost more than the
   // scan saved). The tree is balanced (median splits): its depth is about
-  // log2(facets), two entries a level on the stack.
+  // log2(facets) and the stack holds at most one entry a level more, so 128
+  // entries never fill (the `top < kStack` tests only guard the array).
   static constexpr int kStack = 128;
 
   // The least `bound(box)` first; a box is opened while its bound is below

@@ -38,7 +38,7 @@ DisplayMesh display_mesh(const Model& m, const State& s, DisplayCells which) {
   if (!m.has_cuts()) {  // the surface's cells
     for (int e = 0; e < nt; ++e) {
       const unsigned char* fb = &m.tet_face_boundary[4 * static_cast<size_t>(e)];
-      if (surface && !(fb[0] || fb[1] || fb[2] || fb[3])) continue;
+      if (!(fb[0] || fb[1] || fb[2] || fb[3])) continue;
       d.cells.insert(d.cells.end(), m.mesh.tet.begin() + static_cast<size_t>(e) * npe,
                      m.mesh.tet.begin() + static_cast<size_t>(e + 1) * npe);
       d.cell_elem.push_back(e);
