@@ -345,11 +345,12 @@ double box_margin(const Eigen::AlignedBox3d& b, const V& x) {
 // The distance from x to facet k's triangle, with its closest point kept in
 // the facet's box (to 1e-12 of its coordinates) and bounding sphere (to 1e-9
 // of its radius). A true closest point lies in both; roundoff leaves ulps,
-// which this does not touch. But on a sliver spanning 1e40 (fuzzed
-// polygons) the barycentric formula put it anywhere, nearer to x than any
-// point of the triangle, and a facet the bounds skip (lower_bound, the
-// tree's boxes) would then have been taken by a scan. Kept in both, the
-// distance is never below either bound: every query takes what the scan
+// which this does not touch. But on a sliver (fuzzed polygons fan over
+// coordinates to 1e180) cancellation in the barycentric formula can put it
+// outside both, nearer to x than any point of the triangle; a facet the
+// bounds skip (lower_bound, the tree's boxes) would then be one a scan
+// takes. Not seen in a run: found by reading the bounds. Kept in both, the
+// distance is never below either bound, so every query takes what the scan
 // over all facets takes.
 double CutSurface::triangle_distance(size_t k, const double x[3]) const {
   const Facet& f = facets_[k];
