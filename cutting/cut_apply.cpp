@@ -338,6 +338,7 @@ CutUpdate commit_cut(Simulation& sim, PreparedCut p, Stopwatch& clock) {
 // frame's step (Simulation::cut_ahead).
 struct CutAhead {
   PreparedCut result;
+  bool early = false;  // this frame's update, prepared beside its collision stage (prepare_cut_now)
   std::exception_ptr error;
   std::vector<double> swept, swept_tool, blade_done;  // copies of the State's, for the helper
   std::vector<double> progress;
@@ -368,32 +369,30 @@ std::vector<double> progress_at(const Simulation& sim, double t, double t_sweep,
 
 // Waits for a helper still running and takes its result when it was prepared
 // for exactly this update; otherwise drops it.
-bool take_ahead(Simulation& sim, const std::vector<double>& progress, double t_sweep, size_t swept, PreparedCut* out) {
+bool take_ahead(Simulation& sim, const std::vector<double>& progress, double t_sweep, size_t swept, PreparedCut* out,
+                bool* early = nullptr) {
   auto ahead = std::static_pointer_cast<CutAhead>(sim.cut_ahead);
   if (!ahead) return false;
   sim.cut_ahead.reset();
-  sim.cut_helper->wait();
+  if (sim.cut_helper) sim.cut_helper->wait();
   if (ahead->error) std::rethrow_exception(ahead->error);
   if (ahead->base_version != sim.model_version || ahead->progress != progress || ahead->t_sweep != t_sweep ||
       ahead->result.swept != swept || ahead->result.blade_done != sim.state.blade_done)
     return false;
   *out = std::move(ahead->result);
+  if (early) *early = ahead->early;
   return true;
 }
 
-}  // namespace
-
-void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
-  PreparedCut dropped;
-  take_ahead(sim, {}, 0.0, 0, &dropped);  // at most one helper
-  bool changed = false;
-  std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
-  if (!changed) return;
+// Starts prepare_cut for the update of the frame at time t (swept cuts
+// reaching t_sweep, the scene cuts at `progress`) on the cut helper, with
+// copies of the State's swept triangles and finished strokes.
+void launch_cut(Simulation& sim, std::vector<double> progress, double t_sweep) {
   auto ahead = std::make_shared<CutAhead>();
   ahead->swept = sim.state.swept;
   ahead->swept_tool = sim.state.swept_tool;
   ahead->blade_done = sim.state.blade_done;
-  ahead->progress = progress;
+  ahead->progress = std::move(progress);
   ahead->t_sweep = t_sweep;
   ahead->base_version = sim.model_version;
   CutAhead* a = ahead.get();
@@ -411,6 +410,29 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
     }
   });
   sim.cut_ahead = ahead;
+}
+
+}  // namespace
+
+void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
+  PreparedCut dropped;
+  take_ahead(sim, {}, 0.0, 0, &dropped);  // at most one helper
+  bool changed = false;
+  std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
+  if (changed) launch_cut(sim, std::move(progress), t_sweep);
+}
+
+void prepare_cut_now(Simulation& sim, double t, double t_sweep) {
+  PreparedCut dropped;
+  take_ahead(sim, {}, 0.0, 0, &dropped);  // one prepared before this frame's sweep has the old triangles
+  auto now = std::make_shared<CutAhead>();
+  bool changed = false;
+  now->early = true;
+  now->progress = progress_at(sim, t, t_sweep, &changed);
+  now->t_sweep = t_sweep;
+  now->base_version = sim.model_version;
+  now->result = prepare_cut(sim, now->progress, t_sweep, sim.state.swept, sim.state.swept_tool, sim.state.blade_done);
+  sim.cut_ahead = now;
 }
 
 
@@ -605,11 +627,13 @@ CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_chan
   bool changed = false;
   const std::vector<double> progress = progress_at(sim, t, t_sweep, &changed);
   PreparedCut p;
-  const bool ahead = take_ahead(sim, progress, t_sweep, sim.state.swept_tool.size(), &p);
+  bool early = false;
+  const bool ahead = take_ahead(sim, progress, t_sweep, sim.state.swept_tool.size(), &p, &early);
   if (!changed && !swept_changed) return {};
   if (!ahead) p = prepare_cut(sim, progress, t_sweep, sim.state.swept, sim.state.swept_tool, sim.state.blade_done);
   CutUpdate up = commit_cut(sim, std::move(p), clock);
-  up.ahead = ahead;
+  up.ahead = ahead && !early;
+  up.early = ahead && early;
   return up;
 }
 

@@ -3,7 +3,8 @@
 // with the new X-FEM layout ([preprint] eqs. (42), (44): enriched DOFs
 // appended), moves the State's fields onto it and hands the Workspace to
 // carry_workspace_over_cut (engine/solve/workspace_carry.h). The frame's
-// cutting stage (cut_stage.h) calls update_cuts and start_cut_ahead.
+// cutting stage (cut_stage.h) calls update_cuts, start_cut_ahead and
+// prepare_cut_now.
 #include "cutting/xfem_layout.h"
 #include <array>
 #include <string>
@@ -20,6 +21,7 @@ struct CutUpdate {
   double ms = 0.0;       // time spent (layout, model, analysis, transfer)
   std::array<double, kNumCutParts> part_ms{};  // its parts (engine/runtime/timing.h)
   bool ahead = false;    // layout and model were prepared during the previous frame (start_cut_ahead)
+  bool early = false;    // ... beside this frame's collision stage (prepare_cut_now)
 };
 
 // Cuts with at_time <= t are active; a swept cut covers its sweep up to time
@@ -37,6 +39,14 @@ CutUpdate update_cuts(Simulation& sim, double t, double t_sweep, bool swept_chan
 // change nothing. The helper holds a reference to `sim`: nothing but the
 // step may change sim.model until the next update_cuts (which joins it).
 void start_cut_ahead(Simulation& sim, double t, double t_sweep);
+
+// Prepares the cut update of the frame at time t itself, now, once its
+// scalpels have swept (sweep_blades): the cutting stage's start
+// (cut_stage.cpp), which runs while the collision stage runs on a helper
+// (Pipeline::set_start). The cutting stage's update_cuts with those times
+// takes the result. A scalpel's band is known only once the frame's poses
+// are, so it cannot be prepared a frame ahead.
+void prepare_cut_now(Simulation& sim, double t, double t_sweep);
 
 // Applies every scene cut completely (static solves).
 CutUpdate apply_all_cuts(Simulation& sim);

@@ -47,6 +47,7 @@ void write_timing_json(const std::string& path, const Simulation& sim, const Tim
   j["cut_frames"] = pct(s.cut_frames);
   j["cut_frames"]["count"] = s.cut_frames.count;
   j["cut_frames"]["prepared_ahead"] = s.cut_ahead;
+  j["cut_frames"]["prepared_beside_collision"] = s.cut_early;
   for (int k = 0; k < kNumCutParts; ++k) {
     std::string name = kCutPartNames[k];
     name = name.substr(name.find_first_not_of(' '));

@@ -5,6 +5,9 @@
 //   tool poses -> collision -> cutting -> [assembly -> factorization -> solve]
 //   per Newton iteration -> integration -> contact publish -> render -> record
 //
+// (A stage may also have a start, run after tool poses while collision runs
+// on a helper: set_start.)
+//
 // The dynamics stages (assembly .. integration) are the engine's own
 // (engine/dynamics/step.h) and always run. The others are slots that a
 // module fills when the scene calls for it, once, when the simulation is set
@@ -30,13 +33,22 @@ using StageFn = std::function<void(Simulation&)>;
 
 class Pipeline {
  public:
-  // Fills a stage's slot (replacing what it held). Throws incise::Error for a
-  // dynamics stage: those are the step's (engine/dynamics/step.h).
+  // Fills a stage's slot (replacing what it held, and dropping its start).
+  // Throws incise::Error for a dynamics stage: those are the step's
+  // (engine/dynamics/step.h).
   void set(Stage stage, StageFn fn);
   bool has(Stage stage) const;
   // What the slot holds (empty when absent): a module wraps another's stage
   // (haptics/ replaces the haptic instrument's pose after the tool-poses stage).
   const StageFn& get(Stage stage) const { return slots_[stage]; }
+  // A stage's start: work that needs only the tool poses, run on the
+  // stepping thread once they are known, while the collision stage runs
+  // beside it on a helper thread (Simulation::stage_helper; both only read
+  // the model and the state's kinematics). cutting/ sweeps the scalpels and
+  // prepares their cut there. Its time counts in the stage's ms, not its
+  // runs. Only for a stage after collision that is not a dynamics stage
+  // (else incise::Error); set it after the stage itself.
+  void set_start(Stage stage, StageFn fn);
   // One frame: the stages in loop order. Returns the frame's timing (also
   // left in sim.ws.timing): each stage's time and runs, the frame's wall and
   // CPU time, and the details the stages recorded.
@@ -45,7 +57,10 @@ class Pipeline {
   std::string describe() const;
 
  private:
+  // The starts on this thread, collision on sim.stage_helper beside them.
+  void run_starts_and_collision(Simulation& sim) const;
   std::array<StageFn, kNumStages> slots_{};
+  std::array<StageFn, kNumStages> starts_{};
 };
 
 // Whether a stage is the engine's own (the step's).

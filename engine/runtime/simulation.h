@@ -39,6 +39,9 @@ struct Simulation {
   std::shared_ptr<void> cut_ahead;
   std::shared_ptr<Model> retired_model;  // the model the last cut replaced, freed by the next cut-ahead task
   std::unique_ptr<HelperThread> cut_helper;
+  // Runs the collision stage while a stage's start runs on the stepping
+  // thread (Pipeline::set_start); joined within the frame.
+  std::unique_ptr<HelperThread> stage_helper;
 };
 
 // Reads the scene (with `patches` applied to its JSON first: load_scene) and

@@ -47,6 +47,7 @@ struct FrameTiming {
   double cpu_ms = 0.0;                  // CPU time of the stepping thread in the frame (frame_ms - cpu_ms: time it waited or was preempted)
   bool cut_frame = false;               // the DOF set changed this frame (new symbolic analysis)
   bool cut_ahead = false;               // its layout and model were prepared during the previous frame
+  bool cut_early = false;               // ... beside this frame's collision stage (a scalpel's cut)
   int newton = 0;                       // linearised solves (Newton iterations) this frame
   // Linear solver of the frame (all Newton iterations together).
   int iterations = 0;         // CG iterations (lagged, warped_cg); 0 for direct policies

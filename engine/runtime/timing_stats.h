@@ -23,6 +23,7 @@ struct TimingSummary {
   Percentiles plain_frames;  // the other frames
   Percentiles cut_parts[kNumCutParts];  // parts of the cutting stage, over the cut frames
   int cut_ahead = 0;         // cut frames whose layout and model were prepared during the previous frame
+  int cut_early = 0;         // ... beside the frame's own collision stage (a scalpel's cut)
   double newton_mean = 0;    // linearised solves per frame
   int newton_max = 0;
   double budget_ms = 1000.0 / 30.0;

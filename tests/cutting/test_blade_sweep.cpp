@@ -300,5 +300,54 @@ TEST(BladeSweep, AScalpelThatStopsAndGoesOnCutsAsIfItHadNot) {
   EXPECT_EQ(report[0].front_elements, report[1].front_elements);
 }
 
+
+// With a scalpel the cutting stage has a start (Pipeline::set_start): the
+// blade sweeps once the poses are known and the cut's layout and model are
+// built on the cut helper while the collision stage runs. That must give
+// exactly the states of the stage doing it all itself, and every cut frame
+// must use the prepared result.
+TEST(BladeSweep, ACutPreparedBesideTheCollisionStageGivesTheSameStates) {
+  const auto z_at = [](int f) { return f <= 9 ? 1.2 - 0.9 * f / 9.0 : 0.3; };
+  const auto x_at = [](int f) { return 1.6 + 0.08 * std::min(f, 9); };
+  Scene s = test::block_scene(2);
+  s.material.young = 3e4;
+  s.material.rayleigh_mass = 1.0;
+  s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+  s.instruments.push_back(edge_scalpel({0.2, 0.01, 0.1}, Vec3{0, -0.5, 0}, Vec3{0, 1.5, 0}));
+  std::unique_ptr<Simulation> sim[2];
+  double seen[2] = {0, 0};
+  for (int r = 0; r < 2; ++r) {
+    sim[r] = test::make_sim(make_beam(4, 1, 1, 7, 3, 3, 1), s);
+    sim[r]->pipeline.set(kStageToolPoses, [&](Simulation& q) {
+      q.tools.resize(1);
+      q.tools[0].before.p = std::array<double, 3>{x_at(q.state.frame), 0.0, z_at(q.state.frame)};
+      q.tools[0].after.p = std::array<double, 3>{x_at(q.state.frame + 1), 0.0, z_at(q.state.frame + 1)};
+    });
+    // A collision stage that reads the model and state, as the real one does.
+    sim[r]->pipeline.set(kStageCollision, [&seen, r](Simulation& q) {
+      for (int d = 0; d < q.model.ndof(); ++d) seen[r] += q.model.mass_lumped[d] * q.state.u[d];
+    });
+  }
+  sim[1]->pipeline.set(kStageCutting, cutting_stage);  // no start: the stage sweeps and prepares itself
+  EXPECT_TRUE(sim[0]->pipeline.has(kStageCutting));
+  int cut_frames = 0, beside = 0, beside_plain = 0;
+  for (int k = 0; k < 14; ++k) {
+    const FrameTiming t0 = advance_frame(*sim[0]);
+    const FrameTiming t1 = advance_frame(*sim[1]);
+    ASSERT_EQ(t0.cut_frame, t1.cut_frame) << "frame " << k;
+    cut_frames += t0.cut_frame;
+    beside += t0.cut_frame && t0.cut_early;
+    beside_plain += t1.cut_early;
+    ASSERT_EQ(sim[0]->model.ndof(), sim[1]->model.ndof()) << "frame " << k;
+    ASSERT_EQ(sim[0]->state.swept, sim[1]->state.swept) << "frame " << k;
+    ASSERT_EQ(sim[0]->state.u, sim[1]->state.u) << "frame " << k;
+    ASSERT_EQ(sim[0]->state.v, sim[1]->state.v) << "frame " << k;
+  }
+  EXPECT_GE(cut_frames, 4);
+  EXPECT_EQ(beside, cut_frames) << "every cut frame was prepared beside its collision stage";
+  EXPECT_EQ(beside_plain, 0);
+  EXPECT_EQ(seen[0], seen[1]);
+}
+
 }  // namespace
 }  // namespace incise

@@ -1,5 +1,6 @@
 // The frame as a pipeline of named stages: order, run counts, absent stages.
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -70,6 +71,58 @@ TEST(Pipeline, TheStepsOwnStagesCannotBeReplaced) {
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find(std::string("stage '") + kStageNames[s] + "' is the engine's own step"),
                 std::string::npos);
+    }
+  }
+}
+
+// A stage's start runs on the stepping thread after tool poses, while the
+// collision stage runs beside it on a helper; it is timed into its stage
+// without counting as a run and goes when the stage is replaced. Without a
+// start, collision runs on the stepping thread. An error thrown on the
+// helper reaches the caller. Only a module's stage after collision may
+// have a start.
+TEST(Pipeline, AStartRunsBesideCollisionAndBelongsToItsStage) {
+  auto sim = beam_sim();
+  const std::thread::id stepping = std::this_thread::get_id();
+  std::vector<std::string> seen;  // (the stepping thread's stages only)
+  std::thread::id collision_thread;
+  int collisions = 0;
+  bool collision_throws = false;
+  for (Stage s : {kStageToolPoses, kStageCutting, kStageRender})
+    sim->pipeline.set(s, [s, &seen](Simulation&) { seen.push_back(kStageNames[s]); });
+  sim->pipeline.set(kStageCollision, [&](Simulation&) {
+    collision_thread = std::this_thread::get_id();
+    ++collisions;
+    if (collision_throws) throw Error("collision failed");
+  });
+  sim->pipeline.set_start(kStageCutting, [&seen](Simulation&) { seen.push_back("cutting start"); });
+  sim->pipeline.set_start(kStageRender, [&seen](Simulation&) { seen.push_back("render start"); });
+  FrameTiming t = advance_frame(*sim);
+  const std::vector<std::string> expect = {"tool_poses", "cutting start", "render start", "cutting", "render"};
+  EXPECT_EQ(seen, expect);
+  EXPECT_EQ(collisions, 1);
+  EXPECT_EQ(t.runs[kStageCollision], 1);
+  EXPECT_NE(collision_thread, stepping) << "collision ran beside the starts";
+  EXPECT_EQ(t.runs[kStageCutting], 1) << "a start is not a run";
+  seen.clear();
+  sim->pipeline.set(kStageCutting, [&seen](Simulation&) { seen.push_back("cutting, replaced"); });
+  advance_frame(*sim);
+  const std::vector<std::string> replaced = {"tool_poses", "render start", "cutting, replaced", "render"};
+  EXPECT_EQ(seen, replaced) << "the replaced stage's start went with it";
+  collision_throws = true;
+  EXPECT_THROW(advance_frame(*sim), Error) << "the helper's error reaches the caller";
+  collision_throws = false;
+  sim->pipeline.set(kStageRender, [](Simulation&) {});
+  advance_frame(*sim);
+  EXPECT_EQ(collision_thread, stepping) << "no start: collision on the stepping thread";
+  EXPECT_EQ(collisions, 4);
+  for (Stage s : {kStageToolPoses, kStageCollision, kStageAssembly, kStageIntegration}) {
+    try {
+      sim->pipeline.set_start(s, [](Simulation&) {});
+      FAIL() << kStageNames[s] << " took a start";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string("stage '") + kStageNames[s] + "' cannot have a start"),
+                std::string::npos) << e.what();
     }
   }
 }
