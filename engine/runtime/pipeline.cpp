@@ -117,7 +117,8 @@ std::string Pipeline::describe() const {
   for (int s = 0; s < kNumStages; ++s) {
     const Stage st = static_cast<Stage>(s);
     out += std::string(kStageNames[s]) + ": " +
-           (is_dynamics_stage(st) ? "engine" : (slots_[s] ? "plugged in" : "absent")) + "\n";
+           (is_dynamics_stage(st) ? "engine" : (slots_[s] ? "plugged in" : "absent")) +
+           (slots_[s] && starts_[s] ? ", with a start beside collision" : "") + "\n";
   }
   return out;
 }

@@ -53,7 +53,8 @@ class Pipeline {
   // left in sim.ws.timing): each stage's time and runs, the frame's wall and
   // CPU time, and the details the stages recorded.
   FrameTiming run_frame(Simulation& sim) const;
-  // The stages in order, each with "engine", "plugged in" or "absent".
+  // The stages in order, each with "engine", "plugged in" or "absent" (and
+  // ", with a start beside collision").
   std::string describe() const;
 
  private:

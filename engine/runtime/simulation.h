@@ -37,7 +37,9 @@ struct Simulation {
   // cut_helper, which reads model, mesh and scene. Last members, so the
   // thread (destroyed first) has finished before any of them goes.
   std::shared_ptr<void> cut_ahead;
-  std::shared_ptr<Model> retired_model;  // the model the last cut replaced, freed by the next cut-ahead task or prepare_cut_now
+  // The model the last cut replaced, freed by the next cut-ahead task or
+  // by prepare_cut_now.
+  std::shared_ptr<Model> retired_model;
   std::unique_ptr<HelperThread> cut_helper;
   // Runs the collision stage while a stage's start runs on the stepping
   // thread (Pipeline::set_start); joined within the frame.

@@ -97,6 +97,8 @@ TEST(Pipeline, AStartRunsBesideCollisionAndBelongsToItsStage) {
   });
   sim->pipeline.set_start(kStageCutting, [&seen](Simulation&) { seen.push_back("cutting start"); });
   sim->pipeline.set_start(kStageRender, [&seen](Simulation&) { seen.push_back("render start"); });
+  EXPECT_NE(sim->pipeline.describe().find("cutting: plugged in, with a start beside collision\n"), std::string::npos)
+      << sim->pipeline.describe();
   FrameTiming t = advance_frame(*sim);
   const std::vector<std::string> expect = {"tool_poses", "cutting start", "render start", "cutting", "render"};
   EXPECT_EQ(seen, expect);
