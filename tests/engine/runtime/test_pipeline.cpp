@@ -62,17 +62,23 @@ TEST(Pipeline, PluggedStagesRunInLoopOrderAroundTheStep) {
     EXPECT_EQ(t.runs[s], 1) << kStageNames[s];
 }
 
+// Expects fn() to throw incise::Error with "stage '<name of s>'" + what in
+// its message.
+template <class F>
+void expect_stage_error(Stage s, F fn, const std::string& what) {
+  try {
+    fn();
+    ADD_FAILURE() << kStageNames[s] << ": no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(std::string("stage '") + kStageNames[s] + "'" + what), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Pipeline, TheStepsOwnStagesCannotBeReplaced) {
   auto sim = beam_sim();
-  for (Stage s : {kStageAssembly, kStageFactorization, kStageSolve, kStageIntegration}) {
-    try {
-      sim->pipeline.set(s, [](Simulation&) {});
-      FAIL() << kStageNames[s] << " was replaced";
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find(std::string("stage '") + kStageNames[s] + "' is the engine's own step"),
-                std::string::npos);
-    }
-  }
+  for (Stage s : {kStageAssembly, kStageFactorization, kStageSolve, kStageIntegration})
+    expect_stage_error(s, [&] { sim->pipeline.set(s, [](Simulation&) {}); }, " is the engine's own step");
 }
 
 // A stage's start runs on the stepping thread after tool poses, while the
@@ -118,15 +124,8 @@ TEST(Pipeline, AStartRunsBesideCollisionAndBelongsToItsStage) {
   advance_frame(*sim);
   EXPECT_EQ(collision_thread, stepping) << "no start: collision on the stepping thread";
   EXPECT_EQ(collisions, 4);
-  for (Stage s : {kStageToolPoses, kStageCollision, kStageAssembly, kStageIntegration}) {
-    try {
-      sim->pipeline.set_start(s, [](Simulation&) {});
-      FAIL() << kStageNames[s] << " took a start";
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find(std::string("stage '") + kStageNames[s] + "' cannot have a start"),
-                std::string::npos) << e.what();
-    }
-  }
+  for (Stage s : {kStageToolPoses, kStageCollision, kStageAssembly, kStageIntegration})
+    expect_stage_error(s, [&] { sim->pipeline.set_start(s, [](Simulation&) {}); }, " cannot have a start");
 }
 
 // A lagged rescue (CG gave up after rescue_after iterations) runs the
