@@ -164,10 +164,11 @@ std::vector<StrokeGroup> stroke_groups(const std::vector<double>& swept, const s
 // swept, swept_tool, blade_done: the instruments' swept triangles the update
 // includes and the scalpels' finished strokes (State::swept...; the
 // cut-ahead helper passes its own copies: it must not read the State the
-// stages change).
+// stages change). spare: a model no longer needed, storage for the new one
+// (build_model).
 PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progress, double t_sweep,
                         const std::vector<double>& swept, const std::vector<double>& swept_tool,
-                        const std::vector<double>& blade_done) {
+                        const std::vector<double>& blade_done, Model* spare = nullptr) {
   PreparedCut p;
   p.progress = progress;
   p.swept = swept_tool.size();
@@ -235,7 +236,7 @@ PreparedCut prepare_cut(const Simulation& sim, const std::vector<double>& progre
     if (!stroke[c].empty()) p.faces_strokes.push_back(stroke[c]);
   if (same_layout(sim.model, layout) || (!sim.model.has_cuts() && layout.n_enriched == 0 && p.report.cut_elements == 0))
     return p;
-  p.next = std::make_unique<Model>(build_model(sim.mesh, sim.scene, &layout, &sim.model));
+  p.next = std::make_unique<Model>(build_model(sim.mesh, sim.scene, &layout, &sim.model, spare));
   for (int e = 0; e < p.next->nelem; ++e)
     if (!same_element_pieces(*p.next, sim.model, e)) p.changed.push_back(e);
   p.map = dofnode_map(sim.model, *p.next);
@@ -404,12 +405,13 @@ void launch_cut(Simulation& sim, std::vector<double> progress, double t_sweep) {
     sim.cut_helper = std::make_unique<HelperThread>(helper_cpus, HelperThread::Priority::Normal);  // (none running)
   std::shared_ptr<Model> retired = std::move(sim.retired_model);
   sim.cut_helper->run([ahead, a, s, retired]() mutable {  // (ahead: the task keeps its result alive)
-    retired.reset();  // the model the last cut replaced (0.2-0.4 ms of frees)
-    try {
-      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept, a->swept_tool, a->blade_done);
+    try {  // the model the last cut replaced: storage for the new one, then freed
+      Model* spare = retired.use_count() == 1 ? retired.get() : nullptr;
+      a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept, a->swept_tool, a->blade_done, spare);
     } catch (...) {
       a->error = std::current_exception();
     }
+    retired.reset();
   });
   sim.cut_ahead = ahead;
 }
@@ -427,18 +429,19 @@ void start_cut_ahead(Simulation& sim, double t, double t_sweep) {
 void prepare_cut_now(Simulation& sim, double t, double t_sweep) {
   PreparedCut dropped;
   take_ahead(sim, {}, 0.0, 0, &dropped);  // one prepared before this frame's sweep has the old triangles
-  // The model the last cut replaced, freed before the new one is built (it
-  // went at the commit): its blocks then take most of the new model's
-  // arrays. probe-incision-20k: 1,430 -> 745 page faults a cut frame, about
-  // 1 ms (perf stat -e page-faults, 70 frames).
-  sim.retired_model.reset();
+  // The model the last cut replaced: its large arrays' storage goes to the
+  // new model (build_model's spare), the rest is freed here (it went at the
+  // commit). probe-incision-20k, 70 frames (54 cut): 172k page faults ->
+  // 111k (perf stat -e page-faults), about 1.5 ms a cut frame.
+  std::shared_ptr<Model> retired = std::move(sim.retired_model);
   auto now = std::make_shared<CutAhead>();
   bool changed = false;
   now->early = true;
   now->progress = progress_at(sim, t, t_sweep, &changed);
   now->t_sweep = t_sweep;
   now->base_version = sim.model_version;
-  now->result = prepare_cut(sim, now->progress, t_sweep, sim.state.swept, sim.state.swept_tool, sim.state.blade_done);
+  now->result = prepare_cut(sim, now->progress, t_sweep, sim.state.swept, sim.state.swept_tool, sim.state.blade_done,
+                            retired.use_count() == 1 ? retired.get() : nullptr);
   sim.cut_ahead = now;
 }
 

@@ -179,7 +179,11 @@ NewmarkCoefficients newmark_coefficients(const Model& model, bool recovery = fal
 // With `base` (a model of the same mesh and scene, e.g. the one before a cut)
 // the tet10 mesh, boundary faces and per-element masses are copied from it, so
 // a cut rebuild integrates only what the cut changed (docs/numerics.md).
-Model build_model(const Mesh& mesh, const Scene& scene, const CutLayout* cuts = nullptr, const Model* base = nullptr);
+// `spare`: a model no longer needed (the one the cut before last replaced),
+// whose large arrays the new model takes, emptied, for their storage: their
+// pages are in use already, where new ones would each fault on first touch.
+Model build_model(const Mesh& mesh, const Scene& scene, const CutLayout* cuts = nullptr, const Model* base = nullptr,
+                  Model* spare = nullptr);
 
 // Whether element e has the same pieces in m as in base (a model of the same
 // mesh; no cuts = one whole piece): enrichment up to renumbering, split flag

@@ -131,9 +131,13 @@ struct ElementWork {
 };
 
 // Reserves m's per-element arrays for about base's sizes: no regrowth copies
-// of these (MB-sized) arrays.
+// of these (MB-sized) arrays. With headroom, and only where the capacity is
+// short of base's size: storage taken from a spare model (take_storage) two
+// cuts older than base then serves as it is.
 void reserve_like_base(Model& m, const Model& base, std::vector<int>& slot_src) {
-  const auto room = [](auto& v, size_t n) { v.reserve(n + n / 8 + 64); };
+  const auto room = [](auto& v, size_t n) {
+    if (v.capacity() < n) v.reserve(n + n / 8 + 64);
+  };
   room(m.elem_dof_node, base.elem_dof_node.size());
   room(m.qp_weight, base.qp_weight.size());
   room(m.qp_grad, base.qp_grad.size());
@@ -739,7 +743,8 @@ void scatter_from_base(Model& m, const Model& base, const std::vector<char>& enr
   m.elem_scatter_ptr.assign(1, 0);
   m.elem_scatter_ptr.reserve(m.nelem + 1);
   m.elem_scatter.clear();
-  m.elem_scatter.reserve(base.elem_scatter.size() + base.elem_scatter.size() / 8);
+  if (m.elem_scatter.capacity() < base.elem_scatter.size())  // (as reserve_like_base)
+    m.elem_scatter.reserve(base.elem_scatter.size() + base.elem_scatter.size() / 8);
   for (int e = 0; e < m.nelem; ++e) {
     const int b = m.elem_dof_ptr[e], n = m.elem_dof_ptr[e + 1] - b;
     const bool same = !enriched_elem[e] && base.elem_dof_ptr[e + 1] - base.elem_dof_ptr[e] == n &&
@@ -778,6 +783,9 @@ void scatter_from_base(Model& m, const Model& base, const std::vector<char>& enr
 void build_pattern_from_base(Model& m, const Model& base) {
   const int nstd = m.nnode, cstd = 3 * nstd;
   m.Ap.assign(base.Ap.begin(), base.Ap.begin() + cstd + 1);
+  // With headroom, as the enriched columns grow cut by cut (a spare's
+  // storage, build_model, then serves the next rebuilds too).
+  if (m.Ai.capacity() < base.Ai.size()) m.Ai.reserve(base.Ai.size() + base.Ai.size() / 8);
   m.Ai.assign(base.Ai.begin(), base.Ai.begin() + base.Ap[cstd]);
   m.Ap.resize(m.ndof() + 1);
   const std::vector<char> enriched_elem = enriched_elements(m);
@@ -1068,6 +1076,7 @@ void build_mass(Model& m, const Scene& scene, const Model* base) {
   const bool enriched = m.ndofnode > m.nnode;
   const bool sparse = m.mass_kind == MassKind::Consistent || enriched;
   m.mass_lumped.assign(m.ndof(), 0.0);
+  if (sparse && m.mass_csc.capacity() < static_cast<size_t>(m.nnz())) m.mass_csc.reserve(m.nnz() + m.nnz() / 8);
   if (sparse) m.mass_csc.assign(m.nnz(), 0.0);
   const bool reuse = base && base->elem_mass.size() == static_cast<size_t>(m.nelem) * npe * npe;
   if (reuse) m.elem_mass = base->elem_mass;
@@ -1169,6 +1178,28 @@ void build_constraints(Model& m, const Scene& scene, const Model* base) {
       if (m.Ai[k] != c && (m.constrained[m.Ai[k]] || m.constrained[c])) m.constrained_entries.push_back(k);
 }
 
+// The storage of spare's large arrays (MB-sized at 20k DOF), emptied: each
+// is then filled as a new one would be, in pages already touched. Every
+// array here is written from empty by the build.
+void take_storage(Model& m, Model& spare) {
+  const auto take = [](auto& to, auto& from) {
+    to.swap(from);
+    to.clear();
+  };
+  take(m.Ai, spare.Ai);
+  take(m.elem_scatter, spare.elem_scatter);
+  take(m.mass_csc, spare.mass_csc);
+  take(m.elem_mass, spare.elem_mass);
+  take(m.qp_grad, spare.qp_grad);
+  take(m.qp_weight, spare.qp_weight);
+  take(m.qp_grad_ptr, spare.qp_grad_ptr);
+  take(m.qp_rot, spare.qp_rot);
+  take(m.rot_grad, spare.rot_grad);
+  take(m.rot_grad_ptr, spare.rot_grad_ptr);
+  take(m.rot_elem, spare.rot_elem);
+  take(m.elem_dof_node, spare.elem_dof_node);
+}
+
 }  // namespace
 
 // The static solve's gravity load. Lumped with enrichment, f_gravity puts
@@ -1267,8 +1298,9 @@ std::vector<int> select_nodes(const Mesh& mesh, const Region& region, const std:
   return out;
 }
 
-Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts, const Model* base) {
+Model build_model(const Mesh& mesh_in, const Scene& scene, const CutLayout* cuts, const Model* base, Model* spare) {
   Model m;
+  if (spare) take_storage(m, *spare);
   if (base) {
     m.mesh = base->mesh;  // checked and raised already
   } else {

@@ -705,6 +705,61 @@ TEST(Xfem, RebuildFromTheBaseModelEqualsAFreshBuild) {
   EXPECT_FALSE(rebuilt2.rot_K0.empty()) << "split elements carry their pieces' rest stiffness";
 }
 
+// A rebuild that takes a spare model's storage (build_model's spare: the
+// model the cut before last replaced) equals one without, whatever the
+// spare's sizes (larger and smaller than the new model's), for either
+// mass; a spare large enough lends its arrays' storage itself.
+TEST(Xfem, ARebuildOnASpareModelsStorageEqualsOneWithout) {
+  for (const MassKind mass : {MassKind::Lumped, MassKind::Consistent}) {
+    Scene s = test::block_scene(2);
+    s.mass = mass;
+    s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
+    const Mesh mesh = make_beam(4, 1, 1, 8, 2, 2, 1);
+    const Model uncut = build_model(mesh, s);
+    const auto plane = make_cut_surface(test::plane_cut({2.3, 0, 0}, {1, 0.2, 0.1}), 0.0);
+    const auto plane2 = make_cut_surface(test::plane_cut({0, 0, 0.55}, {0.1, 0, 1}, "cuts[1]"), 0.0);
+    const CutLayout one = compute_cut_layout(uncut, {plane.get()}, nullptr);
+    const CutLayout two = compute_cut_layout(uncut, {plane.get(), plane2.get()}, nullptr);
+    const Model base = build_model(mesh, s, &one, &uncut);
+    const Model plain = build_model(mesh, s, &two, &base);
+    for (const Model* donor : {&plain, &uncut}) {  // as large as the new model, and smaller
+      Model spare = *donor;
+      spare.Ai.reserve(spare.Ai.size() + spare.Ai.size() / 4);
+      const int* lent = spare.Ai.data();
+      const bool fits = spare.Ai.capacity() >= plain.Ai.size();
+      const Model m = build_model(mesh, s, &two, &base, &spare);
+      const char* what = donor == &plain ? "a large spare" : "a small spare";
+      EXPECT_EQ(m.Ap, plain.Ap) << what;
+      EXPECT_EQ(m.Ai, plain.Ai) << what;
+      EXPECT_EQ(m.diag, plain.diag) << what;
+      EXPECT_EQ(m.elem_scatter, plain.elem_scatter) << what;
+      EXPECT_EQ(m.elem_scatter_ptr, plain.elem_scatter_ptr) << what;
+      EXPECT_EQ(m.mass_csc, plain.mass_csc) << what;
+      EXPECT_EQ(m.mass_lumped, plain.mass_lumped) << what;
+      EXPECT_EQ(m.mass_coupling, plain.mass_coupling) << what;
+      EXPECT_EQ(m.elem_mass, plain.elem_mass) << what;
+      EXPECT_EQ(m.f_gravity, plain.f_gravity) << what;
+      EXPECT_EQ(m.elem_dof_ptr, plain.elem_dof_ptr) << what;
+      EXPECT_EQ(m.elem_dof_node, plain.elem_dof_node) << what;
+      EXPECT_EQ(m.elem_qp_ptr, plain.elem_qp_ptr) << what;
+      EXPECT_EQ(m.qp_weight, plain.qp_weight) << what;
+      EXPECT_EQ(m.qp_grad_ptr, plain.qp_grad_ptr) << what;
+      EXPECT_EQ(m.qp_grad, plain.qp_grad) << what;
+      EXPECT_EQ(m.qp_rot, plain.qp_rot) << what;
+      EXPECT_EQ(m.rot_elem, plain.rot_elem) << what;
+      EXPECT_EQ(m.rot_grad_ptr, plain.rot_grad_ptr) << what;
+      EXPECT_EQ(m.rot_grad, plain.rot_grad) << what;
+      EXPECT_EQ(m.rot_K0, plain.rot_K0) << what;
+      EXPECT_EQ(m.constrained_entries, plain.constrained_entries) << what;
+      EXPECT_TRUE(fits || donor != &plain);
+      if (fits) {
+        EXPECT_EQ(m.Ai.data(), lent) << what << ": the new pattern is in the spare's storage";
+      }
+      EXPECT_TRUE(spare.Ai.empty() && spare.qp_grad.empty()) << what << ": the spare gave its arrays up";
+    }
+  }
+}
+
 // A rebuild whose layout joins regions of the old one (a scalpel's bands are
 // mapped through the tissue frame by frame, so the pieces are not nested):
 // each joined DOF takes the lumped-mass-weighted mean of the old regions'
