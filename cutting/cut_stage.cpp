@@ -18,18 +18,20 @@ struct EarlySweep {
 };
 
 // The cutting stage's start (Pipeline::set_start): the scalpels sweep
-// (their bands need only this frame's poses and the state at its start)
-// and, when they cut, the layout and model are built now, while the
-// collision stage runs on a helper. On probe-incision-20k the collision
-// stage is 4-5 ms of each cut frame (the collision tree rebuilt after the
-// last cut), the cut's layout and model 15-20 ms. The other way round (the
-// cut on the helper) took the helper CPU from the background factorization
-// for those 15-20 ms: more late factors, and the error at frame 30 rose
-// from 6.8-7.5e-3 to 1.1-1.2e-2 on probe-incision-10k.
-void cutting_start(Simulation& sim, EarlySweep& early) {
+// (their bands need only this frame's poses and the state at its start);
+// when they cut, it hands back the layout and model build, which then run
+// while the collision stage runs on a helper. On probe-incision-20k the
+// collision stage is 4-5 ms of each cut frame (the collision tree rebuilt
+// after the last cut), the cut's layout and model 15-20 ms. The other way
+// round (the cut on the helper) took the helper CPU from the background
+// factorization for those 15-20 ms: more late factors, and the error at
+// frame 30 rose from 6.8-7.5e-3 to 1.1-1.2e-2 on probe-incision-10k. A
+// frame that does not cut leaves collision on the stepping thread.
+StageFn cutting_start(Simulation& sim, EarlySweep& early) {
   early.frame = sim.state.frame;
   early.swept = sweep_blades(sim, &early.blade_done_changed);
-  if (early.swept > 0 || early.blade_done_changed) prepare_cut_now(sim, sim.state.time, sim.state.time + sim.model.dt);
+  if (early.swept == 0 && !early.blade_done_changed) return {};
+  return [](Simulation& s) { prepare_cut_now(s, s.state.time, s.state.time + s.model.dt); };
 }
 
 // The stage; early: its start's sweep, when it has a start (a scalpel).
@@ -68,7 +70,7 @@ void install_cutting_stage(Simulation& sim) {
   if (scalpel) {
     auto early = std::make_shared<EarlySweep>();
     sim.pipeline.set(kStageCutting, [early](Simulation& s) { run_cutting(s, early.get()); });
-    sim.pipeline.set_start(kStageCutting, [early](Simulation& s) { cutting_start(s, *early); });
+    sim.pipeline.set_start(kStageCutting, [early](Simulation& s) { return cutting_start(s, *early); });
   } else if (!sim.scene.cuts.empty()) {
     sim.pipeline.set(kStageCutting, cutting_stage);
   }

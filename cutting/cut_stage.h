@@ -4,8 +4,8 @@
 // frame) through update_cuts, and the next frame's layout and model started
 // on the cut-ahead helper. Installed only when the scene declares cuts or a
 // scalpel; with a scalpel the stage also has a start (Pipeline::set_start):
-// the blades sweep and their cut is prepared while the collision stage runs
-// on a helper.
+// the blades sweep, and when they cut, their cut is prepared while the
+// collision stage runs on a helper.
 #include "engine/runtime/simulation.h"
 
 namespace incise {

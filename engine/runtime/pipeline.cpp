@@ -32,7 +32,7 @@ void Pipeline::set(Stage stage, StageFn fn) {
   starts_[stage] = nullptr;  // a start belongs to the stage it was set with
 }
 
-void Pipeline::set_start(Stage stage, StageFn fn) {
+void Pipeline::set_start(Stage stage, StartFn fn) {
   if (is_dynamics_stage(stage) || stage <= kStageCollision)
     throw Error(std::string("pipeline: stage '") + kStageNames[stage] +
                 "' cannot have a start: only a module's stage after collision can");
@@ -43,22 +43,29 @@ bool Pipeline::has(Stage stage) const { return is_dynamics_stage(stage) || stati
 
 void Pipeline::run_starts_and_collision(Simulation& sim) const {
   FrameTiming& t = sim.ws.timing;
-  const auto starts = [&] {  // timed into their stages, not counted as runs
+  std::array<StageFn, kNumStages> work{};  // what the starts hand back, timed into their stages (not runs)
+  bool any = false;
+  for (int k = kStageCollision + 1; k < kNumStages; ++k)
+    if (starts_[k] && slots_[k]) {
+      Stopwatch clock;
+      work[k] = starts_[k](sim);
+      t.ms[k] += clock.ms();
+      any = any || static_cast<bool>(work[k]);
+    }
+  const auto run_work = [&] {
     for (int k = kStageCollision + 1; k < kNumStages; ++k)
-      if (starts_[k] && slots_[k]) {
+      if (work[k]) {
         Stopwatch clock;
-        starts_[k](sim);
+        work[k](sim);
         t.ms[k] += clock.ms();
       }
   };
-  bool any = false;
-  for (int k = kStageCollision + 1; k < kNumStages; ++k) any = any || (starts_[k] && slots_[k]);
   if (!any || !slots_[kStageCollision]) {
-    starts();
+    run_work();
     if (slots_[kStageCollision]) run_stage(t, kStageCollision, [&] { slots_[kStageCollision](sim); });
     return;
   }
-  // Collision on the helper, the starts here. The helper's task refers to
+  // Collision on the helper, the work here. The helper's task refers to
   // sim: it is joined before anything leaves this function.
   const bool helper_cpus = sim.ws.runtime.split_affinity;
   if (!sim.stage_helper || sim.stage_helper->helper_cpus() != helper_cpus)
@@ -75,7 +82,7 @@ void Pipeline::run_starts_and_collision(Simulation& sim) const {
     collision_ms = clock.ms();
   });
   try {
-    starts();
+    run_work();
   } catch (...) {
     sim.stage_helper->wait();
     throw;

@@ -81,13 +81,13 @@ TEST(Pipeline, TheStepsOwnStagesCannotBeReplaced) {
     expect_stage_error(s, [&] { sim->pipeline.set(s, [](Simulation&) {}); }, " is the engine's own step");
 }
 
-// A stage's start runs on the stepping thread after tool poses, while the
-// collision stage runs beside it on a helper; it is timed into its stage
-// without counting as a run and goes when the stage is replaced. Without a
-// start, collision runs on the stepping thread. An error thrown on the
-// helper reaches the caller. Only a module's stage after collision may
-// have a start.
-TEST(Pipeline, AStartRunsBesideCollisionAndBelongsToItsStage) {
+// A stage's start runs on the stepping thread after tool poses; the work it
+// hands back runs there too while the collision stage runs beside it on a
+// helper, and without such work collision stays on the stepping thread. A
+// start is timed into its stage without counting as a run and goes when
+// the stage is replaced. An error thrown on the helper reaches the caller.
+// Only a module's stage after collision may have a start.
+TEST(Pipeline, AStartsWorkRunsBesideCollisionAndBelongsToItsStage) {
   auto sim = beam_sim();
   const std::thread::id stepping = std::this_thread::get_id();
   std::vector<std::string> seen;  // (the stepping thread's stages only)
@@ -101,31 +101,38 @@ TEST(Pipeline, AStartRunsBesideCollisionAndBelongsToItsStage) {
     ++collisions;
     if (collision_throws) throw Error("collision failed");
   });
-  sim->pipeline.set_start(kStageCutting, [&seen](Simulation&) { seen.push_back("cutting start"); });
-  sim->pipeline.set_start(kStageRender, [&seen](Simulation&) { seen.push_back("render start"); });
+  sim->pipeline.set_start(kStageCutting, [&seen](Simulation&) -> StageFn {
+    seen.push_back("cutting start");
+    return [&seen](Simulation&) { seen.push_back("cutting work"); };
+  });
+  sim->pipeline.set_start(kStageRender, [&seen](Simulation&) -> StageFn {
+    seen.push_back("render start");
+    return {};  // nothing to run beside collision
+  });
   EXPECT_NE(sim->pipeline.describe().find("cutting: plugged in, with a start beside collision\n"), std::string::npos)
       << sim->pipeline.describe();
   FrameTiming t = advance_frame(*sim);
-  const std::vector<std::string> expect = {"tool_poses", "cutting start", "render start", "cutting", "render"};
+  const std::vector<std::string> expect = {"tool_poses", "cutting start", "render start", "cutting work", "cutting",
+                                           "render"};
   EXPECT_EQ(seen, expect);
   EXPECT_EQ(collisions, 1);
   EXPECT_EQ(t.runs[kStageCollision], 1);
-  EXPECT_NE(collision_thread, stepping) << "collision ran beside the starts";
+  EXPECT_NE(collision_thread, stepping) << "collision ran beside the work";
   EXPECT_EQ(t.runs[kStageCutting], 1) << "a start is not a run";
-  seen.clear();
-  sim->pipeline.set(kStageCutting, [&seen](Simulation&) { seen.push_back("cutting, replaced"); });
-  advance_frame(*sim);
-  const std::vector<std::string> replaced = {"tool_poses", "render start", "cutting, replaced", "render"};
-  EXPECT_EQ(seen, replaced) << "the replaced stage's start went with it";
   collision_throws = true;
   EXPECT_THROW(advance_frame(*sim), Error) << "the helper's error reaches the caller";
   collision_throws = false;
-  sim->pipeline.set(kStageRender, [](Simulation&) {});
-  advance_frame(*sim);
-  EXPECT_EQ(collision_thread, stepping) << "no start: collision on the stepping thread";
-  EXPECT_EQ(collisions, 4);
+  seen.clear();
+  sim->pipeline.set(kStageCutting, [&seen](Simulation&) { seen.push_back("cutting, replaced"); });
+  t = advance_frame(*sim);
+  const std::vector<std::string> replaced = {"tool_poses", "render start", "cutting, replaced", "render"};
+  EXPECT_EQ(seen, replaced) << "the replaced stage's start went with it";
+  EXPECT_EQ(collision_thread, stepping) << "no work beside collision: collision on the stepping thread";
+  EXPECT_EQ(collisions, 3);
+  EXPECT_EQ(t.runs[kStageCollision], 1);
   for (Stage s : {kStageToolPoses, kStageCollision, kStageAssembly, kStageIntegration})
-    expect_stage_error(s, [&] { sim->pipeline.set_start(s, [](Simulation&) {}); }, " cannot have a start");
+    expect_stage_error(s, [&] { sim->pipeline.set_start(s, [](Simulation&) { return StageFn{}; }); },
+                       " cannot have a start");
 }
 
 // A lagged rescue (CG gave up after rescue_after iterations) runs the
