@@ -705,6 +705,24 @@ TEST(Xfem, RebuildFromTheBaseModelEqualsAFreshBuild) {
   EXPECT_FALSE(rebuilt2.rot_K0.empty()) << "split elements carry their pieces' rest stiffness";
 }
 
+// A beam (4 x 1 x 1 m, 8 x 2 x 2 cells of tet10) uncut, and its layouts
+// for a tilted plane at x = 2.3 (one) and for that and a plane near z =
+// 0.55 (two): a rebuild on a base that already has enriched columns.
+struct TwoCuts {
+  Mesh mesh;
+  Model uncut;
+  CutLayout one, two;
+};
+TwoCuts two_cuts(const Scene& s) {
+  TwoCuts c{make_beam(4, 1, 1, 8, 2, 2, 1), {}, {}, {}};
+  c.uncut = build_model(c.mesh, s);
+  const auto plane = make_cut_surface(test::plane_cut({2.3, 0, 0}, {1, 0.2, 0.1}), 0.0);
+  const auto plane2 = make_cut_surface(test::plane_cut({0, 0, 0.55}, {0.1, 0, 1}, "cuts[1]"), 0.0);
+  c.one = compute_cut_layout(c.uncut, {plane.get()}, nullptr);
+  c.two = compute_cut_layout(c.uncut, {plane.get(), plane2.get()}, nullptr);
+  return c;
+}
+
 // A rebuild that takes a spare model's storage (build_model's spare: the
 // model the cut before last replaced) equals one without, whatever the
 // spare's sizes (larger and smaller than the new model's), for either
@@ -714,20 +732,16 @@ TEST(Xfem, ARebuildOnASpareModelsStorageEqualsOneWithout) {
     Scene s = test::block_scene(2);
     s.mass = mass;
     s.fixed.push_back(test::box({-1, -1, -1}, {0, 2, 2}));
-    const Mesh mesh = make_beam(4, 1, 1, 8, 2, 2, 1);
-    const Model uncut = build_model(mesh, s);
-    const auto plane = make_cut_surface(test::plane_cut({2.3, 0, 0}, {1, 0.2, 0.1}), 0.0);
-    const auto plane2 = make_cut_surface(test::plane_cut({0, 0, 0.55}, {0.1, 0, 1}, "cuts[1]"), 0.0);
-    const CutLayout one = compute_cut_layout(uncut, {plane.get()}, nullptr);
-    const CutLayout two = compute_cut_layout(uncut, {plane.get(), plane2.get()}, nullptr);
-    const Model base = build_model(mesh, s, &one, &uncut);
-    const Model plain = build_model(mesh, s, &two, &base);
-    for (const Model* donor : {&plain, &uncut}) {  // as large as the new model, and smaller
+    const TwoCuts c = two_cuts(s);
+    const Mesh& mesh = c.mesh;
+    const Model base = build_model(mesh, s, &c.one, &c.uncut);
+    const Model plain = build_model(mesh, s, &c.two, &base);
+    for (const Model* donor : {&plain, &c.uncut}) {  // as large as the new model, and smaller
       Model spare = *donor;
       spare.Ai.reserve(spare.Ai.size() + spare.Ai.size() / 4);
       const int* lent = spare.Ai.data();
       const bool fits = spare.Ai.capacity() >= plain.Ai.size();
-      const Model m = build_model(mesh, s, &two, &base, &spare);
+      const Model m = build_model(mesh, s, &c.two, &base, &spare);
       const char* what = donor == &plain ? "a large spare" : "a small spare";
       EXPECT_EQ(m.Ap, plain.Ap) << what;
       EXPECT_EQ(m.Ai, plain.Ai) << what;
@@ -837,14 +851,10 @@ TEST(Xfem, LumpedRebuildCopiesMassesAndConstraintsExactly) {
   p.active = {false, true, false};
   p.displacement = {0, 0.1, 0};
   s.prescribed.push_back(p);
-  const Mesh mesh = make_beam(4, 1, 1, 8, 2, 2, 1);
-  const Model uncut = build_model(mesh, s);
-  const auto plane = make_cut_surface(test::plane_cut({2.3, 0, 0}, {1, 0.2, 0.1}), 0.0);
-  const auto plane2 = make_cut_surface(test::plane_cut({0, 0, 0.55}, {0.1, 0, 1}, "cuts[1]"), 0.0);
-  const CutLayout layout = compute_cut_layout(uncut, {plane.get()}, nullptr);
-  const CutLayout layout2 = compute_cut_layout(uncut, {plane.get(), plane2.get()}, nullptr);
-  const Model rebuilt = build_model(mesh, s, &layout, &uncut);
-  for (const auto& [lay, base] : {std::pair<const CutLayout*, const Model*>{&layout, &uncut}, {&layout2, &rebuilt}}) {
+  const TwoCuts c = two_cuts(s);
+  const Mesh& mesh = c.mesh;
+  const Model rebuilt = build_model(mesh, s, &c.one, &c.uncut);
+  for (const auto& [lay, base] : {std::pair<const CutLayout*, const Model*>{&c.one, &c.uncut}, {&c.two, &rebuilt}}) {
     const Model fresh = build_model(mesh, s, lay), next = build_model(mesh, s, lay, base);
     ASSERT_GT(fresh.ndofnode, fresh.nnode);
     EXPECT_EQ(fresh.mass_lumped, next.mass_lumped);
@@ -862,7 +872,7 @@ TEST(Xfem, LumpedRebuildCopiesMassesAndConstraintsExactly) {
     double weight = 0, weight_q = 0, weight_uncut = 0;
     for (int d = 2; d < 3 * next.nnode; d += 3) weight += next.f_gravity[d];
     for (int d = 3 * next.nnode + 2; d < next.ndof(); d += 3) weight_q += next.f_gravity[d];
-    for (int d = 2; d < uncut.ndof(); d += 3) weight_uncut += uncut.f_gravity[d];
+    for (int d = 2; d < c.uncut.ndof(); d += 3) weight_uncut += c.uncut.f_gravity[d];
     EXPECT_NEAR(weight, weight_uncut, 1e-13 * std::abs(weight_uncut));
     EXPECT_LT(weight_q, 0.0);
     EXPECT_GT(weight_q, weight_uncut);
