@@ -24,9 +24,9 @@ struct EarlySweep {
 // collision stage is 4-5 ms of each cut frame (the collision tree rebuilt
 // after the last cut), the cut's layout and model 15-20 ms. The other way
 // round (the cut on the helper) took the helper CPU from the background
-// factorization for those 15-20 ms: more late factors, and the error at
-// frame 30 rose from 6.8-7.5e-3 to 1.1-1.2e-2 on probe-incision-10k. A
-// frame that does not cut leaves collision on the stepping thread.
+// factorization for those 15-20 ms, not 4-5 (docs/benchmarks.md, "A
+// scalpel's cut prepared while collision runs"). A frame that does not cut
+// leaves collision on the stepping thread.
 StageFn cutting_start(Simulation& sim, EarlySweep& early) {
   early.frame = sim.state.frame;
   early.swept = sweep_blades(sim, &early.blade_done_changed);
