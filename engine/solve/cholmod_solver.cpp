@@ -368,6 +368,11 @@ void backward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W
 // Columns per pass of a multi-column substitution (CholmodSolver::substitute_multi):
 // Y is (n, 16), W (largest supernode rows, 16).
 constexpr int kMultiGroup = 16;  // 8 measured the same at 20k (BM_SubstitutionColumns)
+// With the worker free, up to 2 x 24 columns go in two halves: a probe's 48
+// rows in two passes side by side instead of 16 + 16 on the caller and 16 on
+// the worker (multi_groups).
+constexpr int kSplitGroup = 24;
+constexpr int kWidestGroup = kSplitGroup > kMultiGroup ? kSplitGroup : kMultiGroup;
 
 // Columns c0 .. c0 + kg of B (n each), permuted, into Y (n, kp) row-interleaved (zeros past kg).
 void load_group(const int* Perm, int n, int c0, int kg, int kp, const double* B, double* Y) {
@@ -401,7 +406,9 @@ void substitute_group(const SnFactor<T>& F, int nsuper, int nb, double* Y, doubl
     case 1: substitute_group<T, 1>(F, nsuper, Y, W, progress); break;
     case 2: substitute_group<T, 2>(F, nsuper, Y, W, progress); break;
     case 3: substitute_group<T, 3>(F, nsuper, Y, W, progress); break;
-    default: substitute_group<T, 4>(F, nsuper, Y, W, progress); break;
+    case 4: substitute_group<T, 4>(F, nsuper, Y, W, progress); break;
+    case 5: substitute_group<T, 5>(F, nsuper, Y, W, progress); break;
+    default: substitute_group<T, 6>(F, nsuper, Y, W, progress); break;
   }
 }
 
@@ -423,7 +430,9 @@ void forward_path(const SnFactor<T>& F, const std::vector<int>& path, int nb, do
     case 1: forward_path<T, 1>(F, path, Y, W, progress); break;
     case 2: forward_path<T, 2>(F, path, Y, W, progress); break;
     case 3: forward_path<T, 3>(F, path, Y, W, progress); break;
-    default: forward_path<T, 4>(F, path, Y, W, progress); break;
+    case 4: forward_path<T, 4>(F, path, Y, W, progress); break;
+    case 5: forward_path<T, 5>(F, path, Y, W, progress); break;
+    default: forward_path<T, 6>(F, path, Y, W, progress); break;
   }
 }
 
@@ -961,8 +970,8 @@ void CholmodSolver::solve_copy_multi(int k, const double* B, double* X) {
   }
   settle();
   prepare_workspace();
-  resize_with_headroom(multi_y_, static_cast<size_t>(n_) * kMultiGroup);
-  resize_with_headroom(multi_w_, work_w_.size() * kMultiGroup);
+  resize_with_headroom(multi_y_, static_cast<size_t>(n_) * kWidestGroup);
+  resize_with_headroom(multi_w_, work_w_.size() * kWidestGroup);
   with_substitution_factor([&](const auto* Lx, const double* inv_scale) { substitute_multi(Lx, inv_scale, k, B, X); });
 }
 
@@ -977,11 +986,11 @@ void CholmodSolver::solve_copy_multi(int k, const double* B, double* X) {
 template <class T, class Load, class Pass, class Store>
 void CholmodSolver::multi_groups(const T* Lx, const double* inv_scale, int k, const std::vector<int>* path,
                                  const Load& load, const Pass& pass, const Store& store) {
-  // With the worker free, 2-32 columns go in two groups of half each (a
+  // With the worker free, 2-48 columns go in two groups of half each (a
   // group's cost is its width: a grasp's 9 rows or a probe's 16 split too).
   // A column's arithmetic does not depend on its group: the same bits.
   const bool two = substitutes_on_two_threads() && !worker_->busy();
-  const int size = two && k > 1 && k <= 2 * kMultiGroup ? (k + 1) / 2 : kMultiGroup;
+  const int size = two && k > 1 && k <= 2 * kSplitGroup ? (k + 1) / 2 : kMultiGroup;
   const int groups = (k + size - 1) / size;
   const auto width = [&](int g, int& c0, int& kg, int& nb) {
     c0 = g * size;
@@ -1059,8 +1068,8 @@ bool CholmodSolver::forward_half_multi(int k, const double* B, const std::vector
     sn_mark_[sn] = 0;
     for (int j = super[sn]; j < super[sn + 1]; ++j) rows.push_back(j);
   }
-  resize_with_headroom(multi_y_, static_cast<size_t>(n_) * kMultiGroup);
-  resize_with_headroom(multi_w_, work_w_.size() * kMultiGroup);
+  resize_with_headroom(multi_y_, static_cast<size_t>(n_) * kWidestGroup);
+  resize_with_headroom(multi_w_, work_w_.size() * kWidestGroup);
   with_substitution_factor([&](const auto* Lx, const double* inv_scale) { forward_half(Lx, inv_scale, k, B, rows, Z); });
   return true;
 }

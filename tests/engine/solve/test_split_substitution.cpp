@@ -298,13 +298,13 @@ uint64_t hold_worker(SubstitutionWorker& worker, std::atomic<bool>& release) {
       &release);
 }
 
-// A multi-column substitution gives its second group to the worker (35
-// columns: 16, 16, 3; 2-32: two halves): the same bits as on one thread,
-// whether the worker runs it, never starts (the caller takes it over,
-// counted) or is busy with another task; in place too.
+// A multi-column substitution gives its second group to the worker (51
+// columns: 16, 16, 16, 3; 2-48: two halves of up to 24): the same bits as on
+// one thread, whether the worker runs it, never starts (the caller takes it
+// over, counted) or is busy with another task; in place too.
 TEST(SplitSubstitution, MultiColumnSolveGivesAGroupToTheWorkerWithTheSameBits) {
   const Model m = beam(12, 4);
-  const int n = m.ndof(), k = 35;
+  const int n = m.ndof(), k = 51;
   const std::vector<double> A = system_matrix(m);
   SubstitutionWorker running, stalled(/*launch=*/false);
   CholmodSolver one, two, late;
@@ -323,13 +323,13 @@ TEST(SplitSubstitution, MultiColumnSolveGivesAGroupToTheWorkerWithTheSameBits) {
     two.solve_copy_multi(k, B.data(), X2.data());
     ASSERT_EQ(X2, X1) << "repeat " << rep;
   }
-  for (int kk : {2, 9, 16, 27}) {  // two groups of half each: the same bits as one group of 16 on one thread
+  for (int kk : {2, 9, 16, 27, 35, 48}) {  // two groups of half each: the same bits as groups of 16 on one thread
     std::vector<double> Y1(static_cast<size_t>(n) * kk), Y2(Y1.size());
     one.solve_copy_multi(kk, B.data(), Y1.data());
     two.solve_copy_multi(kk, B.data(), Y2.data());
     ASSERT_EQ(Y2, Y1) << kk << " columns";
   }
-  for (int kk : {1, 9, 27}) {  // the forward half's groups the same way (forward_half_multi)
+  for (int kk : {1, 9, 27, 41}) {  // the forward half's groups the same way (forward_half_multi)
     std::vector<int> nz, r1, r2;
     for (int d = 0; d < 12; ++d) nz.push_back(d);
     std::vector<double> Bs(static_cast<size_t>(n) * kk, 0.0), Z1, Z2;
