@@ -261,6 +261,18 @@ __attribute__((always_inline)) inline D4 ld4(const double* p) {
   return v;
 }
 __attribute__((always_inline)) inline void st4(double* p, const D4& v) { std::memcpy(p, &v, sizeof v); }
+// c - a b and c + a b, fused where the target has FMA. Written out: left to
+// GCC, -mtune=znver3 (avoid-fma-max-bits=256) fused some of these and not
+// others by the shape of the loop around them, so a column's bits depended
+// on its group's width (forty-first session). Macros, as D4 is never passed
+// by value.
+#ifdef __FMA__
+#define INCISE_FNMA4(a, b, c) _mm256_fnmadd_pd(_mm256_set1_pd(a), (b), (c))
+#define INCISE_FMA4(a, b, c) _mm256_fmadd_pd(_mm256_set1_pd(a), (b), (c))
+#else
+#define INCISE_FNMA4(a, b, c) ((c) - (a) * (b))
+#define INCISE_FMA4(a, b, c) ((c) + (a) * (b))
+#endif
 
 template <class T, int NB>
 void forward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W) {
@@ -280,9 +292,12 @@ void forward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W)
     D4 r0[NB], r1[NB], r2[NB], r3[NB];
     for (int b = 0; b < NB; ++b) {
       r0[b] = ld4(row(j) + 4 * b) / d(c0[j]);
-      r1[b] = (ld4(row(j + 1) + 4 * b) - d(c0[j + 1]) * r0[b]) / d(c1[j + 1]);
-      r2[b] = (ld4(row(j + 2) + 4 * b) - d(c0[j + 2]) * r0[b] - d(c1[j + 2]) * r1[b]) / d(c2[j + 2]);
-      r3[b] = (ld4(row(j + 3) + 4 * b) - d(c0[j + 3]) * r0[b] - d(c1[j + 3]) * r1[b] - d(c2[j + 3]) * r2[b]) / d(c3[j + 3]);
+      r1[b] = INCISE_FNMA4(d(c0[j + 1]), r0[b], ld4(row(j + 1) + 4 * b)) / d(c1[j + 1]);
+      r2[b] = INCISE_FNMA4(d(c0[j + 2]), r0[b], ld4(row(j + 2) + 4 * b));
+      r2[b] = INCISE_FNMA4(d(c1[j + 2]), r1[b], r2[b]) / d(c2[j + 2]);
+      r3[b] = INCISE_FNMA4(d(c0[j + 3]), r0[b], ld4(row(j + 3) + 4 * b));
+      r3[b] = INCISE_FNMA4(d(c1[j + 3]), r1[b], r3[b]);
+      r3[b] = INCISE_FNMA4(d(c2[j + 3]), r2[b], r3[b]) / d(c3[j + 3]);
       st4(row(j) + 4 * b, r0[b] * sc);  // the update below uses the unscaled values
       st4(row(j + 1) + 4 * b, r1[b] * sc);
       st4(row(j + 2) + 4 * b, r2[b] * sc);
@@ -291,7 +306,12 @@ void forward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W)
     for (int i = j + 4; i < nsrow; ++i) {
       const double l0 = d(c0[i]), l1 = d(c1[i]), l2 = d(c2[i]), l3 = d(c3[i]);
       double* wi = row(i);
-      for (int b = 0; b < NB; ++b) st4(wi + 4 * b, ld4(wi + 4 * b) - (l0 * r0[b] + l1 * r1[b] + l2 * r2[b] + l3 * r3[b]));
+      for (int b = 0; b < NB; ++b) {
+        D4 v = INCISE_FNMA4(l0, r0[b], ld4(wi + 4 * b));
+        v = INCISE_FNMA4(l1, r1[b], v);
+        v = INCISE_FNMA4(l2, r2[b], v);
+        st4(wi + 4 * b, INCISE_FNMA4(l3, r3[b], v));
+      }
     }
   }
   for (; j < nscol; ++j) {
@@ -304,7 +324,7 @@ void forward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W)
     for (int i = j + 1; i < nsrow; ++i) {
       const double l = d(col[i]);
       double* wi = row(i);
-      for (int b = 0; b < NB; ++b) st4(wi + 4 * b, ld4(wi + 4 * b) - l * r[b]);
+      for (int b = 0; b < NB; ++b) st4(wi + 4 * b, INCISE_FNMA4(l, r[b], ld4(wi + 4 * b)));
     }
   }
   for (int i = 0; i < nsrow; ++i) std::memcpy(Y + static_cast<size_t>(F.Ls[psi + i]) * kp, W + static_cast<size_t>(i) * kp, sizeof(double) * kp);
@@ -328,7 +348,7 @@ void backward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W
     for (int i = j + 1; i < nsrow; ++i) {
       const double l = d(col[i]);
       const double* wi = row(i);
-      for (int b = 0; b < NB; ++b) acc[b] -= l * ld4(wi + 4 * b);
+      for (int b = 0; b < NB; ++b) acc[b] = INCISE_FNMA4(l, ld4(wi + 4 * b), acc[b]);
     }
     for (int b = 0; b < NB; ++b) st4(row(j) + 4 * b, acc[b] / d(col[j]));
   }
@@ -345,17 +365,20 @@ void backward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W
       const double* wi = row(i);
       for (int b = 0; b < NB; ++b) {
         const D4 v = ld4(wi + 4 * b);
-        a0[b] += l0 * v;
-        a1[b] += l1 * v;
-        a2[b] += l2 * v;
-        a3[b] += l3 * v;
+        a0[b] = INCISE_FMA4(l0, v, a0[b]);
+        a1[b] = INCISE_FMA4(l1, v, a1[b]);
+        a2[b] = INCISE_FMA4(l2, v, a2[b]);
+        a3[b] = INCISE_FMA4(l3, v, a3[b]);
       }
     }
     for (int b = 0; b < NB; ++b) {
       const D4 x3 = (ld4(row(j0 + 3) + 4 * b) - a3[b]) / d(c3[j0 + 3]);
-      const D4 x2 = (ld4(row(j0 + 2) + 4 * b) - a2[b] - d(c2[j0 + 3]) * x3) / d(c2[j0 + 2]);
-      const D4 x1 = (ld4(row(j0 + 1) + 4 * b) - a1[b] - d(c1[j0 + 2]) * x2 - d(c1[j0 + 3]) * x3) / d(c1[j0 + 1]);
-      const D4 x0 = (ld4(row(j0) + 4 * b) - a0[b] - d(c0[j0 + 1]) * x1 - d(c0[j0 + 2]) * x2 - d(c0[j0 + 3]) * x3) / d(c0[j0]);
+      const D4 x2 = INCISE_FNMA4(d(c2[j0 + 3]), x3, ld4(row(j0 + 2) + 4 * b) - a2[b]) / d(c2[j0 + 2]);
+      D4 x1 = INCISE_FNMA4(d(c1[j0 + 2]), x2, ld4(row(j0 + 1) + 4 * b) - a1[b]);
+      x1 = INCISE_FNMA4(d(c1[j0 + 3]), x3, x1) / d(c1[j0 + 1]);
+      D4 x0 = INCISE_FNMA4(d(c0[j0 + 1]), x1, ld4(row(j0) + 4 * b) - a0[b]);
+      x0 = INCISE_FNMA4(d(c0[j0 + 2]), x2, x0);
+      x0 = INCISE_FNMA4(d(c0[j0 + 3]), x3, x0) / d(c0[j0]);
       st4(row(j0) + 4 * b, x0);
       st4(row(j0 + 1) + 4 * b, x1);
       st4(row(j0 + 2) + 4 * b, x2);
