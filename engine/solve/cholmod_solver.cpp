@@ -389,7 +389,7 @@ void backward_supernode_multi(const SnFactor<T>& F, int sn, double* Y, double* W
 }
 
 // Columns per pass of a multi-column substitution (CholmodSolver::substitute_multi):
-// Y is (n, 16), W (largest supernode rows, 16).
+// Y is (n, 16), W (largest supernode rows, 16); up to 24 for a half.
 constexpr int kMultiGroup = 16;  // 8 measured the same at 20k (BM_SubstitutionColumns)
 // With the worker free, up to 2 x 24 columns go in two halves: a probe's 48
 // rows in two passes side by side instead of 16 + 16 on the caller and 16 on
@@ -467,6 +467,8 @@ void worker_multi(void* p) {
   else substitute_group<T>(F, static_cast<int>(j.L->nsuper), j.nb, j.Y2, j.W2, &j.progress);
 }
 
+#undef INCISE_FNMA4
+#undef INCISE_FMA4
 #pragma GCC diagnostic pop
 
 // The worker's bins (SubstitutionSplit::bins[1]) for split_substitute, on
