@@ -403,8 +403,9 @@ void launch_cut(Simulation& sim, std::vector<double> progress, double t_sweep) {
   const bool helper_cpus = sim.ws.runtime.split_affinity;
   if (!sim.cut_helper || sim.cut_helper->helper_cpus() != helper_cpus)
     sim.cut_helper = std::make_unique<HelperThread>(helper_cpus, HelperThread::Priority::Normal);  // (none running)
-  std::shared_ptr<Model> retired = std::move(sim.retired_model);
-  sim.cut_helper->run([ahead, a, s, retired]() mutable {  // (ahead: the task keeps its result alive)
+  // (retired moved in, not copied: a copy left here would keep its count
+  // above 1 while the task may already run, and the spare would go unused.)
+  sim.cut_helper->run([ahead, a, s, retired = std::move(sim.retired_model)]() mutable {  // (ahead: the task keeps its result alive)
     try {  // the model the last cut replaced: storage for the new one, then freed
       Model* spare = retired.use_count() == 1 ? retired.get() : nullptr;
       a->result = prepare_cut(*s, a->progress, a->t_sweep, a->swept, a->swept_tool, a->blade_done, spare);
