@@ -321,36 +321,44 @@ inline void prefetch_element_K(const Model& m, int e, double* K) {
 
 // The rotations of element e's slots (identity for the linear model), each
 // from its slot's F = I + G, G = sum_a u_a g_a^T, which Fs (slots, 9) keeps
-// (as G) for the points that share it (qp_slot_F). keep (in/out) stays true
+// (as G) for the points that share it (qp_slot_F); four slots at a time (a
+// tet10's points: extract_rotations' lanes). keep (in/out) stays true
 // while every |F - cache F| <= theta (a NaN: false); `probe` compares into
 // would_keep instead and stores F (as G) in the cache. Returns the SVD
 // fallbacks.
 template <int NN>
 inline int element_rotations(const Model& m, const AssemblyPlan& plan, int e, int n, const double* ue, double* Rall,
                              double* Fs, TangentCache* cache, bool probe, bool& keep, bool& would_keep) {
+  const int k0 = plan.elem_rot_ptr[e], k1 = plan.elem_rot_ptr[e + 1];
+  if (m.material.model == MaterialModel::Linear) {
+    for (int k = k0; k < k1; ++k) Eigen::Map<Mat3>(Rall + 9 * plan.elem_rot[k]).setIdentity();
+    return 0;
+  }
   int fallbacks = 0;
-  const bool linear = m.material.model == MaterialModel::Linear;
-  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
-    const int r = plan.elem_rot[k];
-    Eigen::Map<Mat3> Rm(Rall + 9 * r);
-    if (linear) {
-      Rm.setIdentity();
-      continue;
+  for (int c = k0; c < k1; c += 4) {
+    const int count = std::min(4, k1 - c);
+    double Ff[36], Rr[36];  // (count, 9)
+    for (int j = 0; j < count; ++j) {
+      const int r = plan.elem_rot[c + j];
+      double* F = Fs + 9 * (c + j - k0);  // G, F - I
+      grad_sum<NN>(n, ue, &m.rot_grad[m.rot_grad_ptr[r]], F);
+      add_identity(F, Ff + 9 * j);
+      std::copy(Rall + 9 * r, Rall + 9 * r + 9, Rr + 9 * j);
     }
-    double* F = Fs + 9 * (k - plan.elem_rot_ptr[e]);  // G, F - I
-    grad_sum<NN>(n, ue, &m.rot_grad[m.rot_grad_ptr[r]], F);
-    Mat3 Rr = Rm, Ff;
-    add_identity(F, Ff.data());
-    if (extract_rotation(Ff, Rr) < 0) ++fallbacks;
-    Rm = Rr;
-    if (keep)
-      for (int i = 0; i < 9; ++i)
-        if (!(std::fabs(F[i] - cache->F[9 * static_cast<size_t>(r) + i]) <= cache->theta)) keep = false;
-    if (probe) {
-      double* Fr = &cache->F[9 * static_cast<size_t>(r)];
-      for (int i = 0; i < 9; ++i)
-        if (!(std::fabs(F[i] - Fr[i]) <= cache->theta)) would_keep = false;
-      std::copy(F, F + 9, Fr);
+    fallbacks += extract_rotations(count, Ff, Rr);
+    for (int j = 0; j < count; ++j) {
+      const int r = plan.elem_rot[c + j];
+      std::copy(Rr + 9 * j, Rr + 9 * j + 9, Rall + 9 * r);
+      const double* F = Fs + 9 * (c + j - k0);
+      if (keep)
+        for (int i = 0; i < 9; ++i)
+          if (!(std::fabs(F[i] - cache->F[9 * static_cast<size_t>(r) + i]) <= cache->theta)) keep = false;
+      if (probe) {
+        double* Fr = &cache->F[9 * static_cast<size_t>(r)];
+        for (int i = 0; i < 9; ++i)
+          if (!(std::fabs(F[i] - Fr[i]) <= cache->theta)) would_keep = false;
+        std::copy(F, F + 9, Fr);
+      }
     }
   }
   return fallbacks;
@@ -693,8 +701,8 @@ void stiffness_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, cons
 namespace {
 // The element's displacements gathered once for all its slots (a slot at a time
 // gathered them per slot: 4 times for a tet10 per_point); each slot's angle
-// into the worker's largest and its body's volume-weighted sums
-// (body: V a^2, V, V above the threshold).
+// (four at a time: rotation_angles_to's lanes) into the worker's largest and
+// its body's volume-weighted sums (body: V a^2, V, V above the threshold).
 template <int NN>
 void element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, const double* u, const double* Rall,
                              double* ue, double threshold, double& max, double* body) {
@@ -703,23 +711,34 @@ void element_rotation_change(const Model& m, const AssemblyPlan& plan, int e, co
   const int* nodes = &m.elem_dof_node[b0];
   for (int a = 0; a < n; ++a)
     for (int i = 0; i < 3; ++i) ue[3 * a + i] = u[3 * nodes[a] + i];
-  for (int k = plan.elem_rot_ptr[e]; k < plan.elem_rot_ptr[e + 1]; ++k) {
-    const int r = plan.elem_rot[k];
-    double G[9], F[9];
-    grad_sum<NN>(n, ue, &m.rot_grad[m.rot_grad_ptr[r]], G);
-    add_identity(G, F);
-    // An inverted point's rotation (the inversion-safe one, polar.h) jumps
-    // as F passes through det F = 0 and does not settle with more Newton
-    // iterations; it is counted (FrameTiming::inverted_points), not checked.
-    if (!(Eigen::Map<const Mat3>(F).determinant() > 0.0)) continue;
-    const double a = rotation_angle_to(Eigen::Map<const Mat3>(F), Eigen::Map<const Mat3>(Rall + 9 * r));
-    if (!(a >= 0.0)) continue;  // NaN
-    const double v = plan.slot_volume[r];
-    max = std::max(max, a);
-    double* b = body + 3 * (m.rot_body.empty() ? 0 : m.rot_body[r]);
-    b[0] += v * a * a;
-    b[1] += v;
-    if (a > threshold) b[2] += v;
+  const int k0 = plan.elem_rot_ptr[e], k1 = plan.elem_rot_ptr[e + 1];
+  for (int c = k0; c < k1; c += 4) {
+    double F[36], R[36], angle[4];  // (4, 9), (4, 9), (4)
+    int slot[4], count = 0;
+    for (int k = c; k < std::min(c + 4, k1); ++k) {
+      const int r = plan.elem_rot[k];
+      double G[9];
+      grad_sum<NN>(n, ue, &m.rot_grad[m.rot_grad_ptr[r]], G);
+      add_identity(G, F + 9 * count);
+      // An inverted point's rotation (the inversion-safe one, polar.h) jumps
+      // as F passes through det F = 0 and does not settle with more Newton
+      // iterations; it is counted (FrameTiming::inverted_points), not checked.
+      if (!(Eigen::Map<const Mat3>(F + 9 * count).determinant() > 0.0)) continue;
+      std::copy(Rall + 9 * r, Rall + 9 * r + 9, R + 9 * count);
+      slot[count++] = r;
+    }
+    rotation_angles_to(count, F, R, angle);
+    for (int j = 0; j < count; ++j) {
+      const double a = angle[j];
+      if (!(a >= 0.0)) continue;  // NaN
+      const int r = slot[j];
+      const double v = plan.slot_volume[r];
+      max = std::max(max, a);
+      double* b = body + 3 * (m.rot_body.empty() ? 0 : m.rot_body[r]);
+      b[0] += v * a * a;
+      b[1] += v;
+      if (a > threshold) b[2] += v;
+    }
   }
 }
 }  // namespace

@@ -802,19 +802,28 @@ void update_node_rotations(const Model& m, const double* R, Workspace& ws) {
     }
     w.pool->barrier();
     ThreadPool::split(m.ndofnode, w.pool->size(), tid, b, e);
+    // Four nodes at a time (extract_rotations' lanes): S (4, 9), R (4, 9).
+    double S[36], Rb[36];
+    int nodes[4], count = 0;
+    const auto extract = [&] {
+      extract_rotations(count, S, Rb);
+      for (int j = 0; j < count; ++j) std::copy(Rb + 9 * j, Rb + 9 * j + 9, &w.Rn[9 * static_cast<size_t>(nodes[j])]);
+      count = 0;
+    };
     for (int node = b; node < e; ++node) {
-      Eigen::Map<Mat3> Rn(&w.Rn[9 * node]);
       if (w.node_identity[node] || w.node_elem_ptr[node] == w.node_elem_ptr[node + 1]) {
-        Rn.setIdentity();
+        Eigen::Map<Mat3>(&w.Rn[9 * node]).setIdentity();
         continue;
       }
-      Mat3 S = Mat3::Zero();
+      Eigen::Map<Mat3> Sn(S + 9 * count);
+      Sn.setZero();
       for (int k = w.node_elem_ptr[node]; k < w.node_elem_ptr[node + 1]; ++k)
-        S += Eigen::Map<const Mat3>(&w.elem_S[9 * static_cast<size_t>(w.node_elem[k])]);
-      Mat3 R = Rn;
-      extract_rotation(S, R);
-      Rn = R;
+        Sn += Eigen::Map<const Mat3>(&w.elem_S[9 * static_cast<size_t>(w.node_elem[k])]);
+      std::copy(&w.Rn[9 * node], &w.Rn[9 * node] + 9, Rb + 9 * count);
+      nodes[count++] = node;
+      if (count == 4) extract();
     }
+    if (count > 0) extract();
   });
 }
 

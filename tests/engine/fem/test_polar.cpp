@@ -1,5 +1,9 @@
 // Inversion-safe rotation extraction.
+#include <algorithm>
+#include <cstring>
+#include <limits>
 #include <random>
+#include <vector>
 
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
@@ -114,6 +118,59 @@ TEST(Polar, RotationAngleToIsTheAngleForSmallLargeAndDegenerateF) {
     const double got = rotation_angle_to(F, R);
     EXPECT_GE(got, 0.0) << "k = " << k;
     EXPECT_LE(got, M_PI + 1e-12) << "k = " << k;
+  }
+}
+
+
+// extract_rotations and rotation_angles_to run four gradients side by side
+// (the assembly's lanes): each result must be the one-at-a-time function's
+// to the bit, whatever its neighbours in the call are (a lane that stops
+// early, takes the SVD, is inverted, zero or NaN, or needs the exact large
+// step), and for counts that leave padding lanes. Otherwise a rotation
+// would depend on how the slots are grouped.
+TEST(Polar, FourAtATimeGivesEachRotationTheBitsOfOneAtATime) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(0.3, 2.0);
+  std::normal_distribution<double> N;
+  std::vector<Eigen::Matrix3d> F, R0;
+  for (int k = 0; k < 40; ++k) {
+    const Eigen::Matrix3d Q1 = random_rotation(rng), Q2 = random_rotation(rng);
+    Eigen::Vector3d s(U(rng), U(rng), U(rng));
+    if (k % 5 == 1) s[k % 3] *= -1.0;     // inverted
+    if (k % 7 == 2) s[(k + 1) % 3] = 1e-9;  // nearly flat
+    Eigen::Matrix3d Fk = Q1 * s.asDiagonal() * Q2.transpose();
+    if (k == 13) Fk.setZero();
+    if (k == 17) Fk(1, 2) = std::numeric_limits<double>::quiet_NaN();
+    if (k == 23) Fk *= 1e-300;
+    F.push_back(Fk);
+    // Warm starts from 1e-4 to 2 rad off (the exact step past 0.1 rad).
+    const double angle = std::pow(10.0, -4.0 + 4.3 * (k % 9) / 8.0);
+    const Eigen::Vector3d axis = Eigen::Vector3d(N(rng), N(rng), N(rng)).normalized();
+    R0.push_back(Eigen::AngleAxisd(angle, axis).toRotationMatrix() * reference_rotation(Fk.allFinite() ? Fk : Q1));
+  }
+  for (int count : {1, 3, 4, 7, 40}) {
+    std::vector<double> Fs(9 * count), Rs(9 * count), angles(count);
+    std::vector<int> its(count);
+    for (int k = 0; k < count; ++k) {
+      std::copy(F[k].data(), F[k].data() + 9, &Fs[9 * k]);
+      std::copy(R0[k].data(), R0[k].data() + 9, &Rs[9 * k]);
+    }
+    rotation_angles_to(count, Fs.data(), Rs.data(), angles.data());
+    const int fallbacks = extract_rotations(count, Fs.data(), Rs.data(), its.data());
+    int expected_fallbacks = 0;
+    for (int k = 0; k < count; ++k) {
+      Eigen::Matrix3d R = R0[k];
+      const int it = extract_rotation(F[k], R);
+      expected_fallbacks += it < 0;
+      EXPECT_EQ(its[k], it) << "count " << count << ", k " << k;
+      EXPECT_EQ(std::memcmp(&Rs[9 * k], R.data(), sizeof(double) * 9), 0) << "count " << count << ", k " << k;
+      const double a = rotation_angle_to(F[k], R0[k]);
+      EXPECT_EQ(std::memcmp(&angles[k], &a, sizeof(double)), 0) << "count " << count << ", k " << k;
+    }
+    EXPECT_EQ(fallbacks, expected_fallbacks);
+    if (count == 40) {
+      EXPECT_GT(expected_fallbacks, 0) << "the set includes SVD fallbacks";
+    }
   }
 }
 
