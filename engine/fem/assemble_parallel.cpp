@@ -797,7 +797,8 @@ void element_subset_forces(const Model& m, AssemblyPlan& plan, const std::vector
   }
 }
 
-void sym_matvec_parallel(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* A, const double* x,
+template <class T>
+void parallel_sym_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const T* A, const double* x,
                          double* y) {
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
   const int n = m.ndof();
@@ -821,6 +822,16 @@ void sym_matvec_parallel(const Model& m, AssemblyPlan& plan, ThreadPool& pool, c
       for (int r = b; r < lim; ++r) y[r] += bt[r];
     }
   });
+}
+
+void sym_matvec_parallel(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const double* A, const double* x,
+                         double* y) {
+  parallel_sym_matvec(m, plan, pool, A, x, y);
+}
+
+void sym_matvec_parallel(const Model& m, AssemblyPlan& plan, ThreadPool& pool, const float* A, const double* x,
+                         double* y) {
+  parallel_sym_matvec(m, plan, pool, A, x, y);
 }
 
 }  // namespace incise

@@ -131,5 +131,7 @@ void stiffness_matvec(const Model& model, AssemblyPlan& plan, ThreadPool& pool, 
 // pool's workers (same result as sym_matvec up to the order of sums).
 void sym_matvec_parallel(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const double* A, const double* x,
                          double* y);
+void sym_matvec_parallel(const Model& model, AssemblyPlan& plan, ThreadPool& pool, const float* A, const double* x,
+                         double* y);
 
 }  // namespace incise

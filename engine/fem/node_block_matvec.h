@@ -12,7 +12,8 @@
 
 namespace incise {
 
-inline void node_block_matvec(const int* Ap, const int* Ai, const double* A, const double* x, int node0, int node1,
+template <class T>
+inline void node_block_matvec(const int* Ap, const int* Ai, const T* A, const double* x, int node0, int node1,
                               int row_split, double* y_lo, double* y) {
   for (int c = node0; c < node1; ++c) {
     const int k0 = Ap[3 * c], k1 = Ap[3 * c + 1], k2 = Ap[3 * c + 2];
@@ -20,7 +21,7 @@ inline void node_block_matvec(const int* Ap, const int* Ai, const double* A, con
     assert(L % 3 == 0 && k2 - k1 == L + 2 && Ap[3 * c + 3] - k2 == L + 3 && Ai[k0 + L] == 3 * c);
     const double x0 = x[3 * c], x1 = x[3 * c + 1], x2 = x[3 * c + 2];
     double s0 = 0.0, s1 = 0.0, s2 = 0.0;
-    const double *a = A + k0, *b = A + k1, *d = A + k2;
+    const T *a = A + k0, *b = A + k1, *d = A + k2;
     const int span = 3 * L + 6;  // the node's entries: A[k0, k0 + span) (and Ai)
     for (int t = 0; t < L; t += 3) {
       // The three columns are three short streams the hardware prefetcher

@@ -464,7 +464,8 @@ void parse_integrator(const Parser& p, const json& v, Scene& s) {
 }
 
 // solver.* keys that only some policies use (the parser refuses them under another).
-const std::vector<std::string> kIterativeKeys{"tolerance", "max_iterations", "initial_guess", "frame_iterations"};
+const std::vector<std::string> kIterativeKeys{"tolerance", "max_iterations", "initial_guess", "frame_iterations",
+                                              "matrix_precision"};
 const std::vector<std::string> kLaggedKeys{"refresh_every", "background",    "warp",        "single_precision",
                                            "factor_copy",   "factor_precision", "rescue_after", "late_factor",
                                            "patch",         "cut_ordering",  "background_priority", "coarse",
@@ -480,7 +481,7 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   p.allowed_keys(v, at, {"preset", "policy", "refresh_every", "background", "warp", "single_precision", "factor_copy", "rescue_after", "late_factor",
                          "patch", "cut_ordering", "background_priority", "tolerance", "max_iterations", "threads", "substitution_threads",
                          "factorization", "ordering", "factor_precision", "initial_guess", "affinity", "coarse",
-                         "frame_iterations", "condense_below", "contact_patch"});
+                         "frame_iterations", "condense_below", "contact_patch", "matrix_precision"});
   SolverSettings& o = s.solver;
   RuntimeSettings& rt = s.runtime;
   if (auto it = v.find("preset"); it != v.end()) s.preset = solver_preset_names()[p.choice(*it, at + ".preset", solver_preset_names())];
@@ -523,6 +524,8 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
     o.max_iterations = p.at_least_one(*it, at + ".max_iterations");
   if (auto it = v.find("frame_iterations"); it != v.end())
     o.frame_iterations = p.nonnegative_int(*it, at + ".frame_iterations");
+  if (auto it = v.find("matrix_precision"); it != v.end())
+    o.single_matrix = p.choice(*it, at + ".matrix_precision", {"double", "single"}) == 1;
   if (auto it = v.find("condense_below"); it != v.end()) {
     o.condense_below = p.nonnegative(*it, at + ".condense_below");
     if (!(o.condense_below < 1.0)) p.fail(at + ".condense_below", " must be in [0, 1), got " + show(*it));
@@ -1054,6 +1057,7 @@ std::vector<ResolvedSetting> resolved_settings(const Scene& s) {
       {"max_iterations", std::to_string(o.max_iterations)},
       {"initial_guess", quoted(o.previous_guess ? "previous" : "zero")},
       {"frame_iterations", std::to_string(o.frame_iterations)},
+      {"matrix_precision", quoted(o.single_matrix ? "single" : "double")},
       {"coarse", quoted(o.coarse ? "corners" : "none")},
       {"condense_below", number_text(o.condense_below)},
       {"contact_patch", std::to_string(o.contact_patch)},

@@ -197,6 +197,11 @@ struct SolverSettings {
   double tolerance = 1e-6;     // CG: relative residual |r| / |b| (> 0, < 1)
   bool previous_guess = true;  // CG: solver.initial_guess "previous" (the last frame's increment, scaled) or "zero"
   int max_iterations = 50;     // CG iterations per solve (>= 1)
+  // CG: solver.matrix_precision "single": CG's products with A read a float
+  // copy of it (half the bytes of the frame's most-read matrix after the
+  // factor); the Newton residual stays in double, so only the step moves,
+  // by about 6e-8 of A (docs/numerics.md, "CG's matrix in single precision").
+  bool single_matrix = false;
   // CG: solver.frame_iterations, CG iterations per frame over all its Newton
   // iterations (0 = no cap): once spent, the frame accepts the residual it
   // has (FrameTiming::budget_spent) instead of iterating or rescuing further.

@@ -153,6 +153,7 @@ const json* solver_preset(const std::string& name) {
         // as 1e-3 from dt v (docs/numerics.md, "The Newton predictor").
         {"tolerance", 1e-2},
         {"max_iterations", 100},
+        {"matrix_precision", "single"},
         {"threads", 1},
         {"rescue_after", 20},
         {"late_factor", "skip"},

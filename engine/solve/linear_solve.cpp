@@ -77,10 +77,30 @@ void warped_apply(const Model& m, Workspace& ws, const double* b, double* x) {
 // minimises |b - alpha A x0| (one product more; never a larger residual than
 // x = 0). Records iterations, the starting and final residual and
 // convergence in ws.timing.
+// y = A v for CG. Under solver.matrix_precision "single" (docs/numerics.md,
+// "CG's matrix in single precision") from A's float copy, made at the third
+// product with a newly formed A: the copy reads 8 and writes 4 bytes an
+// entry, each product from it reads 4 fewer, so the first two products of
+// an A read it in double (a frame of one CG iteration makes two).
+// static_solve and init_state write ws.A themselves and set A_generation to
+// 0: no copy is taken of that.
+void cg_matvec(const Model& m, Workspace& ws, const double* A, const double* v, double* y) {
+  auto& w = ws.work;
+  const bool single = m.solver.single_matrix && A == ws.A.data() && ws.A_generation != 0;
+  if (single && ws.A_single_stamp != ws.A_stamp && ++ws.A_products > 2) {
+    resize_with_headroom(ws.A_single, m.nnz());
+    for (int k = 0; k < m.nnz(); ++k) ws.A_single[k] = static_cast<float>(A[k]);
+    ws.A_single_stamp = ws.A_stamp;
+  }
+  if (single && ws.A_single_stamp == ws.A_stamp) sym_matvec_parallel(m, w.plan, *w.pool, ws.A_single.data(), v, y);
+  else sym_matvec_parallel(m, w.plan, *w.pool, A, v, y);
+}
+
 template <class Precond>
 void pcg(const Model& m, Workspace& ws, const double* A, const double* b, double* x, const Precond& precond,
          int max_iterations, const double* x0 = nullptr) {
   auto& w = ws.work;
+  const auto matvec = [&](const double* v, double* y) { cg_matvec(m, ws, A, v, y); };
   const int n = m.ndof();
   std::vector<double>& r = w.r;
   std::vector<double>& z = w.z;
@@ -94,7 +114,7 @@ void pcg(const Model& m, Workspace& ws, const double* A, const double* b, double
   if (bnorm == 0.0) return;
   if (x0) {
     // min over alpha of |b - alpha q|^2, q = A x0: alpha = (b.q)/(q.q), |r|^2 = |b|^2 - alpha (b.q).
-    sym_matvec_parallel(m, w.plan, *w.pool, A, x0, q.data());
+    matvec(x0, q.data());
     double bq = 0.0, qq = 0.0;
     for (int i = 0; i < n; ++i) bq += b[i] * q[i], qq += q[i] * q[i];
     const double alpha = qq > 0.0 && std::isfinite(bq / qq) ? bq / qq : 0.0;
@@ -122,7 +142,7 @@ void pcg(const Model& m, Workspace& ws, const double* A, const double* b, double
   double rz = dot(r, z), rel = 1.0;
   int it = 0;
   while (it < max_iterations) {
-    sym_matvec_parallel(m, w.plan, *w.pool, A, p.data(), q.data());
+    matvec(p.data(), q.data());
     ++it;
     const double pq = dot(p, q);
     if (!(pq > 0.0)) break;  // breakdown (should not happen: A is SPD); reported as not converged
@@ -835,6 +855,8 @@ namespace {
 void form_matrix_once(const Model& m, Workspace& ws, const double* K) {
   if (ws.A_generation == ws.K_generation && ws.A_source == K && ws.A_recovery == ws.recovery) return;
   form_matrix(m, K, ws.A.data(), ws.recovery);
+  ++ws.A_stamp;
+  ws.A_products = 0;
   ws.A_generation = ws.K_generation;
   ws.A_source = K;
   ws.A_recovery = ws.recovery;

@@ -27,7 +27,8 @@
 # --set solver.refresh_every=K; an environment variable below adds a --set
 # only when it is given. The preset: lagged CG, background factorization taken
 # K frames after it starts (K grows with the factor time), warp, CG tolerance
-# TOL (1e-2; 1e-3 before the increment predictor), the float
+# TOL (1e-2; 1e-3 before the increment predictor), CG's products with A
+# from a float copy of it (REALTIME_MATRIX=double for A itself), the float
 # factor copy (REALTIME_COPY=half for binary16: on the incision it let the
 # error against exact reach 8.5e-2 at frame 100, docs/numerics.md), factored
 # in single precision straight into that copy (REALTIME_FACTOR_PRECISION=double
@@ -70,6 +71,7 @@ affinity="${REALTIME_AFFINITY:-}"           # solver.affinity (the preset: split
 coarse="${REALTIME_COARSE:-}"               # solver.coarse (the preset: none; corners: the two-level preconditioner)
 frame_its="${REALTIME_FRAME_ITERATIONS:-}"  # solver.frame_iterations (the preset: 0, no cap; N: CG iterations per frame)
 refine="${REALTIME_REFINE:-}"              # contact.refine_rounds (default 0; 2: the contact correction by projected CG, docs/numerics.md)
+matrix="${REALTIME_MATRIX:-}"              # solver.matrix_precision (the preset: single; double)
 set_opts=""
 add() { if [ -n "$2" ]; then set_opts="$set_opts --set $1=$2"; fi; }
 add solver.tolerance "$tol"
@@ -84,6 +86,7 @@ add solver.affinity "$affinity"
 add solver.coarse "$coarse"
 add solver.frame_iterations "$frame_its"
 add contact.refine_rounds "$refine"
+add solver.matrix_precision "$matrix"
 # name mesh-or-scene K
 # K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
 # CHOLMOD's OpenMP teams were made serial; single precision, eighth session:

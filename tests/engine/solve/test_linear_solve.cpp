@@ -161,6 +161,42 @@ TEST(SolverPolicies, IterativePoliciesConvergeToExactAsToleranceTightens) {
   }
 }
 
+// solver.matrix_precision "single": CG's products read A rounded to float,
+// so each solve is of a matrix about 6e-8 off, and a frame's single Newton
+// iteration keeps that much of the step: at real-time tolerances the error
+// against exact is the double matrix's (CG's tolerance dominates it by five
+// orders), and as the tolerance tightens it falls to a floor near the float
+// rounding of A (measured: 3.9e-8 at 1e-10, against 4.4e-12 in double).
+TEST(SolverPolicies, SinglePrecisionMatrixConvergesToTheRoundingOfA) {
+  const int frames = 30;
+  const auto exact = run_swing(SolverSettings{}, frames);
+  SolverSettings s;
+  s.policy = SolverPolicy::Lagged;
+  s.background = true;
+  s.refresh_every = 2;
+  s.single_factorization = true;
+  s.max_iterations = 500;
+  double prev = 1e300;
+  for (double tol : {1e-2, 1e-4, 1e-6, 1e-10}) {
+    s.tolerance = tol;
+    s.single_matrix = false;
+    const double err_double = test::rel_diff(run_swing(s, frames), exact);
+    s.single_matrix = true;
+    const double err_single = test::rel_diff(run_swing(s, frames), exact);
+    if (tol >= 1e-4) {
+      EXPECT_NEAR(err_single, err_double, 0.05 * err_double) << "tolerance " << tol;
+    }
+    if (tol >= 1e-6) {
+      EXPECT_LT(err_single, prev) << "tolerance " << tol;
+    }
+    prev = err_single;
+    if (tol == 1e-10) {
+      EXPECT_LT(err_single, 2e-7) << "the floor: A's float rounding";
+      EXPECT_GT(err_single, 100 * err_double) << "CG's products read the float copy";
+    }
+  }
+}
+
 TEST(SolverPolicies, WarpedIsExactForTheLinearMaterial) {
   SolverSettings w;
   w.policy = SolverPolicy::Warped;
