@@ -72,11 +72,6 @@ void warped_apply(const Model& m, Workspace& ws, const double* b, double* x) {
   }
 }
 
-// Preconditioned CG on A x = b to |r| <= tol |b|, from x = 0 or, with x0
-// (solver.initial_guess "previous"), from x = alpha x0 with the alpha that
-// minimises |b - alpha A x0| (one product more; never a larger residual than
-// x = 0). Records iterations, the starting and final residual and
-// convergence in ws.timing.
 // y = A v for CG. Under solver.matrix_precision "single" (docs/numerics.md,
 // "CG's matrix in single precision") from A's float copy, made at the third
 // product with a newly formed A: the copy reads 8 and writes 4 bytes an
@@ -96,6 +91,11 @@ void cg_matvec(const Model& m, Workspace& ws, const double* A, const double* v, 
   else sym_matvec_parallel(m, w.plan, *w.pool, A, v, y);
 }
 
+// Preconditioned CG on A x = b to |r| <= tol |b|, from x = 0 or, with x0
+// (solver.initial_guess "previous"), from x = alpha x0 with the alpha that
+// minimises |b - alpha A x0| (one product more; never a larger residual than
+// x = 0). Records iterations, the starting and final residual and
+// convergence in ws.timing.
 template <class Precond>
 void pcg(const Model& m, Workspace& ws, const double* A, const double* b, double* x, const Precond& precond,
          int max_iterations, const double* x0 = nullptr) {
