@@ -87,10 +87,10 @@ inline double frobenius(const double* F) {
   return std::sqrt(s);
 }
 
-// Lane l's F into F (the identity for a padding lane); its |F|, 0 when it
-// has none to iterate on (padding, F zero or not finite).
-inline double load_lane(const double* Fl, bool real, Lanes (&F)[9], int l) {
-  const double scale = real ? frobenius(Fl) : 0.0;
+// Lane l's F into F (the identity for a padding lane, Fl null); its |F|, 0
+// when it has none to iterate on (padding, F zero or not finite).
+inline double load_lane(const double* Fl, Lanes (&F)[9], int l) {
+  const double scale = Fl ? frobenius(Fl) : 0.0;
   const bool use = scale > 0.0 && std::isfinite(scale);
   for (int i = 0; i < 9; ++i) F[i][l] = use ? Fl[i] : (i % 4 == 0 ? 1.0 : 0.0);
   return use ? scale : 0.0;
@@ -105,7 +105,7 @@ int extract_lanes(int n, const double* Fin, double* Rout, int* it_out) {
   int done_it[kLanes] = {0, 0, 0, 0};
   for (int l = 0; l < kLanes; ++l) {
     // Scale-free: the iteration compares against |F|.
-    scale[l] = load_lane(Fin + 9 * l, l < n, F, l);
+    scale[l] = load_lane(l < n ? Fin + 9 * l : nullptr, F, l);
     active[l] = scale[l] > 0.0;
     if (!active[l]) scale[l] = 1.0;
     if (l < n && !active[l]) Eigen::Map<Eigen::Matrix3d>(Rout + 9 * l).setIdentity();
@@ -197,7 +197,7 @@ void rotation_angles_to(int count, const double* Fin, const double* Rin, double*
     const double* Fk = Fin + 9 * static_cast<size_t>(k0);
     const double* Rk = Rin + 9 * static_cast<size_t>(k0);
     for (int l = 0; l < kLanes; ++l) {
-      scale[l] = load_lane(Fk + 9 * l, l < n, F, l);
+      scale[l] = load_lane(l < n ? Fk + 9 * l : nullptr, F, l);
       for (int i = 0; i < 9; ++i) R[i][l] = scale[l] > 0.0 ? Rk[9 * l + i] : (i % 4 == 0 ? 1.0 : 0.0);
     }
     const Lanes real = scale;
