@@ -67,7 +67,8 @@ void print_model_summary(const Simulation& sim) {
                 o.background ? (rt.idle_background && o.skip_late_factor ? " on a background thread at idle priority"
                                                                          : " on a background thread")
                              : "",
-                o.warp ? ", warped by the node rotations since" : "", o.single_factorization            ? ", factored in single precision"
+                o.warp ? ", warped by the node rotations since" : "", o.single_factorization && o.factor_copy == FactorCopy::Half ? ", factored in single precision, half-precision copy"
+                : o.single_factorization            ? ", factored in single precision"
                 : o.factor_copy == FactorCopy::Float ? ", float factor copy"
                 : o.factor_copy == FactorCopy::Half  ? ", half-precision factor copy"
                                                      : "");

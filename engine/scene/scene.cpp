@@ -500,10 +500,9 @@ void parse_solver(const Parser& p, const json& v, Scene& s) {
   }
   if (auto it = v.find("factor_precision"); it != v.end()) {
     o.single_factorization = p.choice(*it, at + ".factor_precision", {"double", "single"}) == 1;
-    if (o.single_factorization && o.factor_copy != FactorCopy::Float)
+    if (o.single_factorization && o.factor_copy == FactorCopy::None)
       p.fail(at + ".factor_precision", ": \"single\" factors straight into the float copy, so solver.factor_copy must be "
-                                       "\"float\" (the default), not \"" +
-                                           std::string(o.factor_copy == FactorCopy::Half ? "half" : "none") + "\"");
+                                       "\"float\" (the default) or \"half\", not \"none\"");
   }
   if (auto it = v.find("rescue_after"); it != v.end()) o.rescue_after = p.nonnegative_int(*it, at + ".rescue_after");
   if (auto it = v.find("late_factor"); it != v.end())

@@ -637,19 +637,19 @@ void CholmodSolver::release() {
 }
 
 void CholmodSolver::set_single_factorization(bool on) {
-  if (on && copy_ != FactorCopy::Float)
-    throw Error("single-precision factorization: needs the float factor copy (set_factor_copy(Float) first)");
+  if (on && copy_ == FactorCopy::None)
+    throw Error("single-precision factorization: needs a factor copy (set_factor_copy(Float or Half) first)");
   single_numeric_ = on;
   stats_.single_precision = on;
 }
 
 void CholmodSolver::set_factor_copy(FactorCopy copy) {
   settle();
-  if (single_numeric_ && copy != FactorCopy::Float)
-    throw Error("single-precision factorization: the factor is the float copy; turn it off before another copy");
+  if (single_numeric_ && copy == FactorCopy::None)
+    throw Error("single-precision factorization: the factor lives in the copy; turn it off before the copy");
   copy_ = copy;
   copy_valid_ = false;  // the next factorize() converts
-  if (copy != FactorCopy::Float) std::vector<float>().swap(Lx_single_);
+  if (copy != FactorCopy::Float && !single_numeric_) std::vector<float>().swap(Lx_single_);
   if (copy != FactorCopy::Half) {
     std::vector<uint16_t>().swap(Lx_half_);
     std::vector<double>().swap(half_inv_scale_);
@@ -740,8 +740,10 @@ void CholmodSolver::factorize(const double* values) {
     ++stats_.factorizations;
     if (bad < 0) {
       ++stats_.single_factorizations;
-      factorized_ = copy_valid_ = single_current_ = true;
+      factorized_ = single_current_ = true;
+      copy_valid_ = copy_ == FactorCopy::Float;
       stats_.stored_L = static_cast<double>(L_->xsize);
+      if (copy_ == FactorCopy::Half) convert_copy(Lx_single_.data());  // the float factor, rounded once more
       return;
     }
     ++stats_.single_fallbacks;  // a pivot not positive in float: CHOLMOD in double decides
@@ -776,14 +778,15 @@ void CholmodSolver::factorize(const double* values) {
   if (c_.status < CHOLMOD_OK) throw Error("CHOLMOD: numeric factorization failed (status " + std::to_string(c_.status) + ")");
   factorized_ = true;
   stats_.stored_L = static_cast<double>(L_->is_super ? L_->xsize : L_->nzmax);
-  if (copy_ != FactorCopy::None && L_->is_super) convert_copy();
+  if (copy_ != FactorCopy::None && L_->is_super) convert_copy(static_cast<const double*>(L_->x));
 }
 
-void CholmodSolver::convert_copy() {
+// src: CHOLMOD's double factor, or (single_numeric_, Half) the float one.
+template <class T>
+void CholmodSolver::convert_copy(const T* src) {
   Stopwatch clock;
   const size_t nx = L_->xsize;
-  const double* src = static_cast<const double*>(L_->x);
-  if (copy_ == FactorCopy::Float) {
+  if (copy_ == FactorCopy::Float) {  // (from double only: a float factor is its own copy)
     Lx_single_.resize(nx);  // same analysis: same xsize, no reallocation after the first
     float* dst = Lx_single_.data();
     for (size_t k = 0; k < nx; ++k) dst[k] = static_cast<float>(src[k]);
@@ -799,16 +802,20 @@ void CholmodSolver::convert_copy() {
     for (size_t sn = 0; sn < ns; ++sn) {
       const size_t k0 = static_cast<size_t>(px[sn]), k1 = static_cast<size_t>(px[sn + 1]);
       double mx = 0.0;
-      for (size_t k = k0; k < k1; ++k) mx = std::max(mx, std::fabs(src[k]));
+      for (size_t k = k0; k < k1; ++k) mx = std::max(mx, std::fabs(static_cast<double>(src[k])));
       if (!(mx > 0.0) || !std::isfinite(mx)) mx = 1.0;  // a factorize() that succeeded has finite values
       const double inv = 1.0 / mx;
       half_inv_scale_[sn] = inv;
       size_t k = k0;
 #if defined(__AVX__) && defined(__F16C__)
       const __m256d vinv = _mm256_set1_pd(inv);
+      const auto load4 = [&](size_t at) {
+        if constexpr (std::is_same_v<T, float>) return _mm256_cvtps_pd(_mm_loadu_ps(src + at));
+        else return _mm256_loadu_pd(src + at);
+      };
       for (; k + 8 <= k1; k += 8) {
-        const __m128 lo = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(src + k), vinv));
-        const __m128 hi = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(src + k + 4), vinv));
+        const __m128 lo = _mm256_cvtpd_ps(_mm256_mul_pd(load4(k), vinv));
+        const __m128 hi = _mm256_cvtpd_ps(_mm256_mul_pd(load4(k + 4), vinv));
         _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + k),
                          _mm256_cvtps_ph(_mm256_set_m128(hi, lo), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
       }

@@ -109,9 +109,10 @@ class CholmodSolver {
   bool single_precision() const { return copy_ != FactorCopy::None; }
   // Numeric factorizations in single precision (engine/solve/single_factor.h) on
   // CHOLMOD's supernodal analysis, straight into the float copy: no double
-  // factor exists, solve() reads the float one. For a preconditioner only
-  // (the lagged policy's solver.factor_precision "single"). Needs the float
-  // copy (set_factor_copy(Float) first; throws otherwise) and a supernodal
+  // factor exists, solve() reads the float one. With the half copy the float
+  // factor is then rounded to it (the substitutions read that). For a
+  // preconditioner only (the lagged policy's solver.factor_precision
+  // "single"). Needs a copy (set_factor_copy first; throws otherwise) and a supernodal
   // analysis (a simplicial one factors in double as before). A pivot that is
   // not positive in float is retried by CHOLMOD in double (counted in
   // FactorStats::single_fallbacks), so only a matrix that is not positive
@@ -260,7 +261,8 @@ class CholmodSolver {
   void backward_rows(const T* Lx, const double* inv_scale, const std::vector<int>& rows, const double* z, double* x);
   template <class T>
   void substitute(const T* Lx, const double* inv_scale, const double* b, double* x);
-  void convert_copy();
+  template <class T>
+  void convert_copy(const T* src);  // L's values (L->xsize) into the copy
   FactorStats stats_;
   void release();
 };

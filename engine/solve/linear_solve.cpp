@@ -710,7 +710,7 @@ void reset_factors(const Model& m, Workspace& ws) {
   for (int k = 0; k < SolverWork::kSlots; ++k) {
     CholmodSolver& f = ws.slot(k);
     f.configure(m.solver.factor, m.solver.ordering);
-    f.set_single_factorization(false);  // single needs the float copy: off first, on last
+    f.set_single_factorization(false);  // single needs a copy: off first, on last
     f.set_factor_copy(copy);
     f.set_single_factorization(lagged && m.solver.single_factorization);
   }

@@ -28,11 +28,10 @@
 # only when it is given. The preset: lagged CG, background factorization taken
 # K frames after it starts (K grows with the factor time), warp, CG tolerance
 # TOL (1e-2; 1e-3 before the increment predictor), CG's products with A
-# from a float copy of it (REALTIME_MATRIX=double for A itself), the float
-# factor copy (REALTIME_COPY=half for binary16: on the incision it let the
-# error against exact reach 8.5e-2 at frame 100, docs/numerics.md), factored
-# in single precision straight into that copy (REALTIME_FACTOR_PRECISION=double
-# for CHOLMOD's double factor rounded to float), substitutions on two
+# from a float copy of it (REALTIME_MATRIX=double for A itself), factored
+# in single precision (REALTIME_FACTOR_PRECISION=double for CHOLMOD's double
+# factor) and rounded to a binary16 factor copy that the substitutions read
+# (REALTIME_COPY=float for the float factor itself, docs/numerics.md), substitutions on two
 # threads (REALTIME_SUBSTITUTION_THREADS=1 for one), element tangents kept
 # while F moves less than 1e-2 (REALTIME_TANGENT_REUSE=0 turns it off; compare's
 # exact reference always assembles every element), one assembly thread (the
@@ -57,16 +56,16 @@ incise="$build/tools/incise"
 out="$build/realtime"
 mkdir -p "$out"
 # Empty: the preset's value. Each one given becomes a --set below.
-extra="${REALTIME_OPTIONS:-}"  # e.g. "--set solver.factor_copy=none"
+extra="${REALTIME_OPTIONS:-}"  # e.g. "--set solver.factor_copy=none --set solver.factor_precision=double"
 bench_frames="${BENCH_FRAMES:-$frames}"   # frames timed by incise bench (after 5 warm-up frames)
 pace="${PACE:-30}"                          # incise bench --pace (0: frames back to back)
 tangent="${REALTIME_TANGENT:-}"             # integrator.tangent (the preset: consistent; frozen_rotation: the default)
 rescue="${REALTIME_RESCUE:-}"               # solver.rescue_after (the preset: 20; 0: off)
 late="${REALTIME_LATE:-}"                   # solver.late_factor (the preset: skip, no stalls; wait: deterministic)
-copy="${REALTIME_COPY:-}"                   # solver.factor_copy (the preset: float; half or none)
+copy="${REALTIME_COPY:-}"                   # solver.factor_copy (the preset: half; float or none)
 reuse="${REALTIME_TANGENT_REUSE:-}"         # integrator.tangent_reuse of the policy runs (the preset: 0.01; 0: off; the exact reference never)
 subthreads="${REALTIME_SUBSTITUTION_THREADS:-}"  # solver.substitution_threads (the preset: 2)
-precision="${REALTIME_FACTOR_PRECISION:-}"  # solver.factor_precision (the preset: single; needs the float copy)
+precision="${REALTIME_FACTOR_PRECISION:-}"  # solver.factor_precision (the preset: single; needs a copy, float or half)
 affinity="${REALTIME_AFFINITY:-}"           # solver.affinity (the preset: split; none leaves it to the kernel)
 coarse="${REALTIME_COARSE:-}"               # solver.coarse (the preset: none; corners: the two-level preconditioner)
 frame_its="${REALTIME_FRAME_ITERATIONS:-}"  # solver.frame_iterations (the preset: 0, no cap; N: CG iterations per frame)
@@ -208,7 +207,7 @@ PY
     --trace "$out/$name.trace.csv" >"$out/$name.bench.log" 2>&1 ||
     echo "  failed: see $out/$name.bench.log" >&2
 done
-python3 - "$out" "${tol:-1e-2}" "${tangent:-consistent}" "${copy:-float} copy, ${precision:-single}-precision factor" "${subthreads:-2}" "${reuse:-0.01}" "${cases[@]}" <<'PY'
+python3 - "$out" "${tol:-1e-2}" "${tangent:-consistent}" "${copy:-half} copy, ${precision:-single}-precision factor" "${subthreads:-2}" "${reuse:-0.01}" "${cases[@]}" <<'PY'
 import json, sys
 out, tol, tangent, copy, subthreads, reuse = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5], sys.argv[6]
 print(f"| case | DOF | nnz(L) | exact median ms | policy (CG tol {tol}) | median ms | p99 ms | max ms | cut frames: count, median / p99 / max ms | CG its median (max) | Newton/frame | err @1 | err @30 | err @last |")

@@ -849,8 +849,11 @@ TEST_F(SceneTest, FactorPrecisionKey) {
                    .solver.single_factorization);
   expect_error_contains(minimal(R"("solver": {"policy": "lagged", "factor_precision": "half"})"),
                         R"(solver.factor_precision must be one of "double", "single")");
-  expect_error(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half", "factor_precision": "single"})"),
-               R"(solver.factor_precision: "single" factors straight into the float copy, so solver.factor_copy must be "float" (the default), not "half")");
+  EXPECT_TRUE(parse_scene(minimal(R"("solver": {"policy": "lagged", "factor_copy": "half", "factor_precision": "single"})"),
+                          scene_path_)
+                  .solver.single_factorization);
+  expect_error(minimal(R"("solver": {"policy": "lagged", "factor_copy": "none", "factor_precision": "single"})"),
+               R"(solver.factor_precision: "single" factors straight into the float copy, so solver.factor_copy must be "float" (the default) or "half", not "none")");
   expect_error(minimal(R"("solver": {"policy": "lagged", "factor_precision": "single", "factorization": "simplicial"})"),
                R"(solver.factor_precision: "single" factors supernodes; solver.factorization "simplicial" has none (use "supernodal" or "auto"))");
   expect_error(minimal(R"("solver": {"factor_precision": "single"})"),

@@ -214,7 +214,7 @@ TEST_F(ScenePatchTest, RealtimePresetSetsTheMeasuredConfiguration) {
   EXPECT_EQ(s.runtime.threads, 1);
   EXPECT_EQ(o.rescue_after, 20);
   EXPECT_TRUE(o.skip_late_factor);
-  EXPECT_EQ(o.factor_copy, incise::FactorCopy::Float);
+  EXPECT_EQ(o.factor_copy, incise::FactorCopy::Half);
   EXPECT_TRUE(o.single_factorization);
   EXPECT_EQ(s.runtime.substitution_threads, 2);
   EXPECT_TRUE(s.runtime.split_affinity);
@@ -268,10 +268,13 @@ TEST_F(ScenePatchTest, ExplicitKeysWinOverThePreset) {
   const Scene cg = load(scene(R"("solver": {"preset": "realtime"})"), sets({"solver.policy=warped_cg"}));
   EXPECT_DOUBLE_EQ(cg.solver.tolerance, 1e-2) << "an iterative policy keeps the preset's CG keys";
   EXPECT_FALSE(cg.solver.background);
-  // A factor copy other than float: no single-precision factorization from the preset.
-  const Scene half = load(scene(R"("solver": {"preset": "realtime", "factor_copy": "half"})"), {});
-  EXPECT_EQ(half.solver.factor_copy, incise::FactorCopy::Half);
-  EXPECT_FALSE(half.solver.single_factorization);
+  // The float copy keeps the preset's single-precision factorization; no
+  // copy leaves it out.
+  const Scene flt = load(scene(R"("solver": {"preset": "realtime", "factor_copy": "float"})"), {});
+  EXPECT_EQ(flt.solver.factor_copy, incise::FactorCopy::Float);
+  EXPECT_TRUE(flt.solver.single_factorization);
+  const Scene none = load(scene(R"("solver": {"preset": "realtime", "factor_copy": "none"})"), {});
+  EXPECT_FALSE(none.solver.single_factorization);
   const Scene older = load(scene(R"("solver": {"preset": "realtime", "single_precision": false})"), {});
   EXPECT_EQ(older.solver.factor_copy, incise::FactorCopy::None);
 }

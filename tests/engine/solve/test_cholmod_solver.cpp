@@ -248,6 +248,7 @@ TEST(Cholmod, MultiColumnSolveMatchesOneColumnAtATime) {
                        Case{"float copy", FactorMethod::Supernodal, FactorCopy::Float, false},
                        Case{"half copy", FactorMethod::Supernodal, FactorCopy::Half, false},
                        Case{"single factorization", FactorMethod::Supernodal, FactorCopy::Float, true},
+                       Case{"single factorization, half copy", FactorMethod::Supernodal, FactorCopy::Half, true},
                        Case{"simplicial", FactorMethod::Simplicial, FactorCopy::None, false}}) {
     CholmodSolver f;
     f.configure(c.method, OrderingMethod::Amd);
@@ -297,7 +298,8 @@ TEST(Cholmod, ForwardHalfGivesTheComplianceOfSparseColumns) {
     bool single;
   };
   for (const Case c : {Case{"double", FactorCopy::None, false}, Case{"float copy", FactorCopy::Float, false},
-                       Case{"half copy", FactorCopy::Half, false}, Case{"single factorization", FactorCopy::Float, true}}) {
+                       Case{"half copy", FactorCopy::Half, false}, Case{"single factorization", FactorCopy::Float, true},
+                       Case{"single factorization, half copy", FactorCopy::Half, true}}) {
     CholmodSolver f;
     f.configure(FactorMethod::Supernodal, OrderingMethod::Amd);
     f.set_factor_copy(c.copy);
