@@ -67,11 +67,12 @@ void print_model_summary(const Simulation& sim) {
                 o.background ? (rt.idle_background && o.skip_late_factor ? " on a background thread at idle priority"
                                                                          : " on a background thread")
                              : "",
-                o.warp ? ", warped by the node rotations since" : "", o.single_factorization && o.factor_copy == FactorCopy::Half ? ", factored in single precision, half-precision copy"
-                : o.single_factorization            ? ", factored in single precision"
-                : o.factor_copy == FactorCopy::Float ? ", float factor copy"
-                : o.factor_copy == FactorCopy::Half  ? ", half-precision factor copy"
-                                                     : "");
+                o.warp ? ", warped by the node rotations since" : "",
+                o.single_factorization && o.factor_copy == FactorCopy::Half ? ", factored in single precision, half-precision copy"
+                : o.single_factorization                                    ? ", factored in single precision"
+                : o.factor_copy == FactorCopy::Float                        ? ", float factor copy"
+                : o.factor_copy == FactorCopy::Half                         ? ", half-precision factor copy"
+                                                                            : "");
   if (o.policy == SolverPolicy::Lagged && o.background && o.skip_late_factor) std::printf(", late factors skipped");
   if (o.policy == SolverPolicy::Lagged && !sim.scene.cuts.empty())
     std::printf(", %s patch after cuts%s", o.multiplicative_patch ? "multiplicative" : "additive",

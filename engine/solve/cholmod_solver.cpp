@@ -796,8 +796,8 @@ void CholmodSolver::convert_copy(const T* src) {
     // entries that matter, those within a few decades of s).
     const int* px = static_cast<const int*>(L_->px);
     const size_t ns = L_->nsuper;
-    Lx_half_.resize(nx);
-    half_inv_scale_.resize(ns);
+    resize_with_headroom(Lx_half_, nx);  // no reallocation per cut (headroom.h), as the float copy
+    resize_with_headroom(half_inv_scale_, ns);
     uint16_t* dst = Lx_half_.data();
     for (size_t sn = 0; sn < ns; ++sn) {
       const size_t k0 = static_cast<size_t>(px[sn]), k1 = static_cast<size_t>(px[sn + 1]);
