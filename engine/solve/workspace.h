@@ -28,10 +28,11 @@ struct Workspace {
   std::vector<double> K;                 // (nnz) tangent stiffness
   std::vector<double> A;                 // (nnz) dynamic matrix cM M + cK K, projected
   // solver.matrix_precision "single": A rounded to float for CG's products
-  // (nnz), made from the A of stamp A_single_stamp; A_stamp counts the
-  // times form_matrix_once formed A, A_products the products with it so far.
+  // (nnz), made from the A of stamp A_single_stamp (none yet: the largest
+  // value, never a stamp); A_stamp counts the times form_matrix_once formed
+  // A, A_products the products with it so far.
   std::vector<float> A_single;
-  std::uint64_t A_stamp = 0, A_single_stamp = 0;
+  std::uint64_t A_stamp = 0, A_single_stamp = ~std::uint64_t{0};
   int A_products = 0;
   // What A was formed from, so an unchanged K (tangent_reuse keeping every
   // element, or the linear model's K0) is not formed again: K_generation

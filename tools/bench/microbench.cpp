@@ -223,56 +223,63 @@ void BM_Factorization(benchmark::State& state, int nx, int nyz, bool single) {
 // extract_rotation warm-started as between frames: F = Rt S with Rt turned
 // from the warm start R0 by `angle` radians about a fixed axis and a 10%
 // stretch S; a pool of 1024 such F (each call starts from its R0).
-void BM_ExtractRotation(benchmark::State& state, double angle) {
-  constexpr int kN = 1024;
-  std::vector<Eigen::Matrix3d> F(kN), R0(kN), R(kN);
-  for (int k = 0; k < kN; ++k) {
-    const Eigen::Vector3d axis = Eigen::Vector3d(std::sin(k), std::cos(1.3 * k), 0.5 + 0.1 * k / kN).normalized();
-    R0[k] = Eigen::AngleAxisd(0.3 + k * 0.002, Eigen::Vector3d(0.2, std::sin(0.7 * k), 1.0).normalized()).toRotationMatrix();
-    const Eigen::Matrix3d Rt = Eigen::AngleAxisd(angle, axis).toRotationMatrix() * R0[k];
+constexpr int kRotationPool = 1024;
+struct RotationPool {
+  std::vector<double> F, R0;  // (kRotationPool, 9) column-major each
+};
+RotationPool rotation_pool(double angle) {
+  RotationPool p{std::vector<double>(9 * kRotationPool), std::vector<double>(9 * kRotationPool)};
+  for (int k = 0; k < kRotationPool; ++k) {
+    const Eigen::Vector3d axis =
+        Eigen::Vector3d(std::sin(k), std::cos(1.3 * k), 0.5 + 0.1 * k / kRotationPool).normalized();
+    Eigen::Map<Eigen::Matrix3d> Fk(&p.F[9 * k]), R0k(&p.R0[9 * k]);
+    R0k = Eigen::AngleAxisd(0.3 + k * 0.002, Eigen::Vector3d(0.2, std::sin(0.7 * k), 1.0).normalized()).toRotationMatrix();
     Eigen::Matrix3d S;
     S << 1.1, 0.03, -0.02, 0.03, 0.95, 0.04, -0.02, 0.04, 1.02;
-    F[k] = Rt * S;
+    Fk = Eigen::AngleAxisd(angle, axis).toRotationMatrix() * R0k * S;
+  }
+  return p;
+}
+
+void set_rotation_counters(benchmark::State& state) {
+  state.SetItemsProcessed(state.iterations() * kRotationPool);
+  state.counters["ns_per_call"] =
+      benchmark::Counter(kRotationPool, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
+                         benchmark::Counter::OneK::kIs1000);
+}
+
+void BM_ExtractRotation(benchmark::State& state, double angle) {
+  const RotationPool pool = rotation_pool(angle);
+  std::vector<Eigen::Matrix3d> F(kRotationPool), R0(kRotationPool), R(kRotationPool);
+  for (int k = 0; k < kRotationPool; ++k) {
+    F[k] = Eigen::Map<const Eigen::Matrix3d>(&pool.F[9 * k]);
+    R0[k] = Eigen::Map<const Eigen::Matrix3d>(&pool.R0[9 * k]);
   }
   long iters = 0;
   for (auto _ : state) {
-    for (int k = 0; k < kN; ++k) {
+    for (int k = 0; k < kRotationPool; ++k) {
       R[k] = R0[k];
       iters += extract_rotation(F[k], R[k]);
     }
     benchmark::DoNotOptimize(R.data());
     benchmark::ClobberMemory();
   }
-  state.SetItemsProcessed(state.iterations() * kN);
-  state.counters["ns_per_call"] = benchmark::Counter(kN, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
-                                                      benchmark::Counter::OneK::kIs1000);
-  state.counters["newton_steps"] = static_cast<double>(iters) / (static_cast<double>(state.iterations()) * kN);
+  set_rotation_counters(state);
+  state.counters["newton_steps"] = static_cast<double>(iters) / (static_cast<double>(state.iterations()) * kRotationPool);
 }
 
 // The same pool, four at a time (extract_rotations: the lanes side by side,
 // as the assembly gives it a tet10's four points).
 void BM_ExtractRotations(benchmark::State& state, double angle) {
-  constexpr int kN = 1024;
-  std::vector<double> F(9 * kN), R0(9 * kN), R(9 * kN);
-  for (int k = 0; k < kN; ++k) {
-    const Eigen::Vector3d axis = Eigen::Vector3d(std::sin(k), std::cos(1.3 * k), 0.5 + 0.1 * k / kN).normalized();
-    const Eigen::Matrix3d R0k =
-        Eigen::AngleAxisd(0.3 + k * 0.002, Eigen::Vector3d(0.2, std::sin(0.7 * k), 1.0).normalized()).toRotationMatrix();
-    Eigen::Matrix3d S;
-    S << 1.1, 0.03, -0.02, 0.03, 0.95, 0.04, -0.02, 0.04, 1.02;
-    Eigen::Map<Eigen::Matrix3d> Fk(&F[9 * k]), R0m(&R0[9 * k]);
-    Fk = Eigen::AngleAxisd(angle, axis).toRotationMatrix() * R0k * S;
-    R0m = R0k;
-  }
+  const RotationPool pool = rotation_pool(angle);
+  std::vector<double> R(9 * kRotationPool);
   for (auto _ : state) {
-    R = R0;
-    for (int k = 0; k < kN; k += 4) extract_rotations(4, &F[9 * k], &R[9 * k]);
+    R = pool.R0;
+    for (int k = 0; k < kRotationPool; k += 4) extract_rotations(4, &pool.F[9 * k], &R[9 * k]);
     benchmark::DoNotOptimize(R.data());
     benchmark::ClobberMemory();
   }
-  state.SetItemsProcessed(state.iterations() * kN);
-  state.counters["ns_per_call"] = benchmark::Counter(kN, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert,
-                                                      benchmark::Counter::OneK::kIs1000);
+  set_rotation_counters(state);
 }
 
 // The organ mesh of the real-time scenes (assets/meshes/organ_10k.msh, 1,832
