@@ -53,6 +53,13 @@ void run_cutting(Simulation& sim, EarlySweep* early) {
   // a prepared update is taken only for exactly its times.)
   const double t1 = t + dt;
   start_cut_ahead(sim, t1, t1 + dt);
+  // A cut-ahead on a helper: the assembly workers leave it the helpers' CPUs
+  // this frame. Beside it they were descheduled mid-assembly and the
+  // stepping thread waited for them (incision-10k, 2 workers: cut frames'
+  // assembly 2.7 -> 11-18 ms). lagged_refresh keeps them down for the CG.
+  SolverWork& w = sim.ws.work;
+  w.helper_busy = sim.cut_ahead != nullptr;
+  w.apply_stand_down();
   FrameTiming& ft = sim.ws.timing;
   ft.cut_ms = cut.part_ms;
   ft.cut_frame = cut.changed;

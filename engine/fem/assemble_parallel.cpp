@@ -184,6 +184,8 @@ AssemblyPlan make_assembly_plan(const Model& m, int nthreads) {
   condensed_elements(m, p);
   matvec_ranges(m, p);
   p.body_sums.assign(p.nthreads, std::vector<double>(3 * static_cast<size_t>(m.nbody), 0.0));
+  // Room after each worker's sums, so no two workers' sums share a cache line.
+  for (auto& b : p.body_sums) b.reserve(b.size() + 16);
   return p;
 }
 
@@ -609,7 +611,7 @@ template <class Body>
 void for_each_element(const AssemblyPlan& plan, ThreadPool& pool, double* zero_a, int na, double* zero_b, int nb,
                       const Body& body) {
   pool.run([&](int tid) {
-    const int T = pool.size();
+    const int T = pool.active();  // <= plan.nthreads: a stood-down worker's block goes to the others
     int b, e;
     if (zero_a) {
       ThreadPool::split(na, T, tid, b, e);
@@ -620,7 +622,8 @@ void for_each_element(const AssemblyPlan& plan, ThreadPool& pool, double* zero_a
       std::fill(zero_b + b, zero_b + e, 0.0);
     }
     pool.barrier();
-    for (int k = plan.block_ptr[tid]; k < plan.block_ptr[tid + 1]; ++k) body(plan.block_elem[k], tid);
+    for (int blk = tid; blk < plan.nthreads; blk += T)
+      for (int k = plan.block_ptr[blk]; k < plan.block_ptr[blk + 1]; ++k) body(plan.block_elem[k], tid);
     for (int c = 0; c < plan.ncolors(); ++c) {
       pool.barrier();
       ThreadPool::split(plan.color_ptr[c + 1] - plan.color_ptr[c], T, tid, b, e);
@@ -647,19 +650,26 @@ int assemble_corotated(const Model& m, AssemblyPlan& plan, ThreadPool& pool, con
     assign_with_headroom(cache->F, 9 * static_cast<size_t>(m.nrot), 0.0);
   }
   const bool keep_K = cache && cache->valid && !probe;  // K holds the kept blocks' sum: updated, not rebuilt
-  int fb[64] = {0}, up[64] = {0}, kp[64] = {0};
+  // Each worker's counts on a cache line of its own: counted per element,
+  // side by side they made the two cores trade one line 3 times an element.
+  struct alignas(64) Counts {
+    int fallbacks = 0, updated = 0, keepable = 0;
+  };
+  Counts counts[64];
   for_each_element(plan, pool, f, m.ndof(), keep_K ? nullptr : K, keep_K || !K ? 0 : m.nnz(), [&](int e, int tid) {
     double* s = plan.scratch[tid].data();
     const int n = m.elem_dof_ptr[e + 1] - m.elem_dof_ptr[e];
     bool updated = false, keepable = false;
-    fb[tid] += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv)
-                       : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv)
-                                : element_terms<0>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv);
-    up[tid] += updated;
-    kp[tid] += keepable;
+    Counts& c = counts[tid];
+    c.fallbacks += n == 10 ? element_terms<10>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv)
+                           : n == 4 ? element_terms<4>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv)
+                                    : element_terms<0>(m, plan, e, u, R, f, K, s, cache, &updated, &keepable, v, fv);
+    c.updated += updated;
+    c.keepable += keepable;
   });
   int total = 0, updated = 0, keepable = 0;
-  for (int t = 0; t < pool.size(); ++t) total += fb[t], updated += up[t], keepable += kp[t];
+  for (int t = 0; t < pool.active(); ++t)
+    total += counts[t].fallbacks, updated += counts[t].updated, keepable += counts[t].keepable;
   if (cache) {
     cache->updated = updated;
     if (probe) {
@@ -750,23 +760,30 @@ RotationChange rotation_change(const Model& m, AssemblyPlan& plan, ThreadPool& p
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
   double part_max[64] = {0};  // per worker (solver.threads <= 64)
   pool.run([&](int tid) {
-    int b, e;
-    ThreadPool::split(m.nelem, pool.size(), tid, b, e);
+    // One element range per worker of the pool, summed apart; with workers
+    // stood down (ThreadPool::active) an active one takes theirs too: the
+    // same sums in the same order.
     double* ue = plan.scratch[tid].data();
-    double* body = plan.body_sums[tid].data();
-    std::fill(plan.body_sums[tid].begin(), plan.body_sums[tid].end(), 0.0);
-    for (int el = b; el < e; ++el) {
-      const int n = m.elem_dof_ptr[el + 1] - m.elem_dof_ptr[el];
-      if (n == 10) element_rotation_change<10>(m, plan, el, u, R, ue, threshold, part_max[tid], body);
-      else if (n == 4) element_rotation_change<4>(m, plan, el, u, R, ue, threshold, part_max[tid], body);
-      else element_rotation_change<0>(m, plan, el, u, R, ue, threshold, part_max[tid], body);
+    for (int part = tid; part < plan.nthreads; part += pool.active()) {
+      int b, e;
+      ThreadPool::split(m.nelem, plan.nthreads, part, b, e);
+      double* body = plan.body_sums[part].data();
+      std::fill(plan.body_sums[part].begin(), plan.body_sums[part].end(), 0.0);
+      double max = 0.0;  // the range's own (part_max's entries share a cache line)
+      for (int el = b; el < e; ++el) {
+        const int n = m.elem_dof_ptr[el + 1] - m.elem_dof_ptr[el];
+        if (n == 10) element_rotation_change<10>(m, plan, el, u, R, ue, threshold, max, body);
+        else if (n == 4) element_rotation_change<4>(m, plan, el, u, R, ue, threshold, max, body);
+        else element_rotation_change<0>(m, plan, el, u, R, ue, threshold, max, body);
+      }
+      part_max[part] = max;
     }
   });
-  for (int t = 0; t < pool.size(); ++t) out.max = std::max(out.max, part_max[t]);
-  // The workers' sums into worker 0's, and the totals first (the small
+  for (int t = 0; t < plan.nthreads; ++t) out.max = std::max(out.max, part_max[t]);
+  // The ranges' sums into range 0's, and the totals first (the small
   // bodies' threshold is a share of the volume).
   std::vector<double>& sums = plan.body_sums[0];
-  for (int t = 1; t < pool.size(); ++t)
+  for (int t = 1; t < plan.nthreads; ++t)
     for (size_t i = 0; i < sums.size(); ++i) sums[i] += plan.body_sums[t][i];
   for (int k = 0; k < m.nbody; ++k) out.rms += sums[3 * k], out.volume += sums[3 * k + 1], out.above += sums[3 * k + 2];
   for (int k = 0; k < m.nbody; ++k) {
@@ -803,20 +820,24 @@ void parallel_sym_matvec(const Model& m, AssemblyPlan& plan, ThreadPool& pool, c
   if (pool.size() != plan.nthreads) plan = make_assembly_plan(m, pool.size());
   const int n = m.ndof();
   pool.run([&](int tid) {
-    const int c0 = plan.matvec_col_ptr[tid], c1 = plan.matvec_col_ptr[tid + 1];
-    // Worker 0 owns y[0, c1) outright (its rows r <= c < c1); the others scatter
-    // rows below their range into a private buffer merged afterwards.
-    double* ys = tid == 0 ? y : plan.matvec_buf[tid].data();
-    if (tid == 0) std::fill(y, y + c1, 0.0);
-    else std::fill(ys, ys + c0, 0.0);
-    std::fill(y + c0, y + c1, 0.0);
+    // The plan's column ranges, one per worker of the pool; with workers stood
+    // down (ThreadPool::active) an active one takes theirs too, in turn: each
+    // range writes only what it zeroed, so the bits are the same.
+    for (int part = tid; part < plan.nthreads; part += pool.active()) {
+      const int c0 = plan.matvec_col_ptr[part], c1 = plan.matvec_col_ptr[part + 1];
+      // Range 0 owns y[0, c1) outright (its rows r <= c < c1); the others scatter
+      // rows below their range into a private buffer merged afterwards.
+      double* ys = part == 0 ? y : plan.matvec_buf[part].data();
+      if (part == 0) std::fill(y, y + c1, 0.0);
+      else std::fill(ys, ys + c0, 0.0);
+      std::fill(y + c0, y + c1, 0.0);
+      node_block_matvec(m.Ap.data(), m.Ai.data(), A, x, c0 / 3, c1 / 3, c0, ys, y);
+    }
     pool.barrier();
-    node_block_matvec(m.Ap.data(), m.Ai.data(), A, x, c0 / 3, c1 / 3, c0, ys, y);
-    pool.barrier();
-    // Merge the buffers: rows [0, c0_t) of worker t's buffer.
+    // Merge the buffers: rows [0, c0_t) of range t's buffer.
     int b, e;
-    ThreadPool::split(n, pool.size(), tid, b, e);
-    for (int t = 1; t < pool.size(); ++t) {
+    ThreadPool::split(n, pool.active(), tid, b, e);
+    for (int t = 1; t < plan.nthreads; ++t) {
       const int lim = std::min(e, plan.matvec_col_ptr[t]);
       const double* bt = plan.matvec_buf[t].data();
       for (int r = b; r < lim; ++r) y[r] += bt[r];

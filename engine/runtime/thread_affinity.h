@@ -9,8 +9,9 @@
 // incision: 5-8 ms median of wall time above the stepping thread's own CPU
 // time). "split" gives the stepping thread a CPU of its own: the last CPU of
 // the set the process may use (sched_getaffinity when first asked), the
-// helpers the others; the assembly workers may run anywhere in the set, the
-// substitution worker on the helpers' CPUs. With fewer
+// helpers the others, and the assembly workers and the substitution worker
+// the helpers' CPUs too (the stepping thread does worker 0's share of an
+// assembly on its own CPU). With fewer
 // than two CPUs in the set nothing is pinned. "none" (the default) leaves
 // placement to the kernel. A pin lasts for the thread's life: a later
 // Model with "none" in the same process does not undo it.
@@ -36,9 +37,10 @@ bool set_thread_role(ThreadRole role);
 // the Any role; otherwise nothing happens.
 void unpin_if_split();
 
-// For the substitution worker: once some thread took the Stepping role, the
-// caller takes the Helper role (the stepping thread spins while it waits for
-// the worker's bin, so the two must not share its CPU); otherwise nothing.
+// For the substitution worker and the assembly workers, at each job: once
+// some thread took the Stepping role, the caller takes the Helper role (the
+// stepping thread spins while it waits for the worker's bin, and does worker
+// 0's share of an assembly, so neither may share its CPU); otherwise nothing.
 void helper_if_split();
 
 // The CPU the stepping thread was given (-1 while none).

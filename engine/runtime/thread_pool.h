@@ -26,7 +26,14 @@ class ThreadPool {
   ThreadPool& operator=(const ThreadPool&) = delete;
 
   int size() const { return nthreads_; }
-  // fn(tid) for tid in [0, size()), tid 0 on the calling thread. Not reentrant.
+  // The workers a run() uses, the first `active()` of size() (all unless
+  // set_active said fewer): a caller splits its work over active(), while
+  // per-worker plans stay sized for size(). With 1, run(fn) is fn(0) and
+  // wakes no worker (linear_solve.cpp stands the workers down while a late
+  // background factorization needs their CPU). Not during a run().
+  int active() const { return active_; }
+  void set_active(int k) { active_ = k < 1 ? 1 : k > nthreads_ ? nthreads_ : k; }
+  // fn(tid) for tid in [0, active()), tid 0 on the calling thread. Not reentrant.
   void run(const std::function<void(int)>& fn);
   // Called by every worker of the current run(); returns when all have arrived.
   void barrier();
@@ -40,6 +47,8 @@ class ThreadPool {
  private:
   void worker(int tid);
   int nthreads_;
+  int active_;
+  int job_active_ = 1;  // active_ of the run in progress (read by the workers under mutex_)
   std::vector<std::thread> threads_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;

@@ -154,7 +154,11 @@ const json* solver_preset(const std::string& name) {
         {"tolerance", 1e-2},
         {"max_iterations", 100},
         {"matrix_precision", "single"},
-        {"threads", 1},
+        // 2: the assembly and CG's products on a helper CPU too; the worker
+        // stands down while the background factorization is late or a
+        // cut-ahead runs (SolverWork::apply_stand_down). hang-20k median
+        // frame 9.3 -> 7.2 ms (docs/benchmarks.md, "Two assembly workers").
+        {"threads", 2},
         {"rescue_after", 20},
         {"late_factor", "skip"},
         // half: the float factor rounded to binary16 once more; substitutions

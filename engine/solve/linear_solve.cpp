@@ -336,6 +336,18 @@ void lagged_refresh(const Model& m, Workspace& ws, int frame) {
       if (take) take_job(ws);
     }
     if (!w.job_running && f - w.last_launch >= k) launch_job(m, ws, f);
+    // The job shares the helpers' CPUs with the assembly workers; at idle
+    // priority (skip) it gets none while they work, and back to back (incise
+    // compare, 2 workers) drag15mm-20k's factor was 23-30 frames old, its
+    // error at frame 30 0.55. So while a job is late (still running k frames
+    // after its start) the workers stand down: this frame's CG products and
+    // the next frame's assembly run on the stepping thread alone, with the
+    // same bits (ThreadPool::active). Under "wait" the job's take is on
+    // schedule and the workers stay. They stand down too while the cutting
+    // stage's cut-ahead runs on a helper (helper_busy; it set that for this
+    // frame's assembly already).
+    w.job_late = m.solver.skip_late_factor && w.job_running && f - w.job_frame >= k;
+    w.apply_stand_down();
   }
 }
 
@@ -725,6 +737,8 @@ void reset_factors(const Model& m, Workspace& ws) {
   }
   w.front = 0;
   w.front_frame = w.last_launch = w.job_frame = -1;
+  w.job_late = false;
+  w.apply_stand_down();
   ws.factor_current = false;
 }
 
@@ -813,7 +827,7 @@ void update_node_rotations(const Model& m, const double* R, Workspace& ws) {
     // node the sum over its elements: the volume-weighted sum of the
     // incident slots' R, with the slot sums shared by the element's nodes
     // (a tet10 per_point corner node sees ~80 slots through ~20 elements).
-    ThreadPool::split(m.nelem, w.pool->size(), tid, b, e);
+    ThreadPool::split(m.nelem, w.pool->active(), tid, b, e);
     for (int el = b; el < e; ++el) {
       Eigen::Map<Mat3> Se(&w.elem_S[9 * static_cast<size_t>(el)]);
       Se.setZero();
@@ -821,7 +835,7 @@ void update_node_rotations(const Model& m, const double* R, Workspace& ws) {
       if (ep[el + 1] > ep[el]) Se *= m.elem_volume[el] / (ep[el + 1] - ep[el]);
     }
     w.pool->barrier();
-    ThreadPool::split(m.ndofnode, w.pool->size(), tid, b, e);
+    ThreadPool::split(m.ndofnode, w.pool->active(), tid, b, e);
     // Four nodes at a time (extract_rotations' lanes): S (4, 9), R (4, 9).
     double S[36], Rb[36];
     int nodes[4], count = 0;

@@ -21,6 +21,16 @@ namespace incise {
 
 struct SolverWork {
   std::unique_ptr<ThreadPool> pool;
+  // The pool's workers stand down (ThreadPool::set_active: the stepping
+  // thread alone, the same bits) while the helpers' CPUs are needed more:
+  // a background factorization still running k frames after its start under
+  // late_factor "skip" (job_late, lagged_refresh), or a helper job this frame
+  // (helper_busy: the cutting stage's cut-ahead).
+  bool job_late = false;
+  bool helper_busy = false;
+  void apply_stand_down() {
+    if (pool) pool->set_active(job_late || helper_busy ? 1 : pool->size());
+  }
   AssemblyPlan plan;
   // solver.substitution_threads 2: the second thread of every substitution
   // (set on every factor slot; engine/solve/split_substitution.h). Null with 1.

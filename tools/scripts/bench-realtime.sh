@@ -71,6 +71,7 @@ coarse="${REALTIME_COARSE:-}"               # solver.coarse (the preset: none; c
 frame_its="${REALTIME_FRAME_ITERATIONS:-}"  # solver.frame_iterations (the preset: 0, no cap; N: CG iterations per frame)
 refine="${REALTIME_REFINE:-}"              # contact.refine_rounds (default 0; 2: the contact correction by projected CG, docs/numerics.md)
 matrix="${REALTIME_MATRIX:-}"              # solver.matrix_precision (the preset: single; double)
+threads="${REALTIME_THREADS:-}"             # solver.threads, the assembly workers (the preset: 1)
 set_opts=""
 add() { if [ -n "$2" ]; then set_opts="$set_opts --set $1=$2"; fi; }
 add solver.tolerance "$tol"
@@ -86,6 +87,7 @@ add solver.coarse "$coarse"
 add solver.frame_iterations "$frame_its"
 add contact.refine_rounds "$refine"
 add solver.matrix_precision "$matrix"
+add solver.threads "$threads"
 # name mesh-or-scene K
 # K: a background job (53 ms at 10k, 185 ms at 20k, 385 ms at 30k once
 # CHOLMOD's OpenMP teams were made serial; single precision, eighth session:

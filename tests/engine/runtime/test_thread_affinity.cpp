@@ -1,7 +1,7 @@
 // solver.affinity "split" (engine/runtime/thread_affinity.h): the stepping thread on
 // the last CPU of the process's set, helpers on the others, and workers that
-// a pinned thread starts back on the whole set; the helper threads and the
-// substitution worker off the stepping CPU. Run on threads of their own:
+// a pinned thread starts back on the whole set; the helper threads, the
+// substitution worker and the assembly workers off the stepping CPU. Run on threads of their own:
 // the test's main thread stays where it was.
 #include <gtest/gtest.h>
 
@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "engine/runtime/helper_thread.h"
+#include "engine/runtime/thread_pool.h"
 #include "engine/solve/split_substitution.h"
 #include "engine/runtime/thread_affinity.h"
 
@@ -87,6 +88,31 @@ TEST(ThreadAffinity, HelpersAndTheSubstitutionWorkerStayOffTheSteppingCpu) {
     ASSERT_TRUE(worker.try_start([](void* p) { static_cast<Ctx*>(p)->cpus = current_cpus(); }, &c));
     worker.wait();
     EXPECT_FALSE(CPU_ISSET(step_cpu, &c.cpus));
+  });
+  stepping.join();
+}
+
+// The assembly workers start before the stepping thread is pinned
+// (prepare_workers) and then leave its CPU at their next job: the stepping
+// thread runs worker 0's share there, so a worker beside it would only run
+// while it waits.
+TEST(ThreadAffinity, AssemblyWorkersLeaveTheSteppingCpu) {
+  const cpu_set_t all = current_cpus();
+  if (CPU_COUNT(&all) < 2) GTEST_SKIP() << "one CPU: nothing is pinned";
+  std::thread stepping([&] {
+    ThreadPool pool(3);
+    cpu_set_t before[3], after[3];
+    pool.run([&](int tid) { before[tid] = current_cpus(); });
+    for (int t = 1; t < 3; ++t) EXPECT_TRUE(CPU_EQUAL(&before[t], &all));  // nothing pinned yet
+    ASSERT_TRUE(set_thread_role(ThreadRole::Stepping));
+    const int step_cpu = stepping_cpu();
+    pool.run([&](int tid) { after[tid] = current_cpus(); });
+    EXPECT_EQ(CPU_COUNT(&after[0]), 1);
+    EXPECT_TRUE(CPU_ISSET(step_cpu, &after[0]));
+    for (int t = 1; t < 3; ++t) {
+      EXPECT_FALSE(CPU_ISSET(step_cpu, &after[t])) << "worker " << t;
+      EXPECT_EQ(CPU_COUNT(&after[t]), CPU_COUNT(&all) - 1) << "worker " << t;
+    }
   });
   stepping.join();
 }

@@ -211,7 +211,7 @@ TEST_F(ScenePatchTest, RealtimePresetSetsTheMeasuredConfiguration) {
   EXPECT_EQ(o.refresh_every, 2);
   EXPECT_DOUBLE_EQ(o.tolerance, 1e-2);
   EXPECT_EQ(o.max_iterations, 100);
-  EXPECT_EQ(s.runtime.threads, 1);
+  EXPECT_EQ(s.runtime.threads, 2);
   EXPECT_EQ(o.rescue_after, 20);
   EXPECT_TRUE(o.skip_late_factor);
   EXPECT_EQ(o.factor_copy, incise::FactorCopy::Half);
@@ -251,11 +251,11 @@ TEST_F(ScenePatchTest, TheDefaultTangentFollowsPoissonsRatio) {
 
 // A key the scene or a patch sets wins over the preset's.
 TEST_F(ScenePatchTest, ExplicitKeysWinOverThePreset) {
-  const Scene s = load(scene(R"("solver": {"preset": "realtime", "refresh_every": 4, "threads": 2},
+  const Scene s = load(scene(R"("solver": {"preset": "realtime", "refresh_every": 4, "threads": 3},
                                  "integrator": {"tangent": "frozen_rotation"})"),
                        sets({"solver.tolerance=1e-5", "integrator.tangent_reuse=0"}));
   EXPECT_EQ(s.solver.refresh_every, 4);
-  EXPECT_EQ(s.runtime.threads, 2);
+  EXPECT_EQ(s.runtime.threads, 3);
   EXPECT_DOUBLE_EQ(s.solver.tolerance, 1e-5);
   EXPECT_FALSE(s.consistent_tangent);
   EXPECT_EQ(s.tangent_reuse, 0.0);
@@ -263,7 +263,7 @@ TEST_F(ScenePatchTest, ExplicitKeysWinOverThePreset) {
   // An explicit policy wins too; the preset's keys that policy does not use are left out.
   const Scene w = load(scene(R"("solver": {"preset": "realtime", "policy": "warped"})"), {});
   EXPECT_EQ(w.solver.policy, SolverPolicy::Warped);
-  EXPECT_EQ(w.runtime.threads, 1);
+  EXPECT_EQ(w.runtime.threads, 2) << "a key warped uses: the preset's";
   EXPECT_EQ(w.origin.count("solver.refresh_every"), 0u);
   const Scene cg = load(scene(R"("solver": {"preset": "realtime"})"), sets({"solver.policy=warped_cg"}));
   EXPECT_DOUBLE_EQ(cg.solver.tolerance, 1e-2) << "an iterative policy keeps the preset's CG keys";

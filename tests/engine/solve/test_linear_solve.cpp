@@ -625,5 +625,58 @@ TEST(SolverPolicies, ParallelAssemblyMatchesSerial) {
     }
 }
 
+// ThreadPool::set_active(1) (the workers stood down while a late background
+// factorization needs their CPU, lagged_refresh): the stepping thread takes
+// the plan's other blocks and ranges in turn, and every result keeps its bits.
+TEST(SolverPolicies, StoodDownWorkersGiveTheSameBits) {
+  const Mesh mesh = make_beam(2.0, 0.5, 0.4, 7, 3, 2, 1);
+  Scene scene = test::basic_scene(2, MaterialModel::Corotated, RotationMode::PerPoint);
+  scene.consistent_tangent = true;
+  const Model m = build_model(mesh, scene);
+  std::vector<double> u(m.ndof()), v(m.ndof());
+  for (int n = 0; n < m.nnode; ++n) {  // a bend plus a twist
+    const double x = m.X[3 * n], y = m.X[3 * n + 1], z = m.X[3 * n + 2];
+    u[3 * n] = -0.3 * x * z + 0.01 * std::sin(7 * y);
+    u[3 * n + 1] = 0.4 * x * z - 0.02 * y;
+    u[3 * n + 2] = 0.5 * x * x - 0.4 * x * y;
+  }
+  for (int d = 0; d < m.ndof(); ++d) v[d] = std::cos(0.3 * d);
+  for (int threads : {2, 3}) {
+    ThreadPool pool(threads);
+    AssemblyPlan plan = make_assembly_plan(m, threads);
+    ASSERT_GT(plan.nseparators(), 0);
+    struct Out {
+      std::vector<double> R, f, K, fv, y;
+      RotationChange rc;
+    } out[2];
+    for (int active : {threads, 1}) {
+      pool.set_active(active);
+      ASSERT_EQ(pool.active(), active);
+      Out& o = out[active == 1];
+      o.R = identity_rotations(m.nrot);
+      o.f.assign(m.ndof(), 0.0);
+      o.K.assign(m.nnz(), 0.0);
+      o.fv.assign(m.ndof(), 0.0);
+      o.y.assign(m.ndof(), 0.0);
+      assemble_corotated(m, plan, pool, u.data(), o.R.data(), o.f.data(), o.K.data(), nullptr, v.data(), o.fv.data());
+      sym_matvec_parallel(m, plan, pool, o.K.data(), v.data(), o.y.data());
+      std::vector<double> x = u;
+      for (double& w : x) w *= 1.1;
+      o.rc = rotation_change(m, plan, pool, x.data(), o.R.data(), 0.01, 1e-4);
+    }
+    EXPECT_EQ(pool.size(), threads);
+    const Out &a = out[0], &b = out[1];
+    EXPECT_EQ(a.R, b.R) << threads << " workers";
+    EXPECT_EQ(a.f, b.f) << threads << " workers";
+    EXPECT_EQ(a.K, b.K) << threads << " workers";
+    EXPECT_EQ(a.fv, b.fv) << threads << " workers";
+    EXPECT_EQ(a.y, b.y) << threads << " workers";
+    EXPECT_GT(a.rc.max, 0.0);
+    EXPECT_EQ(a.rc.max, b.rc.max);
+    EXPECT_EQ(a.rc.rms, b.rc.rms);
+    EXPECT_EQ(a.rc.above, b.rc.above);
+  }
+}
+
 }  // namespace
 }  // namespace incise
