@@ -34,8 +34,10 @@
 # (REALTIME_COPY=float for the float factor itself, docs/numerics.md), substitutions on two
 # threads (REALTIME_SUBSTITUTION_THREADS=1 for one), element tangents kept
 # while F moves less than 1e-2 (REALTIME_TANGENT_REUSE=0 turns it off; compare's
-# exact reference always assembles every element), one assembly thread (the
-# second core runs the factorization at idle priority), and the
+# exact reference always assembles every element), two assembly workers, the
+# second on the helpers' CPUs and stood down while the idle-priority
+# background factorization is late or a cut-ahead runs (REALTIME_THREADS=1
+# for one), and the
 # consistent corotated tangent (integrator.tangent; REALTIME_TANGENT=frozen_rotation
 # for the default), a rescue refactorization after 20 stalled CG iterations
 # (REALTIME_RESCUE) and late background factors skipped instead of waited for
@@ -71,7 +73,7 @@ coarse="${REALTIME_COARSE:-}"               # solver.coarse (the preset: none; c
 frame_its="${REALTIME_FRAME_ITERATIONS:-}"  # solver.frame_iterations (the preset: 0, no cap; N: CG iterations per frame)
 refine="${REALTIME_REFINE:-}"              # contact.refine_rounds (default 0; 2: the contact correction by projected CG, docs/numerics.md)
 matrix="${REALTIME_MATRIX:-}"              # solver.matrix_precision (the preset: single; double)
-threads="${REALTIME_THREADS:-}"             # solver.threads, the assembly workers (the preset: 1)
+threads="${REALTIME_THREADS:-}"             # solver.threads, the assembly workers (the preset: 2)
 set_opts=""
 add() { if [ -n "$2" ]; then set_opts="$set_opts --set $1=$2"; fi; }
 add solver.tolerance "$tol"
