@@ -157,7 +157,7 @@ const json* solver_preset(const std::string& name) {
         // 2: the assembly and CG's products on a helper CPU too; the worker
         // stands down while the background factorization is late or a
         // cut-ahead runs (SolverWork::apply_stand_down). hang-20k median
-        // frame 9.3 -> 7.2 ms (docs/benchmarks.md, "Two assembly workers").
+        // frame 9.1-9.4 -> 7.0-7.3 ms (docs/benchmarks.md, "Two assembly workers").
         {"threads", 2},
         {"rescue_after", 20},
         {"late_factor", "skip"},
