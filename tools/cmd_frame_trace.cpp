@@ -18,7 +18,7 @@ void write_frame_trace(const std::string& path, const std::vector<FrameTiming>& 
       os << ",cut_" << p << "_ms";
     }
     os << ",newton,cg_iterations,substitutions,rescues,converged,factor_age,patch_dofs,tangent_updates,cg_start_residual,cpu_ms,substitution_ms,takeovers,"
-          "contacts,grasp_rows,pgs_sweeps,max_depth,contact_force,bvh_rebuilds,budget_spent,cg_residual,inverted_points,rotation_change,rotation_rms,rotation_above,condensed_dofs,compliance_columns,line_search_halvings,recovery,newton_capped,swept_rows,speculative_rows,held_rows_dropped\n";
+          "contacts,grasp_rows,pgs_sweeps,max_depth,contact_force,bvh_rebuilds,budget_spent,cg_residual,inverted_points,rotation_change,rotation_rms,rotation_above,condensed_dofs,compliance_columns,line_search_halvings,recovery,newton_capped,swept_rows,speculative_rows,held_rows_dropped,assembly_workers\n";
     char buf[32];
     const auto num = [&](double v) {
       std::snprintf(buf, sizeof buf, "%.3f", v);
@@ -35,7 +35,7 @@ void write_frame_trace(const std::string& path, const std::vector<FrameTiming>& 
          << t.grasp_rows << ',' << t.contact_sweeps << ',' << t.max_depth << ',' << t.contact_force << ','
          << t.bvh_rebuilds << ',' << (t.budget_spent ? 1 : 0) << ',' << t.residual << ','
          << t.inverted_points << ',' << t.rotation_change << ',' << t.rotation_rms << ',' << t.rotation_above << ',' << t.condensed_dofs << ',' << t.compliance_columns << ','
-         << t.line_search_halvings << ',' << (t.recovery ? 1 : 0) << ',' << (t.newton_capped ? 1 : 0) << ',' << t.swept_rows << ',' << t.speculative_rows << ',' << t.held_rows_dropped << '\n';
+         << t.line_search_halvings << ',' << (t.recovery ? 1 : 0) << ',' << (t.newton_capped ? 1 : 0) << ',' << t.swept_rows << ',' << t.speculative_rows << ',' << t.held_rows_dropped << ',' << t.assembly_workers << '\n';
     }
   }
   write_file_atomic(path, os.str());

@@ -320,6 +320,7 @@ void assemble_system(const Model& m, State& s, Workspace& ws) {
     const double* K = internal_forces(m, s, ws, x, policy_needs_tangent(m), /*reuse_tangent=*/true,
                                       damp ? v1 : nullptr, damp ? ws.f_damp.data() : nullptr);
     ws.timing.tangent_updates += ws.tangent_cache.updated;
+    ws.timing.assembly_workers = ws.work.pool ? ws.work.pool->active() : 1;
     // rhs = f_ext - f_int - M (a1 + a_ray v1) - b K v1
     for (int d = 0; d < n; ++d) a1[d] += a_ray * v1[d];
     if (m.mass_kind == MassKind::Lumped) {

@@ -54,6 +54,7 @@ struct FrameTiming {
   int solves = 0;             // forward+back substitutions with a Cholesky factor
   double solve_kernel_ms = 0; // time inside those substitutions
   int takeovers = 0;          // their worker's bins the stepping thread did itself (CholmodSolver::set_substitution_worker)
+  int assembly_workers = 0;   // workers of the frame's last assembly: solver.threads, 1 while they stood down (SolverWork::apply_stand_down)
   double residual = 0;        // last relative residual |A du - b| / |b| of CG (0 when direct)
   double start_residual = 1;  // CG's relative residual at its start (< 1: solver.initial_guess "previous" helped)
   bool converged = true;      // CG reached solver.tolerance within solver.max_iterations

@@ -480,9 +480,15 @@ TEST_F(Cli, BenchTraceHasOneRowPerTimedFrameWithTheCutParts) {
   EXPECT_EQ(header.rfind("frame,frame_ms,cut_frame,tool_poses_ms,collision_ms,cutting_ms,", 0), 0u) << header;
   EXPECT_NE(header.find("cut_model_ms"), std::string::npos) << header;
   EXPECT_NE(header.find(",patch_dofs,tangent_updates"), std::string::npos) << header;
-  int rows = 0, cut_rows = 0, first = -1;
+  ASSERT_GE(header.size(), 17u);
+  EXPECT_EQ(header.substr(header.size() - 17), ",assembly_workers") << header;
+  int rows = 0, cut_rows = 0, first = -1, both_workers = 0;
   while (std::getline(is, line)) {
     ++rows;
+    // solver.threads 2 (the default); 1 in a frame whose cut-ahead ran on a helper.
+    const int workers = std::stoi(line.substr(line.rfind(',') + 1));
+    EXPECT_TRUE(workers == 1 || workers == 2) << line;
+    both_workers += workers == 2;
     const int frame = std::stoi(line.substr(0, line.find(',')));
     if (first < 0) first = frame;
     std::stringstream ss(line);
@@ -493,6 +499,7 @@ TEST_F(Cli, BenchTraceHasOneRowPerTimedFrameWithTheCutParts) {
     cut_rows += field == "1";
   }
   EXPECT_EQ(rows, 6);
+  EXPECT_GT(both_workers, 0) << "exact: no background job, so the workers stand down only beside a cut-ahead";
   EXPECT_EQ(first, 2) << "rows are numbered after the warm-up frame";
   EXPECT_EQ(cut_rows, 1);  // the plane cut at 0.1 s, frame 3 or 4
   const Result bad = incise("bench " + path("scene.json") + " --frames 1 --trace " + path("no/such/dir/t.csv"));
